@@ -1,0 +1,51 @@
+/**
+ * @file ImuLayout.h
+ * @brief Sizes and orders of the flat arrays shared with Python (training/layout.py).
+ *
+ * tests/test_layout.py pins these numbers to the Python side through ImuBatchLayout().
+ */
+#ifndef IMU_LAYOUT_H
+#define IMU_LAYOUT_H
+
+#define IMU_LAYOUT_VERSION 1
+
+/** Runtime inputs per sample (rad/s, m/s^2, uT, degC). */
+typedef enum {
+    ImuInGyrX, ImuInGyrY, ImuInGyrZ,
+    ImuInAccX, ImuInAccY, ImuInAccZ,
+    ImuInMagX, ImuInMagY, ImuInMagZ,
+    ImuInTemp,
+    IMU_INPUT_COUNT
+} ImuInput;
+
+/** Runtime outputs per sample. */
+typedef enum {
+    ImuOutRateX, ImuOutRateY, ImuOutRateZ,        /* rad/s */
+    ImuOutAccelX, ImuOutAccelY, ImuOutAccelZ,     /* m/s^2 */
+    ImuOutFieldX, ImuOutFieldY, ImuOutFieldZ,     /* uT */
+    ImuOutRoll, ImuOutPitch, ImuOutYaw,           /* rad, body -> magnetic NED, ZYX */
+    ImuOutHeading,                                /* rad, yaw + declination */
+    ImuOutQw, ImuOutQx, ImuOutQy, ImuOutQz,       /* body -> magnetic NED */
+    ImuOutGainRoll, ImuOutGainPitch, ImuOutGainYaw, /* 1 */
+    IMU_OUTPUT_COUNT
+} ImuOutput;
+
+/** Settings (FMU parameters) in the flat settings array. */
+typedef enum {
+    ImuSetDeclination,       /* rad */
+    ImuSetFieldNorm,         /* uT */
+    ImuSetGyroNoise,         /* rad/s/sqrt(Hz) */
+    ImuSetGyroBiasResidual,  /* rad/s */
+    ImuSetMseTimeConstant,   /* s */
+    ImuSetAngleNoise,        /* rad */
+    ImuSetEnableThermal,     /* 0 or 1 */
+    IMU_SETTING_COUNT
+} ImuSetting;
+
+#define IMU_THERMAL_MAX_DEGREE 3
+/** One triad block: enabled, t0, ts, degree, A[9], g[3][MAX], b[3][MAX+1]. */
+#define IMU_THERMAL_BLOCK (4 + 9 + 3 * IMU_THERMAL_MAX_DEGREE + 3 * (IMU_THERMAL_MAX_DEGREE + 1))
+/** Coefficient array: [version, gyr block, acc block, mag block]. */
+#define IMU_COEFFICIENT_COUNT (1 + 3 * IMU_THERMAL_BLOCK)
+
+#endif

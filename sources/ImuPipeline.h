@@ -1,0 +1,60 @@
+/**
+ * @file ImuPipeline.h
+ * @brief The per-sample processing chain: thermal compensation -> attitude fusion.
+ *
+ * Knows nothing of FMI. The FMU (model.c) and the batch library (ImuBatch.c) both drive it
+ * through these verbs, so both give bit-identical outputs for the same inputs.
+ */
+#ifndef IMU_PIPELINE_H
+#define IMU_PIPELINE_H
+
+#include <stddef.h>
+#include "ImuCommon.h"
+#include "ImuLayout.h"
+#include "ImuThermal.h"
+#include "ImuAttitude.h"
+
+/** Trained coefficients of every stage (unpacked from the flat coefficient array). */
+typedef struct {
+    ImuThermalCoefficients thermal[3]; /* gyr, acc, mag */
+} ImuCoefficients;
+
+/** User settings in user units (the FMU parameters). */
+typedef struct {
+    double declination;      /* rad */
+    double fieldNorm;        /* uT */
+    double gyroNoise;        /* rad/s/sqrt(Hz) */
+    double gyroBiasResidual; /* rad/s */
+    double mseTimeConstant;  /* s */
+    double angleNoise;       /* rad */
+    int enableThermal;       /* 0 or 1 */
+} ImuPipelineSettings;
+
+/** Whole pipeline: settings, coefficients and evolving state in one plain struct (copyable). */
+typedef struct {
+    ImuPipelineSettings settings;
+    ImuCoefficients coefficients;
+    ImuAttitude attitude;
+    double lastTime;   /* s, time of the previous sample */
+    int hasLastTime;   /* 0 before the first sample */
+} ImuPipeline;
+
+/** @brief Unpack a flat coefficient array (layout: ImuLayout.h). @return 0, or -1 on bad size/version. */
+IMU_HIDDEN int ImuCoefficientsFromArray(ImuCoefficients *c, const double *a, size_t n);
+/** @brief Unpack a flat settings array. @return 0, or -1 on bad size. */
+IMU_HIDDEN int ImuPipelineSettingsFromArray(ImuPipelineSettings *s, const double *a, size_t n);
+/** @brief Check settings; on error return -1 and point *message at a static text naming the setting and range. */
+IMU_HIDDEN int ImuPipelineSettingsCheck(const ImuPipelineSettings *s, const char **message);
+/** @brief Set settings and coefficients and reset the state. */
+IMU_HIDDEN void ImuPipelineInitialise(ImuPipeline *p, const ImuPipelineSettings *s, const ImuCoefficients *c);
+/** @brief Return to the state right after ImuPipelineInitialise. */
+IMU_HIDDEN void ImuPipelineReset(ImuPipeline *p);
+/**
+ * @brief Process one sample.
+ * @param t time of the sample [s]; the integration step is t minus the previous sample's time.
+ * @param in IMU_INPUT_COUNT raw inputs (rad/s, m/s^2, uT, degC).
+ * @param out IMU_OUTPUT_COUNT outputs (see ImuLayout.h).
+ */
+IMU_HIDDEN void ImuPipelineUpdate(ImuPipeline *p, double t, const double in[IMU_INPUT_COUNT], double out[IMU_OUTPUT_COUNT]);
+
+#endif
