@@ -57,3 +57,14 @@ def settings_array(overrides: dict[str, float] | None = None) -> list[float]:
             raise KeyError(f"unknown setting '{k}' (known: {', '.join(values)})")
         values[k] = float(v)
     return [values[name] for name, _ in SETTINGS]
+
+
+def identity_block() -> list[float]:
+    """A triad block that changes nothing: enabled, t0=25 °C, ts=1 °C, degree 0, A=I, g=b=0."""
+    a = [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0]
+    return [1.0, 25.0, 1.0, 0.0] + a + [0.0] * (3 * MAX_DEGREE) + [0.0] * (3 * (MAX_DEGREE + 1))
+
+
+def identity_coefficients() -> list[float]:
+    """The whole coefficient array of an untrained model (every stage is the identity)."""
+    return [float(LAYOUT_VERSION)] + identity_block() * len(TRIAD_ORDER)

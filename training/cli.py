@@ -1,0 +1,149 @@
+"""`imufmu`: the command-line interface. Each subcommand makes one library call.
+
+Problems the user can fix (bad file, bad option, bad model) print one line `imufmu VERB: error:
+...` and exit with status 1; usage errors exit with status 2 (argparse).
+"""
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from .errors import ImuFusionError
+
+
+def _existing_file(path: str, what: str) -> Path:
+    """Path of an existing file, else ImuFusionError naming it."""
+    p = Path(path)
+    if not p.is_file():
+        raise ImuFusionError(f"{what} '{path}' not found")
+    return p
+
+
+def _param(text: str) -> tuple[str, float]:
+    """Parse NAME=VALUE (VALUE a number) for --param."""
+    name, sep, value = text.partition("=")
+    try:
+        if not sep:
+            raise ValueError
+        return name.strip(), float(value)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected NAME=NUMBER, got '{text}'") from None
+
+
+def cmd_simulate(args) -> None:
+    """imufmu simulate SCENARIO.toml --out DIR [--seed N]."""
+    from .simulator import simulate_to_dir
+    path = simulate_to_dir(args.scenario, args.out, seed=args.seed)
+    print(f"wrote {path}")
+
+
+def cmd_train(args) -> None:
+    """imufmu train DATA... --out DIR [--seed N] [--degree P]."""
+    from .io import read_imu_csv
+    from .train import train
+    datasets = [read_imu_csv(_existing_file(p, "data file")) for p in args.data]
+    artefact = train(datasets, seed=args.seed, degree=args.degree)
+    out = Path(args.out) / "model.json"
+    artefact.save(out)
+    for note in artefact.notes:
+        print(f"note: {note}")
+    print(f"wrote {out}")
+
+
+def cmd_build_fmu(args) -> None:
+    """imufmu build-fmu --model DIR/model.json --out FILE.fmu."""
+    from fmu.packer import build_fmu
+    from .artefact import coefficients_array, load_artefact, settings_dict
+    artefact = load_artefact(_existing_file(args.model, "model artefact"))
+    path = build_fmu(coefficients_array(artefact), settings_dict(artefact), args.out,
+                     provenance=f"model {args.model}")
+    print(f"wrote {path}")
+
+
+def cmd_validate(args) -> None:
+    """imufmu validate FILE.fmu: exit 1 when there is any problem."""
+    from fmu.validator import validate_fmu
+    problems = validate_fmu(_existing_file(args.fmu, "FMU"))
+    for p in problems:
+        print(f"problem: {p}")
+    if problems:
+        raise ImuFusionError(f"{args.fmu}: {len(problems)} problem(s)")
+    print(f"{args.fmu}: 0 problems")
+
+
+def cmd_run(args) -> None:
+    """imufmu run FILE.fmu DATA --out OUT.csv [--param NAME=VALUE ...]."""
+    from fmu.cosim import run_fmu
+    from .io import read_imu_csv
+    from .pipeline import recording_parameters, write_outputs_csv
+    fmu_path = _existing_file(args.fmu, "FMU")
+    data = read_imu_csv(_existing_file(args.data, "data file"))
+    params = recording_parameters(data) | dict(args.param or [])
+    out = run_fmu(fmu_path, data.t, data.inputs(), parameters=params, progress=True)
+    print(f"wrote {write_outputs_csv(args.out, data.t, out)} ({len(data)} samples)")
+
+
+def cmd_pipeline(args) -> None:
+    """imufmu pipeline [--out DIR] [--seed N]: the main job on the bundled defaults."""
+    from .pipeline import check_summary, run_pipeline
+    from .report import summary_table
+    summary = run_pipeline(Path(args.out), seed=args.seed)
+    print()
+    print(summary_table(summary))
+    print(f"\nFMU: {summary.fmu_path}  (validation problems: {len(summary.validation_problems)})")
+    print(f"report: {Path(args.out) / 'report.md'}")
+    check_summary(summary)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The one argparse parser with a subparser per verb."""
+    p = argparse.ArgumentParser(prog="imufmu", description="ImuFusion: train, build, validate and "
+                                "co-simulate the IMU calibration + attitude FMU.")
+    sub = p.add_subparsers(dest="verb", required=True, metavar="VERB")
+    s = sub.add_parser("simulate", help="simulate a scenario into an imu-csv/1 file")
+    s.add_argument("scenario")
+    s.add_argument("--out", required=True, help="output folder")
+    s.add_argument("--seed", type=int, default=None, help="random seed (default: the scenario's)")
+    s.set_defaults(func=cmd_simulate)
+    s = sub.add_parser("train", help="train the models on calibration recordings")
+    s.add_argument("data", nargs="+", help="imu-csv/1 files (.csv or .csv.gz) with reference columns")
+    s.add_argument("--out", required=True, help="output folder for model.json")
+    s.add_argument("--seed", type=int, default=0)
+    s.add_argument("--degree", type=int, default=2, choices=(0, 1, 2, 3),
+                   help="polynomial degree of G(T) and B(T)")
+    s.set_defaults(func=cmd_train)
+    s = sub.add_parser("build-fmu", help="write the trained model into the FMU sources and build it")
+    s.add_argument("--model", required=True, help="model.json from 'imufmu train'")
+    s.add_argument("--out", required=True, help="FMU file to write")
+    s.set_defaults(func=cmd_build_fmu)
+    s = sub.add_parser("validate", help="validate an FMU (model description, exports, smoke run)")
+    s.add_argument("fmu")
+    s.set_defaults(func=cmd_validate)
+    s = sub.add_parser("run", help="co-simulate a recording through the FMU with fmpy")
+    s.add_argument("fmu")
+    s.add_argument("data")
+    s.add_argument("--out", required=True, help="CSV file for the FMU outputs")
+    s.add_argument("--param", type=_param, action="append", metavar="NAME=VALUE",
+                   help="FMU parameter (repeatable); declination and field_norm default to the sidecar")
+    s.set_defaults(func=cmd_run)
+    s = sub.add_parser("pipeline", help="the main job on the bundled scenarios")
+    s.add_argument("--out", default="out", help="output folder (default: out)")
+    s.add_argument("--seed", type=int, default=0)
+    s.set_defaults(func=cmd_pipeline)
+    return p
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Entry point of the `imufmu` console script; returns the exit status."""
+    args = build_parser().parse_args(argv)
+    try:
+        args.func(args)
+    except ImuFusionError as e:
+        print(f"imufmu {args.verb}: error: {e}", file=sys.stderr)
+        return 1
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

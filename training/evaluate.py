@@ -1,0 +1,105 @@
+"""Accuracy metrics of runtime outputs against simulator or measured truth.
+
+Every metric is an RMS over the samples that count (`eval_mask`, finite reference), in the unit
+users read: °/s for rates, m/s² for specific force, µT for the field, degrees for angles.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .dataset import ImuData
+from .layout import OUTPUTS
+
+_COL = {name: i for i, name in enumerate(OUTPUTS)}
+
+
+def wrap_angle(a: np.ndarray) -> np.ndarray:
+    """Wrap angles [rad] to (−π, π]."""
+    return np.pi - np.mod(np.pi - a, 2.0 * np.pi)
+
+
+def euler_from_quaternion(q: np.ndarray) -> np.ndarray:
+    """(N, 4) [w, x, y, z] body -> nav -> (N, 3) ZYX Euler angles [roll, pitch, yaw] in rad."""
+    w, x, y, z = q.T
+    roll = np.arctan2(2.0 * (w * x + y * z), 1.0 - 2.0 * (x * x + y * y))
+    pitch = np.arcsin(np.clip(2.0 * (w * y - z * x), -1.0, 1.0))
+    yaw = np.arctan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
+    return np.column_stack([roll, pitch, yaw])
+
+
+def reference_euler_magnetic(data: ImuData) -> np.ndarray:
+    """Reference Euler angles relative to magnetic north [rad], (N, 3); yaw = true yaw − declination."""
+    e = euler_from_quaternion(data.ref_q)
+    e[:, 2] = wrap_angle(e[:, 2] - data.declination_rad)
+    return e
+
+
+def _rms(e: np.ndarray) -> float:
+    """RMS over all finite entries of e (any shape); NaN when there are none."""
+    e = e[np.isfinite(e)]
+    return float(np.sqrt(np.mean(e * e))) if e.size else float("nan")
+
+
+def _mask(data: ImuData) -> np.ndarray:
+    """Samples that count for accuracy metrics (eval_mask, or all)."""
+    return np.ones(len(data), bool) if data.eval_mask is None else data.eval_mask.astype(bool)
+
+
+@dataclass(frozen=True)
+class Metrics:
+    """Accuracy of one run; NaN where the data has no reference for that quantity."""
+
+    rate_dps: float       # corrected rate error RMS over all axes [°/s]
+    accel_ms2: float      # corrected specific-force error RMS [m/s²]
+    field_ut: float       # corrected field error RMS [µT]
+    roll_deg: float       # roll error RMS [°]
+    pitch_deg: float      # pitch error RMS [°]
+    yaw_deg: float        # yaw (magnetic) error RMS [°]
+
+    def as_dict(self) -> dict[str, float]:
+        """Plain dict, keys with units."""
+        return {"rate_err_dps": self.rate_dps, "accel_err_ms2": self.accel_ms2,
+                "field_err_ut": self.field_ut, "roll_err_deg": self.roll_deg,
+                "pitch_err_deg": self.pitch_deg, "yaw_err_deg": self.yaw_deg}
+
+
+def _triad_error(out: np.ndarray, names: tuple[str, str, str], ref: np.ndarray | None,
+                 m: np.ndarray) -> float:
+    """RMS of output triad minus reference over mask m (NaN without reference)."""
+    if ref is None:
+        return float("nan")
+    cols = [_COL[n] for n in names]
+    return _rms(out[m][:, cols] - ref[m])
+
+
+def attitude_errors(out: np.ndarray, data: ImuData) -> np.ndarray:
+    """(N, 3) wrapped Euler errors [rad] (estimate − reference, magnetic frame); NaN rows without reference."""
+    est = out[:, [_COL["roll"], _COL["pitch"], _COL["yaw"]]]
+    return wrap_angle(est - reference_euler_magnetic(data))
+
+
+def compute_metrics(out: np.ndarray, data: ImuData) -> Metrics:
+    """Metrics of runtime outputs `out` ((N, len(OUTPUTS)), row k = estimate for sample k)."""
+    m = _mask(data)
+    rate = _triad_error(out, ("rate_x", "rate_y", "rate_z"), data.ref_gyr, m)
+    accel = _triad_error(out, ("accel_x", "accel_y", "accel_z"), data.ref_acc, m)
+    field = _triad_error(out, ("field_x", "field_y", "field_z"), data.ref_mag, m)
+    if data.ref_q is None:
+        ang = [float("nan")] * 3
+    else:
+        e = np.rad2deg(attitude_errors(out, data)[m])
+        ang = [_rms(e[:, i]) for i in range(3)]
+    return Metrics(np.rad2deg(rate), accel, field, *ang)
+
+
+def raw_sensor_metrics(data: ImuData) -> dict[str, float]:
+    """Error RMS of the raw (uncompensated) sensors against the reference, same units as Metrics."""
+    m = _mask(data)
+
+    def err(raw, ref):
+        return float("nan") if ref is None else _rms(raw[m] - ref[m])
+    return {"rate_err_dps": float(np.rad2deg(err(data.gyr, data.ref_gyr))),
+            "accel_err_ms2": err(data.acc, data.ref_acc),
+            "field_err_ut": err(data.mag, data.ref_mag)}

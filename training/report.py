@@ -1,0 +1,93 @@
+"""Human-readable results of the main job: a console table and a Markdown report with PNG plots."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from .evaluate import attitude_errors
+from .layout import OUTPUTS
+
+#: Rows of the summary table: metric key, label with unit.
+ROWS = (("rate_err_dps", "corrected rate error RMS [°/s]"),
+        ("accel_err_ms2", "corrected specific-force error RMS [m/s²]"),
+        ("field_err_ut", "corrected field error RMS [µT]"),
+        ("roll_err_deg", "roll RMSE [°]"),
+        ("pitch_err_deg", "pitch RMSE [°]"),
+        ("yaw_err_deg", "yaw RMSE [°]"))
+
+
+def _fmt(v: float) -> str:
+    """Number with 4 significant digits, '—' for NaN."""
+    return "—" if v is None or not np.isfinite(v) else f"{v:.4g}"
+
+
+def summary_table(summary) -> str:
+    """Markdown table: per scenario and metric the raw value, the corrected value, the bound."""
+    from .pipeline import ACCEPTANCE
+    lines = ["| scenario | metric | raw | ImuFusion FMU | bound | ok |",
+             "|---|---|---:|---:|---:|:-:|"]
+    for s in summary.scenarios:
+        for key, label in ROWS:
+            bound = ACCEPTANCE.get(key)
+            ok = "" if bound is None else ("yes" if s.corrected[key] <= bound else "NO")
+            lines.append(f"| {s.name} | {label} | {_fmt(s.raw.get(key))} | "
+                         f"{_fmt(s.corrected[key])} | {_fmt(bound)} | {ok} |")
+    return "\n".join(lines)
+
+
+def _plot_scenario(s, path: Path) -> Path:
+    """Attitude error and rate error over time for one scenario, raw vs corrected."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    t = s.data.t - s.data.t[0]
+    fig, axes = plt.subplots(2, 1, figsize=(10, 6.5), sharex=True)
+    err = np.rad2deg(attitude_errors(s.out, s.data))
+    err_raw = np.rad2deg(attitude_errors(s.out_raw, s.data))
+    for i, name in enumerate(("roll", "pitch", "yaw")):
+        axes[0].plot(t, err_raw[:, i], lw=0.6, alpha=0.5, label=f"{name} raw sensors")
+        axes[0].plot(t, err[:, i], lw=0.9, label=f"{name} ImuFusion")
+    axes[0].set_ylabel("attitude error [°]")
+    axes[0].legend(ncol=3, fontsize=7)
+    cols = [OUTPUTS.index(c) for c in ("rate_x", "rate_y", "rate_z")]
+    rate_err = np.rad2deg(s.out[:, cols] - s.data.ref_gyr)
+    raw_err = np.rad2deg(s.data.gyr - s.data.ref_gyr)
+    for i, ax in enumerate("xyz"):
+        axes[1].plot(t, raw_err[:, i], lw=0.5, alpha=0.5, label=f"{ax} raw")
+        axes[1].plot(t, rate_err[:, i], lw=0.5, label=f"{ax} corrected")
+    axes[1].set_ylabel("rate error [°/s]")
+    axes[1].set_xlabel("time [s]")
+    axes[1].legend(ncol=3, fontsize=7)
+    fig.suptitle(f"{s.name}: errors against simulator truth")
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
+def write_report(summary, out_dir: Path) -> Path:
+    """Write `report.md` with the summary table, timings and one plot per scenario."""
+    out_dir = Path(out_dir)
+    plots = out_dir / "plots"
+    plots.mkdir(parents=True, exist_ok=True)
+    parts = ["# ImuFusion main job report", "",
+             f"- model artefact: `{summary.model_path}`",
+             f"- FMU: `{summary.fmu_path}`",
+             f"- FMU validation problems: {len(summary.validation_problems)}"
+             + "".join(f"\n  - {p}" for p in summary.validation_problems),
+             "", "## Accuracy against simulator truth", "",
+             "Raw = the uncompensated sensors (rates, specific force, field) and the same attitude "
+             "filter run on them; ImuFusion FMU = the trained FMU co-simulated with fmpy.", "",
+             summary_table(summary), "",
+             "| scenario | samples | FMU vs batch runtime, max abs difference |", "|---|---:|---:|"]
+    parts += [f"| {s.name} | {s.samples} | {s.fmu_vs_batch_max_diff:.3g} |" for s in summary.scenarios]
+    parts += ["", "## Timings", "", "| step | s |", "|---|---:|"]
+    parts += [f"| {k} | {v:.1f} |" for k, v in summary.timings_s.items()]
+    parts += ["", "## Plots", ""]
+    for s in summary.scenarios:
+        png = _plot_scenario(s, plots / f"{s.name}.png")
+        parts += [f"### {s.name}", "", f"![{s.name}](plots/{png.name})", ""]
+    path = out_dir / "report.md"
+    path.write_text("\n".join(parts) + "\n")
+    return path
