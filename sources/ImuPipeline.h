@@ -39,9 +39,9 @@ typedef struct {
     int hasLastTime;   /* 0 before the first sample */
 } ImuPipeline;
 
-/** @brief Unpack a flat coefficient array (layout: ImuLayout.h). @return 0, or -1 on bad size/version. */
+/** @brief Unpack a flat coefficient array (layout: ImuLayout.h). @return 0, -1 on bad size/version, -2 on an invalid triad block (ImuThermalFromBlock). */
 IMU_HIDDEN int ImuCoefficientsFromArray(ImuCoefficients *c, const double *a, size_t n);
-/** @brief Unpack a flat settings array. @return 0, or -1 on bad size. */
+/** @brief Unpack a flat settings array (enable_thermal other than 0/1 is stored as -1 for the check). @return 0, or -1 on bad size. */
 IMU_HIDDEN int ImuPipelineSettingsFromArray(ImuPipelineSettings *s, const double *a, size_t n);
 /** @brief Check settings; on error return -1 and point *message at a static text naming the setting and range. */
 IMU_HIDDEN int ImuPipelineSettingsCheck(const ImuPipelineSettings *s, const char **message);

@@ -1,0 +1,83 @@
+/**
+ * @file ImuBatch.c
+ * @brief Batch entry points of the runtime shared library (the pipeline lives on the stack).
+ */
+#include "ImuBatch.h"
+#include "ImuPipeline.h"
+
+/** @brief Unpack and check coefficients [layout ImuLayout.h]; ImuBatchOk or a negative code. */
+static int ImuBatchCoefficients(ImuCoefficients *c, const double *coefficients, size_t n)
+{
+    if (coefficients == NULL) {
+        return ImuBatchNullPointer;
+    }
+    if (n != IMU_COEFFICIENT_COUNT) {
+        return ImuBatchBadCoefficientCount;
+    }
+    if (coefficients[0] != IMU_LAYOUT_VERSION) {
+        return ImuBatchBadLayoutVersion;
+    }
+    return ImuCoefficientsFromArray(c, coefficients, n) == 0 ? ImuBatchOk : ImuBatchBadCoefficients;
+}
+
+/** @brief Unpack and check settings (user units); ImuBatchOk or a negative code. */
+static int ImuBatchSettings(ImuPipelineSettings *s, const double *settings, size_t n, const char **message)
+{
+    *message = NULL;
+    if (settings == NULL) {
+        return ImuBatchNullPointer;
+    }
+    if (ImuPipelineSettingsFromArray(s, settings, n) != 0) {
+        return ImuBatchBadSettingCount;
+    }
+    return ImuPipelineSettingsCheck(s, message) == 0 ? ImuBatchOk : ImuBatchBadSettings;
+}
+
+/** @brief Check a settings array (user units); *message names a bad setting. */
+int ImuBatchCheckSettings(const double *settings, size_t nSettings, const char **message)
+{
+    ImuPipelineSettings s;
+    const char *text = NULL;
+    const int result = ImuBatchSettings(&s, settings, nSettings, &text);
+    if (message != NULL) {
+        *message = text;
+    }
+    return result;
+}
+
+/** @brief Run the pipeline over nSamples samples (times t [s], inputs/outputs row-major). */
+int ImuBatchRun(const double *coefficients, size_t nCoefficients, const double *settings,
+                size_t nSettings, size_t nSamples, const double *t, const double *inputs,
+                double *outputs)
+{
+    ImuPipeline pipeline;
+    ImuCoefficients c;
+    ImuPipelineSettings s;
+    const char *message;
+    size_t k;
+    int result = ImuBatchCoefficients(&c, coefficients, nCoefficients);
+    if (result == ImuBatchOk) {
+        result = ImuBatchSettings(&s, settings, nSettings, &message);
+    }
+    if (result == ImuBatchOk && nSamples > 0 && (t == NULL || inputs == NULL || outputs == NULL)) {
+        result = ImuBatchNullPointer;
+    }
+    if (result != ImuBatchOk) {
+        return result;
+    }
+    ImuPipelineInitialise(&pipeline, &s, &c);
+    for (k = 0; k < nSamples; k++) {
+        ImuPipelineUpdate(&pipeline, t[k], inputs + k * IMU_INPUT_COUNT, outputs + k * IMU_OUTPUT_COUNT);
+    }
+    return ImuBatchOk;
+}
+
+/** @brief Layout version and the lengths of the coefficient, settings, input and output arrays. */
+void ImuBatchLayout(int *version, int *nCoefficients, int *nSettings, int *nInputs, int *nOutputs)
+{
+    *version = IMU_LAYOUT_VERSION;
+    *nCoefficients = IMU_COEFFICIENT_COUNT;
+    *nSettings = IMU_SETTING_COUNT;
+    *nInputs = IMU_INPUT_COUNT;
+    *nOutputs = IMU_OUTPUT_COUNT;
+}

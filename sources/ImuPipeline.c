@@ -1,0 +1,137 @@
+/**
+ * @file ImuPipeline.c
+ * @brief The per-sample processing chain: thermal compensation -> attitude fusion.
+ */
+#include <math.h>
+#include "ImuPipeline.h"
+#include "ImuMath.h"
+
+/** @brief Unpack a flat coefficient array; 0, -1 on bad size/version, -2 on an invalid block. */
+int ImuCoefficientsFromArray(ImuCoefficients *c, const double *a, size_t n)
+{
+    int i;
+    if (a == NULL || n != IMU_COEFFICIENT_COUNT || a[0] != IMU_LAYOUT_VERSION) {
+        return -1;
+    }
+    for (i = 0; i < 3; i++) {
+        if (ImuThermalFromBlock(&c->thermal[i], a + 1 + i * IMU_THERMAL_BLOCK) != 0) {
+            return -2;
+        }
+    }
+    return 0;
+}
+
+/** @brief Unpack a flat settings array (enable_thermal other than 0/1 becomes -1); 0 or -1 on bad size. */
+int ImuPipelineSettingsFromArray(ImuPipelineSettings *s, const double *a, size_t n)
+{
+    double enable;
+    if (a == NULL || n != IMU_SETTING_COUNT) {
+        return -1;
+    }
+    enable = a[ImuSetEnableThermal];
+    s->declination = a[ImuSetDeclination];
+    s->fieldNorm = a[ImuSetFieldNorm];
+    s->gyroNoise = a[ImuSetGyroNoise];
+    s->gyroBiasResidual = a[ImuSetGyroBiasResidual];
+    s->mseTimeConstant = a[ImuSetMseTimeConstant];
+    s->angleNoise = a[ImuSetAngleNoise];
+    s->enableThermal = enable == 0.0 ? 0 : (enable == 1.0 ? 1 : -1);
+    return 0;
+}
+
+/** @brief 1 if x [any unit] is finite and positive (or non-negative when zero is allowed). */
+static int ImuPipelineInRange(double x, int zeroAllowed)
+{
+    return isfinite(x) && (x > 0.0 || (zeroAllowed && x == 0.0));
+}
+
+/** @brief Check settings; -1 with *message naming the setting and its range, else 0. */
+int ImuPipelineSettingsCheck(const ImuPipelineSettings *s, const char **message)
+{
+    const char *problem = NULL;
+    if (!isfinite(s->declination)) {
+        problem = "declination must be finite [rad]";
+    } else if (!ImuPipelineInRange(s->fieldNorm, 0)) {
+        problem = "field_norm must be finite and > 0 [uT]";
+    } else if (!ImuPipelineInRange(s->gyroNoise, 1)) {
+        problem = "gyro_noise must be finite and >= 0 [rad/s/sqrt(Hz)]";
+    } else if (!ImuPipelineInRange(s->gyroBiasResidual, 1)) {
+        problem = "gyro_bias_residual must be finite and >= 0 [rad/s]";
+    } else if (!ImuPipelineInRange(s->mseTimeConstant, 0)) {
+        problem = "mse_time_constant must be finite and > 0 [s]";
+    } else if (!ImuPipelineInRange(s->angleNoise, 0)) {
+        problem = "angle_noise must be finite and > 0 [rad]";
+    } else if (s->enableThermal != 0 && s->enableThermal != 1) {
+        problem = "enable_thermal must be 0 or 1";
+    }
+    if (message != NULL) {
+        *message = problem;
+    }
+    return problem == NULL ? 0 : -1;
+}
+
+/** @brief Set settings and coefficients and reset the state. */
+void ImuPipelineInitialise(ImuPipeline *p, const ImuPipelineSettings *s, const ImuCoefficients *c)
+{
+    ImuAttitudeSettings a;
+    p->settings = *s;
+    p->coefficients = *c;
+    a.gyroNoise = s->gyroNoise;
+    a.gyroBiasResidual = s->gyroBiasResidual;
+    a.mseTimeConstant = s->mseTimeConstant;
+    a.angleNoise = s->angleNoise;
+    a.fieldNorm = s->fieldNorm;
+    ImuAttitudeInitialise(&p->attitude, &a);
+    ImuPipelineReset(p);
+}
+
+/** @brief Return to the state right after ImuPipelineInitialise. */
+void ImuPipelineReset(ImuPipeline *p)
+{
+    ImuAttitudeReset(&p->attitude);
+    p->lastTime = 0.0;
+    p->hasLastTime = 0;
+}
+
+/** @brief Step [s] from the previous sample to time t [s]: 0 first, 0 if t does not increase. */
+static double ImuPipelineStep(ImuPipeline *p, double t)
+{
+    double dt = 0.0;
+    if (!isfinite(t)) {
+        return 0.0;
+    }
+    if (p->hasLastTime && t > p->lastTime) {
+        dt = t - p->lastTime;
+    }
+    if (!p->hasLastTime || t > p->lastTime) {
+        p->lastTime = t;
+        p->hasLastTime = 1;
+    }
+    return dt;
+}
+
+/** @brief Process one sample at time t [s]: raw inputs in (ImuLayout.h units) -> outputs out. */
+void ImuPipelineUpdate(ImuPipeline *p, double t, const double in[IMU_INPUT_COUNT],
+                       double out[IMU_OUTPUT_COUNT])
+{
+    const double temperature = in[ImuInTemp];
+    const double dt = ImuPipelineStep(p, t);
+    double *gyr = &out[ImuOutRateX], *acc = &out[ImuOutAccelX], *mag = &out[ImuOutFieldX];
+    int i;
+    for (i = 0; i < 3; i++) {
+        const double *raw = &in[ImuInGyrX + 3 * i];
+        double *corrected = &out[ImuOutRateX + 3 * i];
+        if (p->settings.enableThermal) {
+            ImuThermalApply(&p->coefficients.thermal[i], raw, temperature, corrected);
+        } else {
+            corrected[0] = raw[0];
+            corrected[1] = raw[1];
+            corrected[2] = raw[2];
+        }
+    }
+    ImuAttitudeUpdate(&p->attitude, gyr, acc, mag, dt);
+    ImuAttitudeGetEuler(&p->attitude, &out[ImuOutRoll]);
+    out[ImuOutHeading] = ImuWrapAngle(out[ImuOutYaw] + p->settings.declination);
+    ImuAttitudeGetQuaternion(&p->attitude, &out[ImuOutQw]);
+    ImuAttitudeGetGains(&p->attitude, &out[ImuOutGainRoll]);
+}

@@ -1,0 +1,35 @@
+/**
+ * @file ImuThermal.h
+ * @brief Gain/bias temperature model of one sensor triad: x_c = A (G(Tn) .* (x - B(Tn))).
+ *
+ * Tn = (T - t0) / ts (0 if T is NaN), G_i = 1 + sum_{k=1..P} g[i][k-1] Tn^k,
+ * B_i = sum_{k=0..P} b[i][k] Tn^k, A constant symmetric 3x3. Block layout: ImuLayout.h.
+ */
+#ifndef IMU_THERMAL_H
+#define IMU_THERMAL_H
+
+#include "ImuCommon.h"
+#include "ImuLayout.h"
+
+/** Trained coefficients of one triad (units of the triad: rad/s, m/s^2 or uT; degC). */
+typedef struct {
+    int enabled;                                    /* 0: the triad passes through unchanged */
+    double t0;                                      /* degC, reference temperature */
+    double ts;                                      /* degC, temperature scale (> 0) */
+    int degree;                                     /* P, 0..IMU_THERMAL_MAX_DEGREE */
+    double A[3][3];                                 /* 1, constant misalignment/scale matrix */
+    double g[3][IMU_THERMAL_MAX_DEGREE];            /* 1, gain polynomial, g[axis][k-1] */
+    double b[3][IMU_THERMAL_MAX_DEGREE + 1];        /* triad unit, bias polynomial, b[axis][k] */
+} ImuThermalCoefficients;
+
+/**
+ * @brief Unpack one IMU_THERMAL_BLOCK-long block (enabled, t0 [degC], ts [degC], degree, A, g, b).
+ * @return 0, or -1 if enabled is not 0/1, an entry is not finite, or (when enabled) the degree
+ *         is not an integer in 0..IMU_THERMAL_MAX_DEGREE or ts <= 0.
+ */
+IMU_HIDDEN int ImuThermalFromBlock(ImuThermalCoefficients *c, const double *block);
+/** @brief Compensate one sample x (triad unit) at temperature [degC] (NaN -> Tn = 0) into out. */
+IMU_HIDDEN void ImuThermalApply(const ImuThermalCoefficients *c, const double x[3], double temperature,
+                                double out[3]);
+
+#endif

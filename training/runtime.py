@@ -1,0 +1,162 @@
+"""ctypes bridge to the C runtime (sources/Imu*.c) compiled as a small shared library.
+
+The library is the same code that goes into the FMU, so `run_batch` gives the FMU's outputs for
+a whole recording in one call. It is compiled on first use into a cache folder (env
+`IMUFUSION_CACHE`, default `~/.cache/imufusion`) under a name keyed by a hash of the sources,
+the compiler and the flags, and rebuilt only when one of them changes.
+"""
+from __future__ import annotations
+
+import ctypes
+import hashlib
+import os
+import shlex
+import subprocess
+import tempfile
+from functools import lru_cache
+from pathlib import Path
+
+import numpy as np
+
+from .errors import BuildError
+from . import layout
+
+SOURCES_DIR = Path(__file__).resolve().parent.parent / "sources"
+#: Compiler flags of the runtime library (strict: every warning is an error).
+CFLAGS = ("-std=c99", "-O2", "-fPIC", "-shared", "-Wall", "-Wextra", "-Wpedantic", "-Werror")
+LIBS = ("-lm",)
+#: Meaning of the negative return codes of ImuBatchRun (ImuBatch.h, ImuBatchResult).
+ERROR_CODES = {
+    -1: "an array pointer is NULL",
+    -2: f"wrong number of coefficients (expected {layout.N_COEFFICIENTS})",
+    -3: f"coefficient layout version is not {layout.LAYOUT_VERSION}",
+    -4: "invalid temperature-model block (enabled not 0/1, degree not an integer in "
+        f"0..{layout.MAX_DEGREE}, ts <= 0 or a non-finite entry)",
+    -5: f"wrong number of settings (expected {len(layout.SETTINGS)})",
+    -6: "a setting is out of range",
+}
+
+
+def runtime_sources() -> list[Path]:
+    """The C files of the runtime library: every sources/Imu*.c (algorithms and ImuBatch.c)."""
+    return sorted(SOURCES_DIR.glob("Imu*.c"))
+
+
+def _compiler() -> list[str]:
+    """Compiler command: env CC (may hold arguments, e.g. 'ccache gcc') or 'cc'."""
+    return shlex.split(os.environ.get("CC", "cc")) or ["cc"]
+
+
+def _cache_dir() -> Path:
+    """Folder of the compiled libraries (env IMUFUSION_CACHE or ~/.cache/imufusion)."""
+    return Path(os.environ.get("IMUFUSION_CACHE", Path.home() / ".cache" / "imufusion"))
+
+
+def _build_key(sources: list[Path], compiler: list[str]) -> str:
+    """Hash of the sources, every header in sources/, the compiler command and the flags."""
+    h = hashlib.sha256()
+    for part in (*compiler, *CFLAGS, *LIBS):
+        h.update(part.encode() + b"\0")
+    for path in sorted({*sources, *SOURCES_DIR.glob("*.h")}):
+        h.update(path.name.encode() + b"\0" + path.read_bytes() + b"\0")
+    return h.hexdigest()[:20]
+
+
+def build_runtime() -> Path:
+    """Compile the runtime library if the cache has no up-to-date copy; return its path.
+
+    Raises BuildError with the compiler output when compilation fails. Safe to call from
+    parallel processes: each compiles into its own temporary file and renames it atomically.
+    """
+    sources, compiler = runtime_sources(), _compiler()
+    cache = _cache_dir()
+    target = cache / f"libimufusion-{_build_key(sources, compiler)}.so"
+    if target.exists():
+        return target
+    cache.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=target.stem + ".", suffix=".tmp", dir=cache)
+    os.close(fd)
+    cmd = [*compiler, *CFLAGS, "-I", str(SOURCES_DIR), *map(str, sources), "-o", tmp, *LIBS]
+    try:
+        proc = subprocess.run(cmd, capture_output=True, text=True)
+    except OSError as exc:
+        os.unlink(tmp)
+        raise BuildError(f"cannot run the C compiler '{compiler[0]}': {exc}") from exc
+    if proc.returncode != 0:
+        os.unlink(tmp)
+        raise BuildError(f"compiling the C runtime failed ({shlex.join(cmd)}):\n"
+                         f"{proc.stdout}{proc.stderr}")
+    os.replace(tmp, target)
+    return target
+
+
+@lru_cache(maxsize=None)
+def _load(path: str) -> ctypes.CDLL:
+    """Open a compiled runtime library and declare the argument types of its entry points."""
+    lib = ctypes.CDLL(path)
+    dp, sz, ip = ctypes.POINTER(ctypes.c_double), ctypes.c_size_t, ctypes.POINTER(ctypes.c_int)
+    lib.ImuBatchRun.argtypes = [dp, sz, dp, sz, sz, dp, dp, dp]
+    lib.ImuBatchRun.restype = ctypes.c_int
+    lib.ImuBatchCheckSettings.argtypes = [dp, sz, ctypes.POINTER(ctypes.c_char_p)]
+    lib.ImuBatchCheckSettings.restype = ctypes.c_int
+    lib.ImuBatchLayout.argtypes = [ip] * 5
+    lib.ImuBatchLayout.restype = None
+    return lib
+
+
+def load_runtime() -> ctypes.CDLL:
+    """The runtime library (compiled if needed), with ctypes signatures declared."""
+    return _load(str(build_runtime()))
+
+
+def runtime_layout() -> dict:
+    """Array layout of the compiled runtime: version, n_coefficients, n_settings, n_inputs, n_outputs."""
+    values = [ctypes.c_int() for _ in range(5)]
+    load_runtime().ImuBatchLayout(*(ctypes.byref(v) for v in values))
+    keys = ("version", "n_coefficients", "n_settings", "n_inputs", "n_outputs")
+    return {k: v.value for k, v in zip(keys, values)}
+
+
+def _as_array(name: str, value, shape: tuple) -> np.ndarray:
+    """Contiguous float64 copy/view of value; ValueError if its shape differs (-1 = any length)."""
+    a = np.ascontiguousarray(value, dtype=np.float64)
+    if a.ndim != len(shape) or any(s not in (-1, n) for s, n in zip(shape, a.shape)):
+        raise ValueError(f"{name} must have shape {shape} (-1 = any), got {a.shape}")
+    return a
+
+
+def _pointer(a: np.ndarray):
+    """ctypes double pointer to the data of a contiguous float64 array."""
+    return a.ctypes.data_as(ctypes.POINTER(ctypes.c_double))
+
+
+def _error(lib: ctypes.CDLL, code: int, settings: np.ndarray) -> ValueError:
+    """ValueError describing a negative ImuBatchRun code (naming the bad setting if any)."""
+    text = ERROR_CODES.get(code, "unknown error")
+    if code == -6:
+        message = ctypes.c_char_p()
+        lib.ImuBatchCheckSettings(_pointer(settings), settings.size, ctypes.byref(message))
+        text = message.value.decode() if message.value else text
+    return ValueError(f"C runtime rejected the input (code {code}): {text}")
+
+
+def run_batch(coefficients, settings, t, inputs) -> np.ndarray:
+    """Run the C pipeline over a recording.
+
+    coefficients: (103,) flat coefficient array (training.layout); settings: (7,) flat settings
+    array (training.layout.settings_array()); t: (N,) times [s]; inputs: (N, 10) raw
+    gyr [rad/s], acc [m/s²], mag [µT], temp [°C]. Returns (N, 20) outputs in the order of
+    training.layout.OUTPUTS. Raises ValueError on bad shapes or when the runtime rejects the
+    coefficients or settings.
+    """
+    lib = load_runtime()
+    c = _as_array("coefficients", coefficients, (-1,))
+    s = _as_array("settings", settings, (-1,))
+    tt = _as_array("t", t, (-1,))
+    x = _as_array("inputs", inputs, (tt.shape[0], len(layout.INPUTS)))
+    out = np.empty((tt.shape[0], len(layout.OUTPUTS)), dtype=np.float64)
+    code = lib.ImuBatchRun(_pointer(c), c.size, _pointer(s), s.size, tt.shape[0],
+                           _pointer(tt), _pointer(x), _pointer(out))
+    if code != 0:
+        raise _error(lib, code, s)
+    return out
