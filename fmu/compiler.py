@@ -1,0 +1,63 @@
+"""Compile the FMU's platform binary from its sources/ with fmpy's CMake project."""
+from __future__ import annotations
+
+import subprocess
+import tempfile
+from pathlib import Path
+
+import fmpy
+from fmpy.build import create_cmake_settings
+
+from training.errors import BuildError
+
+#: The repository's C sources: exactly what goes into the FMU's sources/ folder (minus EXCLUDED).
+SOURCE_DIR = Path(__file__).resolve().parent.parent / "sources"
+
+#: Repository sources that are not part of the FMI 2.0 FMU: the batch library (ctypes entry point
+#: of `training`), the FMI 3.0 wrapper and a generated coefficient header left in the tree.
+EXCLUDED = frozenset({"ImuBatch.c", "ImuBatch.h", "fmi3Functions.c", "ImuCoefficientsData.h"})
+
+#: Flags added to fmpy's -Wall -Wextra -Wpedantic: the project's C standard, warnings as errors.
+C_FLAGS = "-std=c99 -Werror"
+
+
+def fmu_source_files(source_dir: Path = SOURCE_DIR) -> list[Path]:
+    """The .c and .h files of `source_dir` that go into the FMU, sorted by name."""
+    files = [p for p in source_dir.iterdir() if p.suffix in (".c", ".h") and p.name not in EXCLUDED]
+    return sorted(files, key=lambda p: p.name)
+
+
+def _run(command: list[str], what: str) -> str:
+    """Run `command`; return its combined output or raise BuildError carrying it."""
+    try:
+        result = subprocess.run(command, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    except OSError as e:
+        raise BuildError(f"{what}: cannot run {command[0]}: {e}") from e
+    if result.returncode != 0:
+        raise BuildError(f"{what} failed (exit status {result.returncode}):\n{result.stdout}")
+    return result.stdout
+
+
+def compile_binary(unzipdir: Path) -> Path:
+    """Compile unzipdir/sources into unzipdir/binaries/<platform>/<modelIdentifier>.so.
+
+    unzipdir is an extracted FMU with modelDescription.xml (its SourceFiles list the .c files).
+    The build uses fmpy's CMake project with all warnings as errors, C99 and --no-undefined.
+    Returns the path of the shared library; raises BuildError with the compiler output.
+    """
+    unzipdir = Path(unzipdir)
+    cmake_source = Path(fmpy.__file__).parent / "c-code"
+    with tempfile.TemporaryDirectory(prefix="imufusion-build-") as build:
+        create_cmake_settings(unzipdir, build, all_warnings=True, cmake_options={
+            "CMAKE_C_FLAGS:STRING": C_FLAGS,
+            "CMAKE_SHARED_LINKER_FLAGS:STRING": "-Wl,--no-undefined",
+            "CMAKE_C_STANDARD_LIBRARIES:STRING": "-lm",
+        })
+        _run(["cmake", "-S", str(cmake_source), "-B", build], "CMake configuration")
+        _run(["cmake", "--build", build, "--target", "install", "--config", "Release", "--parallel", "2"],
+             "compiling the FMU binary")
+    model_identifier = fmpy.read_model_description(str(unzipdir / "modelDescription.xml")).coSimulation.modelIdentifier
+    binary = unzipdir / "binaries" / fmpy.platform / (model_identifier + fmpy.sharedLibraryExtension)
+    if not binary.is_file():
+        raise BuildError(f"the build finished but {binary} is missing")
+    return binary

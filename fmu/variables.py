@@ -1,0 +1,119 @@
+"""The one variable table of the ImuFusion FMU.
+
+Every model variable with its value reference (pinned to the `ValueReference` enum of
+sources/config.h by tests/test_fmu.py), causality, variability, type, unit, display unit,
+description and start value. modelDescription.xml, the documentation and the co-simulation
+driver are all generated from this table.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from training.layout import INPUTS, OUTPUTS, SETTINGS
+
+
+@dataclass(frozen=True)
+class Variable:
+    """One FMU variable; `start` is None for outputs (their initial value is calculated)."""
+
+    name: str
+    value_reference: int
+    causality: str      # "input" | "output" | "parameter"
+    variability: str    # "continuous" | "fixed"
+    type: str           # "Real" | "Boolean"
+    unit: str | None
+    display_unit: str | None
+    description: str
+    start: float | bool | None
+
+
+_NED = "body -> magnetic NED, ZYX Euler angles"
+
+
+def _input(name: str, vr: int, unit: str, description: str, start: float) -> Variable:
+    """A continuous Real input."""
+    return Variable(name, vr, "input", "continuous", "Real", unit, None, description, start)
+
+
+def _output(name: str, vr: int, unit: str, description: str, display_unit: str | None = None) -> Variable:
+    """A continuous Real output (initial = calculated, no start value)."""
+    return Variable(name, vr, "output", "continuous", "Real", unit, display_unit, description, None)
+
+
+def _parameter(name: str, vr: int, unit: str | None, description: str, start: float | bool,
+               display_unit: str | None = None, type_: str = "Real") -> Variable:
+    """A fixed parameter (set before initialisation)."""
+    return Variable(name, vr, "parameter", "fixed", type_, unit, display_unit, description, start)
+
+
+_DEFAULTS = dict(SETTINGS)
+
+VARIABLES: tuple[Variable, ...] = (
+    _input("gyr_x", 0, "rad/s", "Raw angular rate about body x (sensor axes)", 0.0),
+    _input("gyr_y", 1, "rad/s", "Raw angular rate about body y (sensor axes)", 0.0),
+    _input("gyr_z", 2, "rad/s", "Raw angular rate about body z (sensor axes)", 0.0),
+    _input("acc_x", 3, "m/s2", "Raw specific force along body x", 0.0),
+    _input("acc_y", 4, "m/s2", "Raw specific force along body y", 0.0),
+    _input("acc_z", 5, "m/s2", "Raw specific force along body z (about -9.81 at rest, level)", -9.80665),
+    _input("mag_x", 6, "uT", "Raw magnetic field along body x", 20.0),
+    _input("mag_y", 7, "uT", "Raw magnetic field along body y", 0.0),
+    _input("mag_z", 8, "uT", "Raw magnetic field along body z", 40.0),
+    _input("temp", 9, "degC", "Sensor temperature (NaN if unknown)", 25.0),
+    _output("rate_x", 10, "rad/s", "Corrected angular rate about body x"),
+    _output("rate_y", 11, "rad/s", "Corrected angular rate about body y"),
+    _output("rate_z", 12, "rad/s", "Corrected angular rate about body z"),
+    _output("accel_x", 13, "m/s2", "Corrected specific force along body x"),
+    _output("accel_y", 14, "m/s2", "Corrected specific force along body y"),
+    _output("accel_z", 15, "m/s2", "Corrected specific force along body z"),
+    _output("field_x", 16, "uT", "Corrected magnetic field along body x"),
+    _output("field_y", 17, "uT", "Corrected magnetic field along body y"),
+    _output("field_z", 18, "uT", "Corrected magnetic field along body z"),
+    _output("roll", 19, "rad", f"Roll angle phi ({_NED})", "deg"),
+    _output("pitch", 20, "rad", f"Pitch angle theta ({_NED})", "deg"),
+    _output("yaw", 21, "rad", f"Yaw angle psi relative to magnetic north ({_NED})", "deg"),
+    _output("heading", 22, "rad", "True heading = yaw + declination", "deg"),
+    _output("q_w", 23, "1", "Attitude quaternion w, Hamilton, body -> magnetic NED"),
+    _output("q_x", 24, "1", "Attitude quaternion x, Hamilton, body -> magnetic NED"),
+    _output("q_y", 25, "1", "Attitude quaternion y, Hamilton, body -> magnetic NED"),
+    _output("q_z", 26, "1", "Attitude quaternion z, Hamilton, body -> magnetic NED"),
+    _output("gain_roll", 27, "1", "Adaptive fusion gain of the roll angle (0 = gyro only, 1 = accelerometer only)"),
+    _output("gain_pitch", 28, "1", "Adaptive fusion gain of the pitch angle (0 = gyro only, 1 = accelerometer only)"),
+    _output("gain_yaw", 29, "1", "Adaptive fusion gain of the yaw angle (0 = gyro only, 1 = magnetometer only)"),
+    _parameter("declination", 30, "rad", "Magnetic declination: heading = yaw + declination",
+               _DEFAULTS["declination"], "deg"),
+    _parameter("field_norm", 31, "uT", "Local earth-field magnitude", _DEFAULTS["field_norm"]),
+    _parameter("gyro_noise", 32, "rad/s/sqrt(Hz)", "White-noise density of the corrected gyro",
+               _DEFAULTS["gyro_noise"]),
+    _parameter("gyro_bias_residual", 33, "rad/s", "Residual gyro bias after calibration",
+               _DEFAULTS["gyro_bias_residual"]),
+    _parameter("mse_time_constant", 34, "s", "Averaging time of the innovation mean-square errors",
+               _DEFAULTS["mse_time_constant"]),
+    _parameter("angle_noise", 35, "rad", "Floor of the accelerometer/magnetometer angle error standard deviation",
+               _DEFAULTS["angle_noise"], "deg"),
+    _parameter("enable_thermal", 36, None, "Apply the gain/bias temperature model",
+               bool(_DEFAULTS["enable_thermal"]), type_="Boolean"),
+)
+
+
+def inputs() -> tuple[Variable, ...]:
+    """The inputs, in training.layout.INPUTS order."""
+    return tuple(v for v in VARIABLES if v.causality == "input")
+
+
+def outputs() -> tuple[Variable, ...]:
+    """The outputs, in training.layout.OUTPUTS order."""
+    return tuple(v for v in VARIABLES if v.causality == "output")
+
+
+def parameters() -> tuple[Variable, ...]:
+    """The parameters, in training.layout.SETTINGS order."""
+    return tuple(v for v in VARIABLES if v.causality == "parameter")
+
+
+def by_name(name: str) -> Variable:
+    """The variable called `name`; KeyError naming the known variables otherwise."""
+    for v in VARIABLES:
+        if v.name == name:
+            return v
+    raise KeyError(f"unknown FMU variable '{name}' (known: {', '.join(v.name for v in VARIABLES)})")
+

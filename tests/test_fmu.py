@@ -1,0 +1,256 @@
+"""The ImuFusion FMI 2.0 FMU: model description, binary, variable table, co-simulation, FMU state."""
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+import numpy as np
+import pytest
+from fmpy import extract, read_model_description
+from fmpy.fmi2 import FMU2Slave
+from fmpy.validation import validate_fmu as fmpy_validate_fmu
+
+from fmu.compiler import SOURCE_DIR, compile_binary
+from fmu.cosim import FmuError, initialised_fmu, run_fmu, step_samples, step_sizes
+from fmu.header import coefficient_header, read_header_arrays
+from fmu.model_description import model_description_xml
+from fmu.packer import build_fmu
+from fmu.validator import FMI2_CS_FUNCTIONS, exported_symbols, validate_fmu
+from fmu.variables import VARIABLES, by_name, inputs, outputs, parameters
+from training.errors import BuildError, ModelError
+from training.layout import (INPUTS, MAX_DEGREE, N_COEFFICIENTS, OUTPUTS, SETTINGS, TRIAD_BLOCK,
+                             identity_coefficients, settings_array, settings_defaults)
+from training.runtime import run_batch
+
+#: FMU (compiled with fmpy's CMake, -O3) and batch library (-O2) run the same C code; only the
+#: compiler's instruction choice may differ, far below this bound.
+GOLDEN_TOLERANCE = 1e-12
+
+#: Settings of the "trained" FMU: every parameter differs from its default.
+TRAINED_SETTINGS = {"declination": 0.05, "field_norm": 48.0, "gyro_noise": 5e-4,
+                    "gyro_bias_residual": 2e-4, "mse_time_constant": 0.5, "angle_noise": 0.02,
+                    "enable_thermal": 1.0}
+
+
+def trained_coefficients() -> np.ndarray:
+    """A non-identity coefficient array: symmetric A near I, degree-2 gain and bias polynomials."""
+    rng = np.random.default_rng(7)
+    c = np.array(identity_coefficients())
+    for triad in range(3):
+        o = 1 + triad * TRIAD_BLOCK
+        c[o + 1:o + 4] = [25.0, 10.0, 2.0]                      # t0 [°C], ts [°C], degree
+        a = np.eye(3) + 0.01 * rng.standard_normal((3, 3))
+        c[o + 4:o + 13] = ((a + a.T) / 2).ravel()
+        g = c[o + 13:o + 13 + 3 * MAX_DEGREE].reshape(3, MAX_DEGREE)
+        g[:, :2] = 1e-3 * rng.standard_normal((3, 2))
+        b = c[o + 13 + 3 * MAX_DEGREE:o + TRIAD_BLOCK].reshape(3, MAX_DEGREE + 1)
+        b[:, :3] = 1e-2 * rng.standard_normal((3, 3))
+    return c
+
+
+def synthetic_recording(n: int = 600) -> tuple[np.ndarray, np.ndarray]:
+    """(t, inputs): a rotating, noisy sensor with jittered 50–200 Hz steps, a 120 s gap and a
+    stretch of unknown (NaN) temperature."""
+    rng = np.random.default_rng(1)
+    dt = rng.uniform(0.005, 0.02, n)
+    dt[n // 2] = 120.0
+    t = np.concatenate([[0.0], np.cumsum(dt[:-1])])
+    s = np.arange(n) / 100.0
+    gyr = np.stack([0.3 * np.sin(1.1 * s), 0.2 * np.cos(0.7 * s), 0.5 * np.sin(0.3 * s)], axis=1)
+    roll, pitch = 0.2 * np.sin(0.5 * s), 0.1 * np.cos(0.4 * s)
+    acc = 9.80665 * np.stack([np.sin(pitch), -np.sin(roll) * np.cos(pitch),
+                              -np.cos(roll) * np.cos(pitch)], axis=1)
+    mag = np.stack([20.0 * np.cos(0.3 * s), -20.0 * np.sin(0.3 * s), np.full(n, 40.0)], axis=1)
+    temp = 20.0 + 10.0 * s / s[-1]
+    temp[n // 4:n // 4 + 20] = np.nan
+    raw = np.column_stack([gyr, acc, mag, temp])
+    raw[:, :9] += 0.01 * rng.standard_normal((n, 9))
+    return t, raw
+
+
+@pytest.fixture(scope="module")
+def identity_fmu(tmp_path_factory) -> Path:
+    """An FMU built from identity coefficients and default settings."""
+    return build_fmu(np.array(identity_coefficients()), settings_defaults(),
+                     tmp_path_factory.mktemp("identity") / "ImuFusion.fmu")
+
+
+@pytest.fixture(scope="module")
+def trained_fmu(tmp_path_factory) -> Path:
+    """An FMU built from non-identity coefficients and non-default settings."""
+    return build_fmu(trained_coefficients(), TRAINED_SETTINGS,
+                     tmp_path_factory.mktemp("trained") / "ImuFusion.fmu", provenance="test coefficients")
+
+
+def test_fmpy_validation_finds_no_problems(identity_fmu):
+    assert fmpy_validate_fmu(str(identity_fmu)) == []
+    assert validate_fmu(identity_fmu) == []
+
+
+def test_binary_exports_exactly_the_fmi2_cosimulation_functions(identity_fmu):
+    assert len(FMI2_CS_FUNCTIONS) == 34
+    assert exported_symbols(identity_fmu) == FMI2_CS_FUNCTIONS
+
+
+def test_variable_table_matches_layout_and_config_enum():
+    assert tuple(v.name for v in inputs()) == INPUTS
+    assert tuple(v.name for v in outputs()) == OUTPUTS
+    assert tuple(v.name for v in parameters()) == tuple(name for name, _ in SETTINGS)
+    assert all(v.start == settings_defaults()[v.name] for v in parameters())
+    enum = dict(re.findall(r"\bvr_(\w+)\s*=\s*(\d+)", (SOURCE_DIR / "config.h").read_text()))
+    assert {name: int(vr) for name, vr in enum.items()} == {v.name: v.value_reference for v in VARIABLES}
+    assert [v.value_reference for v in VARIABLES] == list(range(len(VARIABLES)))
+    with pytest.raises(KeyError, match="unknown FMU variable"):
+        by_name("gyr_w")
+
+
+def test_model_description_follows_table_and_settings(trained_fmu):
+    md = read_model_description(str(trained_fmu))
+    assert md.coSimulation.canHandleVariableCommunicationStepSize
+    assert md.coSimulation.canGetAndSetFMUstate and md.coSimulation.canSerializeFMUstate
+    got = {v.name: (v.valueReference, v.causality, v.type, v.unit) for v in md.modelVariables}
+    assert got == {v.name: (v.value_reference, v.causality, v.type, v.unit) for v in VARIABLES}
+    starts = {v.name: v.start for v in md.modelVariables if v.causality == "parameter"}
+    assert {k: float(v == "true") if k == "enable_thermal" else float(v) for k, v in starts.items()} \
+        == TRAINED_SETTINGS
+    sources = md.buildConfigurations[0].sourceFileSets[0].sourceFiles
+    expected = sorted(p.name for p in SOURCE_DIR.glob("*.c") if p.name not in ("ImuBatch.c", "fmi3Functions.c"))
+    assert sorted(sources) == expected
+
+
+def test_identity_fmu_passes_raw_signals_through(identity_fmu):
+    t, raw = synthetic_recording(200)
+    out = run_fmu(identity_fmu, t, raw)
+    np.testing.assert_allclose(out[:, :9], raw[:, :9], rtol=0, atol=1e-12)
+
+
+def test_fmu_equals_batch_runtime_on_variable_steps(trained_fmu):
+    t, raw = synthetic_recording()
+    fmu_out = run_fmu(trained_fmu, t, raw)
+    batch_out = run_batch(trained_coefficients(), settings_array(TRAINED_SETTINGS), t, raw)
+    assert fmu_out.shape == (t.size, len(OUTPUTS))
+    np.testing.assert_allclose(fmu_out, batch_out, rtol=0, atol=GOLDEN_TOLERANCE, equal_nan=True)
+    np.testing.assert_allclose(fmu_out[:, OUTPUTS.index("heading")],
+                               fmu_out[:, OUTPUTS.index("yaw")] + TRAINED_SETTINGS["declination"],
+                               rtol=0, atol=1e-12)
+
+
+def test_parameters_are_set_by_name(identity_fmu):
+    t, raw = synthetic_recording(50)
+    params = {"declination": -0.1, "enable_thermal": False}
+    fmu_out = run_fmu(identity_fmu, t, raw, parameters=params)
+    batch_out = run_batch(identity_coefficients(), settings_array(params), t, raw)
+    np.testing.assert_allclose(fmu_out, batch_out, rtol=0, atol=GOLDEN_TOLERANCE, equal_nan=True)
+    with pytest.raises(FmuError, match="not a parameter"):
+        run_fmu(identity_fmu, t, raw, parameters={"gyr_x": 1.0})
+
+
+def test_invalid_field_norm_fails_initialisation_naming_it(identity_fmu):
+    t, raw = synthetic_recording(5)
+    with pytest.raises(FmuError, match="fmi2ExitInitializationMode") as info:
+        run_fmu(identity_fmu, t, raw, parameters={"field_norm": -1.0})
+    assert "field_norm" in str(info.value)
+
+
+def test_parameters_cannot_be_set_after_initialisation(identity_fmu):
+    with pytest.raises(FmuError, match="parameters are fixed"):
+        with initialised_fmu(identity_fmu) as fmu:
+            fmu.setReal([by_name("field_norm").value_reference], [40.0])
+
+
+def test_fmu_state_restore_continues_identically(trained_fmu):
+    t, raw = synthetic_recording(300)
+    h, k = step_sizes(t, 0.01), 120
+    with initialised_fmu(trained_fmu, t[0], TRAINED_SETTINGS) as fmu:
+        head = step_samples(fmu, t[:k], raw[:k], h[:k])
+        state = fmu.getFMUstate()
+        first = step_samples(fmu, t[k:], raw[k:], h[k:])
+        fmu.setFMUstate(state)
+        second = step_samples(fmu, t[k:], raw[k:], h[k:])
+        fmu.freeFMUstate(state)
+    np.testing.assert_array_equal(first, second)
+    np.testing.assert_array_equal(np.vstack([head, first]),
+                                  run_fmu(trained_fmu, t, raw, parameters=TRAINED_SETTINGS))
+
+
+def test_serialized_fmu_state_restores_identically(trained_fmu):
+    t, raw = synthetic_recording(300)
+    h, k = step_sizes(t, 0.01), 200
+    with initialised_fmu(trained_fmu, t[0], TRAINED_SETTINGS) as fmu:
+        step_samples(fmu, t[:k], raw[:k], h[:k])
+        state = fmu.getFMUstate()
+        data = fmu.serializeFMUstate(state)
+        fmu.freeFMUstate(state)
+        first = step_samples(fmu, t[k:], raw[k:], h[k:])
+        restored = fmu.deSerializeFMUstate(data)
+        fmu.setFMUstate(restored)
+        fmu.freeFMUstate(restored)
+        second = step_samples(fmu, t[k:], raw[k:], h[k:])
+    np.testing.assert_array_equal(first, second)
+
+
+def test_header_round_trips_coefficients_exactly():
+    c = trained_coefficients()
+    c[-4:] = [0.1, 1.0 / 3.0, 5e-324, -0.0]
+    text = coefficient_header(c, {"field_norm": 1.0 / 7.0}, "{guid}", "test */ provenance")
+    coefficients, settings, guid = read_header_arrays(text)
+    assert coefficients.tobytes() == c.tobytes()
+    assert settings.tolist() == settings_array({"field_norm": 1.0 / 7.0})
+    assert guid == "{guid}"
+    assert "test * / provenance" in text
+
+
+def test_wrong_coefficient_length_is_a_model_error(tmp_path):
+    with pytest.raises(ModelError, match=str(N_COEFFICIENTS)):
+        coefficient_header(np.zeros(N_COEFFICIENTS - 1), {}, "{guid}", "")
+    with pytest.raises(ModelError):
+        build_fmu(np.zeros(N_COEFFICIENTS + 1), {}, tmp_path / "bad.fmu")
+    with pytest.raises(ModelError, match="unknown setting"):
+        build_fmu(np.array(identity_coefficients()), {"gain": 1.0}, tmp_path / "bad.fmu")
+    assert not (tmp_path / "bad.fmu").exists()
+
+
+def test_compiler_warning_is_a_build_error_with_the_output(tmp_path):
+    (tmp_path / "sources").mkdir()
+    # Only a -Wextra warning (unused parameter): the build treats warnings as errors.
+    (tmp_path / "sources" / "warns.c").write_text("int warns(int unused_argument) { return 0; }\n")
+    (tmp_path / "modelDescription.xml").write_text(
+        model_description_xml({}, "{guid}", "warns", source_files=["warns.c"]))
+    with pytest.raises(BuildError, match="unused_argument"):
+        compile_binary(tmp_path)
+
+
+def test_reset_returns_to_the_instantiated_state(trained_fmu):
+    t, raw = synthetic_recording(100)
+    h = step_sizes(t, 0.01)
+    with initialised_fmu(trained_fmu, t[0], TRAINED_SETTINGS) as fmu:
+        first = step_samples(fmu, t, raw, h)
+        fmu.reset()
+        assert fmu.getReal([by_name("field_norm").value_reference]) == [TRAINED_SETTINGS["field_norm"]]
+        fmu.setupExperiment(startTime=t[0])
+        fmu.enterInitializationMode()
+        fmu.exitInitializationMode()
+        second = step_samples(fmu, t, raw, h)
+    np.testing.assert_array_equal(first, second)
+
+
+def test_instantiate_rejects_a_foreign_guid(identity_fmu, tmp_path):
+    md = read_model_description(str(identity_fmu))
+    fmu = FMU2Slave(guid="{not-this-fmu}", unzipDirectory=extract(str(identity_fmu), tmp_path),
+                    modelIdentifier=md.coSimulation.modelIdentifier)
+    with pytest.raises(Exception, match="Failed to instantiate"):
+        fmu.instantiate()
+    fmu.freeLibrary()
+
+
+def test_start_values_in_binary_match_model_description(trained_fmu, tmp_path):
+    md = read_model_description(str(trained_fmu))
+    fmu = FMU2Slave(guid=md.guid, unzipDirectory=extract(str(trained_fmu), tmp_path),
+                    modelIdentifier=md.coSimulation.modelIdentifier)
+    fmu.instantiate()
+    reals = [v for v in md.modelVariables if v.start is not None and v.type == "Real"]
+    got = fmu.getReal([v.valueReference for v in reals])
+    thermal = fmu.getBoolean([by_name("enable_thermal").value_reference])
+    fmu.freeInstance()
+    assert got == [float(v.start) for v in reals]
+    assert thermal == [1]
