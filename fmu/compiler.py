@@ -13,9 +13,15 @@ from training.errors import BuildError
 #: The repository's C sources: exactly what goes into the FMU's sources/ folder (minus EXCLUDED).
 SOURCE_DIR = Path(__file__).resolve().parent.parent / "sources"
 
-#: Repository sources that are not part of the FMI 2.0 FMU: the batch library (ctypes entry point
-#: of `training`), the FMI 3.0 wrapper and a generated coefficient header left in the tree.
-EXCLUDED = frozenset({"ImuBatch.c", "ImuBatch.h", "fmi3Functions.c", "ImuCoefficientsData.h"})
+#: Repository sources that are not part of the FMI 2.0 FMU: the FMI 3.0 wrapper and a generated
+#: coefficient header left in the tree. The batch library's files (ImuBatch*.c/.h, the ctypes
+#: entry points of `training`) are excluded by `_is_batch_file`.
+EXCLUDED = frozenset({"fmi3Functions.c", "ImuCoefficientsData.h"})
+
+
+def _is_batch_file(path: Path) -> bool:
+    """True for the batch-library-only files (ImuBatch.c, ImuBatchElm.c, ...)."""
+    return path.name.startswith("ImuBatch")
 
 #: Flags added to fmpy's -Wall -Wextra -Wpedantic: the project's C standard, warnings as errors.
 C_FLAGS = "-std=c99 -Werror"
@@ -23,7 +29,8 @@ C_FLAGS = "-std=c99 -Werror"
 
 def fmu_source_files(source_dir: Path = SOURCE_DIR) -> list[Path]:
     """The .c and .h files of `source_dir` that go into the FMU, sorted by name."""
-    files = [p for p in source_dir.iterdir() if p.suffix in (".c", ".h") and p.name not in EXCLUDED]
+    files = [p for p in source_dir.iterdir() if p.suffix in (".c", ".h") and p.name not in EXCLUDED
+             and not _is_batch_file(p)]
     return sorted(files, key=lambda p: p.name)
 
 

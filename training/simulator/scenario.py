@@ -1,0 +1,250 @@
+"""Scenario files (TOML): what to simulate — rate, seed, earth field, start state, the sensor
+unit and a sequence of motion segments. See scenarios/calibration.toml for an annotated example.
+
+Layout:
+    sensor = "sensors/mems_grade.toml"   # sensor file relative to the scenario, or a [sensor] table
+    [scenario]     name, rate_hz, seed, notes
+    [earth_field]  norm_ut, dip_deg, declination_deg
+    [start]        attitude_deg = [yaw, pitch, roll], temp_c, warmup_rise_c, warmup_tau_s
+    [[segment]]    type = hold | positions | rotations | handheld | figure8, per-type keys,
+                   temp_end_c (optional: ramp linearly to this temperature over the segment)
+"""
+from __future__ import annotations
+
+import re
+import tomllib
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import ScenarioError
+from .earth import EarthField
+from .segments import AXIS_VECTORS, Figure8, Handheld, Hold, Positions, Rotations, Segment
+from .sensors import MagDistortion, SensorModel, TriadErrors
+from .temperature import TemperatureProfile
+from .toml_table import TomlTable
+
+#: Triad -> (unit suffix used in TOML key names, factor from that unit to SI).
+TRIAD_UNITS = {"gyr": ("dps", np.pi / 180.0), "acc": ("ms2", 1.0), "mag": ("ut", 1.0)}
+#: Handheld pitch bound when not given [deg]: keeps ZYX Euler angles far from gimbal lock.
+DEFAULT_MAX_PITCH_DEG = 70.0
+#: Power-on warm-up time constant when not given [s] (typical of a MEMS package on a board).
+DEFAULT_WARMUP_TAU_S = 60.0
+#: Scenario names become file names.
+NAME_PATTERN = re.compile(r"^[A-Za-z0-9_.-]+$")
+#: Tolerance on the symmetry of the soft-iron matrix [1].
+SYMMETRY_TOLERANCE = 1e-12
+
+
+@dataclass(frozen=True)
+class Scenario:
+    """A validated scenario. Angles in rad, temperatures in °C, times in s."""
+
+    path: Path
+    name: str
+    rate_hz: float
+    seed: int
+    notes: str
+    earth: EarthField
+    sensor: SensorModel
+    start_attitude: np.ndarray          # (3,) ZYX [yaw, pitch, roll] rad
+    start_temp_c: float
+    warmup_rise_c: float
+    warmup_tau_s: float
+    segments: tuple[Segment, ...]
+
+    @property
+    def duration_s(self) -> float:
+        """Total simulated time [s]."""
+        return float(sum(s.duration_s for s in self.segments))
+
+    def temperature_profile(self) -> TemperatureProfile:
+        """Breakpoints at the segment boundaries; a segment without temp_end_c holds."""
+        times, temps = [0.0], [self.start_temp_c]
+        for segment in self.segments:
+            times.append(times[-1] + segment.duration_s)
+            temps.append(temps[-1] if segment.temp_end_c is None else segment.temp_end_c)
+        return TemperatureProfile(np.array(times), np.array(temps), self.warmup_rise_c,
+                                  self.warmup_tau_s)
+
+
+def load_scenario(path: str | Path) -> Scenario:
+    """Read and validate a scenario file; ScenarioError names the file and the key."""
+    path = Path(path)
+    top = TomlTable(_read_toml(path), path, "top level")
+    head = top.table("scenario")
+    name = head.string("name")
+    if not NAME_PATTERN.match(name):
+        raise head.fail("name", f"use only letters, digits, '_', '-', '.', got {name!r}")
+    rate_hz = head.number("rate_hz", positive=True)
+    seed = head.integer("seed")
+    notes = head.string("notes", default="", allow_empty=True)
+    head.close()
+    earth = _earth_field(top.table("earth_field"))
+    start = top.table("start")
+    attitude = np.deg2rad(start.array("attitude_deg", (3,), default=[0.0, 0.0, 0.0]))
+    temp_c = start.number("temp_c", low=-100.0, high=200.0)
+    rise_c = start.number("warmup_rise_c", default=0.0, low=-50.0, high=50.0)
+    tau_s = start.number("warmup_tau_s", default=DEFAULT_WARMUP_TAU_S, positive=True)
+    start.close()
+    sensor = _sensor(top, path)
+    segments = tuple(_segment(t) for t in top.tables("segment"))
+    top.close()
+    return Scenario(path, name, rate_hz, seed, notes, earth, sensor, attitude, temp_c, rise_c,
+                    tau_s, segments)
+
+
+def _read_toml(path: Path) -> dict:
+    """Parse a TOML file; ScenarioError when missing or malformed."""
+    try:
+        with open(path, "rb") as f:
+            return tomllib.load(f)
+    except FileNotFoundError:
+        raise ScenarioError(f"{path}: scenario file not found") from None
+    except tomllib.TOMLDecodeError as e:
+        raise ScenarioError(f"{path}: not valid TOML: {e}") from None
+
+
+def _earth_field(t: TomlTable) -> EarthField:
+    """[earth_field]: norm_ut > 0, dip_deg in [−90, 90], declination_deg in [−180, 180]."""
+    field = EarthField(t.number("norm_ut", positive=True),
+                       t.number("dip_deg", low=-90.0, high=90.0),
+                       t.number("declination_deg", low=-180.0, high=180.0))
+    t.close()
+    return field
+
+
+# ----------------------------------------------------------------------------- sensor
+
+def _sensor(top: TomlTable, scenario_path: Path) -> SensorModel:
+    """`sensor` is a path relative to the scenario file or an inline table."""
+    if isinstance(top.raw.get("sensor"), str):
+        file = scenario_path.parent / top.string("sensor")
+        return _sensor_from_table(TomlTable(_read_toml(file), file, "top level"))
+    return _sensor_from_table(top.table("sensor"))
+
+
+def _sensor_from_table(t: TomlTable) -> SensorModel:
+    """Keys: name, [gyr], [acc], [mag]."""
+    name = t.string("name")
+    tables = {k: t.table(k) for k in TRIAD_UNITS}
+    triads = {k: _triad(table, k) for k, table in tables.items()}
+    distortion = _mag_distortion(tables["mag"])
+    for table in (*tables.values(), t):
+        table.close()
+    return SensorModel(name, triads["gyr"], triads["acc"], triads["mag"], distortion)
+
+
+def _triad(t: TomlTable, triad: str) -> TriadErrors:
+    """Generic triad errors; key names carry the unit (dps, ms2, ut). Errors default to 0,
+    lsb and range are required. Only the gyroscope has a temperature-rate term."""
+    u, si = TRIAD_UNITS[triad]
+    zero = [0.0, 0.0, 0.0]
+    temp_rate = (t.array("temp_rate_dps_per_c_per_min", (3,), default=zero) * si * 60.0
+                 if triad == "gyr" else np.zeros(3))       # per (°C/min) -> per (°C/s)
+    errors = TriadErrors(
+        bias=t.array(f"bias_{u}", (3,), default=zero) * si,
+        bias_t1=t.array(f"bias_t1_{u}_per_c", (3,), default=zero) * si,
+        bias_t2=t.array(f"bias_t2_{u}_per_c2", (3,), default=zero) * si,
+        scale=t.array("scale", (3,), default=zero),
+        scale_t1=t.array("scale_t1_per_c", (3,), default=zero),
+        scale_t2=t.array("scale_t2_per_c2", (3,), default=zero),
+        misalignment=_symmetric_off_diagonal(np.deg2rad(t.array("misalign_deg", (3,), default=zero))),
+        temp_rate=temp_rate,
+        noise_density=t.number(f"noise_density_{u}_per_sqrt_hz", default=0.0, low=0.0) * si,
+        bias_walk=t.number(f"bias_walk_{u}_per_sqrt_s", default=0.0, low=0.0) * si,
+        lsb=t.number(f"lsb_{u}", positive=True) * si,
+        full_scale=t.number(f"range_{u}", positive=True) * si)
+    return errors
+
+
+def _symmetric_off_diagonal(xy_xz_yz: np.ndarray) -> np.ndarray:
+    """Symmetric (3, 3) matrix with zero diagonal from its off-diagonals [m_xy, m_xz, m_yz]."""
+    m_xy, m_xz, m_yz = xy_xz_yz
+    return np.array([[0.0, m_xy, m_xz], [m_xy, 0.0, m_yz], [m_xz, m_yz, 0.0]])
+
+
+def _mag_distortion(t: TomlTable) -> MagDistortion:
+    """hard_iron_ut (3,), soft_iron (3, 3) symmetric positive definite (default I),
+    nonlinear_cubic_ut (3, 3) (default 0), nonlinear_ref_ut > 0 (default 50)."""
+    soft = t.array("soft_iron", (3, 3), default=np.eye(3).tolist())
+    if np.max(np.abs(soft - soft.T)) > SYMMETRY_TOLERANCE or np.min(np.linalg.eigvalsh(soft)) <= 0:
+        raise t.fail("soft_iron", "must be symmetric positive definite")
+    return MagDistortion(t.array("hard_iron_ut", (3,), default=[0.0, 0.0, 0.0]), soft,
+                         t.array("nonlinear_cubic_ut", (3, 3), default=np.zeros((3, 3)).tolist()),
+                         t.number("nonlinear_ref_ut", default=50.0, positive=True))
+
+
+# ----------------------------------------------------------------------------- segments
+
+def _segment(t: TomlTable) -> Segment:
+    """One [[segment]] table, dispatched on its `type`."""
+    kind = t.string("type", choices=tuple(SEGMENT_READERS))
+    common = {"temp_end_c": t.optional_number("temp_end_c"), "label": f"{t.path}: [{t.where}]"}
+    segment = SEGMENT_READERS[kind](t, common)
+    t.close()
+    return segment
+
+
+def _hold(t: TomlTable, common: dict) -> Hold:
+    """type = "hold": duration_s."""
+    return Hold(hold_s=t.number("duration_s", positive=True), **common)
+
+
+def _positions(t: TomlTable, common: dict) -> Positions:
+    """type = "positions": attitudes_deg (M, 3) [yaw, pitch, roll], hold_s, move_s."""
+    return Positions(attitudes=np.deg2rad(t.array("attitudes_deg", (None, 3))),
+                     hold_s=t.number("hold_s", positive=True),
+                     move_s=t.number("move_s", positive=True), **common)
+
+
+def _rotations(t: TomlTable, common: dict) -> Rotations:
+    """type = "rotations": axes, rates_dps (signed), angle_deg, ramp_s, rest_s."""
+    rates = t.array("rates_dps")
+    if np.any(rates == 0):
+        raise t.fail("rates_dps", "rates must be non-zero (the sign gives the direction)")
+    segment = Rotations(axes=t.strings("axes", tuple(AXIS_VECTORS)), rates=np.deg2rad(rates),
+                        angle=np.deg2rad(t.number("angle_deg", positive=True)),
+                        ramp_s=t.number("ramp_s", positive=True),
+                        rest_s=t.number("rest_s", positive=True), **common)
+    if segment.angle / np.max(np.abs(segment.rates)) < segment.ramp_s:
+        raise t.fail("ramp_s", "must be at most angle_deg / max |rates_dps| (the fastest turn "
+                               "must reach its rate)")
+    return segment
+
+
+def _handheld(t: TomlTable, common: dict) -> Handheld:
+    """type = "handheld": duration_s, rest_s, move_s, ramp_s, rate_rms_dps,
+    accel_rms_ms2, band_hz, max_pitch_deg (default 70)."""
+    segment = Handheld(
+        total_s=t.number("duration_s", positive=True), rest_s=t.number("rest_s", positive=True),
+        move_s=t.number("move_s", positive=True), ramp_s=t.number("ramp_s", positive=True),
+        rate_rms=np.deg2rad(t.number("rate_rms_dps", positive=True)),
+        accel_rms=t.number("accel_rms_ms2", low=0.0),
+        band_hz=tuple(t.array("band_hz", (2,), positive=True)),
+        max_pitch=np.deg2rad(t.number("max_pitch_deg", default=DEFAULT_MAX_PITCH_DEG,
+                                      positive=True, high=85.0)), **common)
+    if segment.band_hz[0] >= segment.band_hz[1]:
+        raise t.fail("band_hz", f"expected [low, high] with low < high, got {list(segment.band_hz)}")
+    if 2.0 * segment.ramp_s > segment.move_s:
+        raise t.fail("ramp_s", "must be at most half of move_s")
+    if segment.total_s < segment.move_s + 2.0 * segment.rest_s:
+        raise t.fail("duration_s", "must hold at least rest_s + move_s + rest_s")
+    return segment
+
+
+def _figure8(t: TomlTable, common: dict) -> Figure8:
+    """type = "figure8": length_m, width_m, period_s, laps, ramp_s."""
+    segment = Figure8(length_m=t.number("length_m", positive=True),
+                      width_m=t.number("width_m", positive=True),
+                      period_s=t.number("period_s", positive=True),
+                      laps=t.integer("laps", low=1), ramp_s=t.number("ramp_s", positive=True),
+                      **common)
+    if segment.ramp_s > segment.laps * segment.period_s:
+        raise t.fail("ramp_s", "must be at most laps * period_s")
+    return segment
+
+
+SEGMENT_READERS = {"hold": _hold, "positions": _positions, "rotations": _rotations,
+                   "handheld": _handheld, "figure8": _figure8}

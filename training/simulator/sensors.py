@@ -1,0 +1,119 @@
+"""Sensor error model: what a MEMS gyroscope, accelerometer and magnetometer make of the truth.
+
+Per triad (units of the triad: rad/s, m/s² or µT; ΔT = T − 25 °C):
+
+    x = S(T) · C · x_true + b(T) + k_rate · dT/dt + w(t) + n,   then saturation and quantisation
+
+    S(T) = diag(1 + s + s1 ΔT + s2 ΔT²)       scale factor and its temperature drift
+    C    = I + M, M symmetric, zero diagonal   axis misalignment [rad]. The body frame is *defined*
+                                               as the orthogonal frame closest to the sensor axes;
+                                               the antisymmetric part of a small misalignment is a
+                                               rotation of that frame, so only the symmetric part
+                                               is an error.
+    b(T) = b0 + b1 ΔT + b2 ΔT²                 bias and its temperature drift
+    k_rate · dT/dt                             bias from the temperature rate (gyroscope only)
+    w(t)                                       bias random walk, w(0) = 0, increments σ_w √Δt N(0,1)
+    n                                          white noise, σ = density · √rate_hz
+
+The magnetometer first distorts the body field (hard/soft iron and a cubic nonlinearity):
+
+    v = W · m_b,   m' = v + h + d(v),   d_i(v) = Σ_j c_ij (v_j / m_ref)³   [µT]
+
+so a field of m_ref along axis j adds c_ij to axis i; then the generic triad errors apply to m'.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+#: Temperature [°C] at which the temperature polynomials are expanded (ΔT = T − 25 °C).
+REFERENCE_TEMP_C = 25.0
+
+
+@dataclass(frozen=True)
+class TriadErrors:
+    """Error parameters of one triad, in the triad's SI unit u (rad/s, m/s², µT).
+
+    Vectors are (3,) per axis: bias [u], bias_t1 [u/°C], bias_t2 [u/°C²], scale [1],
+    scale_t1 [1/°C], scale_t2 [1/°C²], temp_rate [u/(°C/s)]. misalignment (3, 3) [rad]
+    symmetric with zero diagonal. Scalars: noise_density [u/√Hz], bias_walk [u/√s], lsb [u],
+    full_scale [u] (saturation at ±full_scale).
+    """
+
+    bias: np.ndarray
+    bias_t1: np.ndarray
+    bias_t2: np.ndarray
+    scale: np.ndarray
+    scale_t1: np.ndarray
+    scale_t2: np.ndarray
+    misalignment: np.ndarray
+    temp_rate: np.ndarray
+    noise_density: float
+    bias_walk: float
+    lsb: float
+    full_scale: float
+
+    def apply(self, truth: np.ndarray, temp: np.ndarray, temp_rate: np.ndarray, rate_hz: float,
+              rng: np.random.Generator) -> np.ndarray:
+        """Measured triad (N, 3) from the true one (N, 3), temperature (N,) [°C] and its rate
+        (N,) [°C/s] at `rate_hz` [Hz]."""
+        dt_c = (temp - REFERENCE_TEMP_C)[:, None]
+        gain = 1.0 + self.scale + self.scale_t1 * dt_c + self.scale_t2 * dt_c ** 2
+        bias = self.bias + self.bias_t1 * dt_c + self.bias_t2 * dt_c ** 2
+        coupled = truth @ (np.eye(3) + self.misalignment).T
+        x = gain * coupled + bias + self.temp_rate * temp_rate[:, None]
+        x = x + self._random_walk(truth.shape[0], rate_hz, rng) + self._white(truth.shape, rate_hz, rng)
+        return self.digitise(x)
+
+    def _random_walk(self, n: int, rate_hz: float, rng: np.random.Generator) -> np.ndarray:
+        """Bias random walk (n, 3), starting at 0, increments σ_w √Δt N(0, 1)."""
+        steps = rng.standard_normal((n, 3)) * (self.bias_walk / np.sqrt(rate_hz))
+        steps[0] = 0.0
+        return np.cumsum(steps, axis=0)
+
+    def _white(self, shape: tuple[int, ...], rate_hz: float, rng: np.random.Generator) -> np.ndarray:
+        """White noise with per-sample σ = density · √rate_hz."""
+        return rng.standard_normal(shape) * (self.noise_density * np.sqrt(rate_hz))
+
+    def digitise(self, x: np.ndarray) -> np.ndarray:
+        """Saturate at ±full_scale, then round to a multiple of the LSB."""
+        return self.lsb * np.round(np.clip(x, -self.full_scale, self.full_scale) / self.lsb)
+
+
+@dataclass(frozen=True)
+class MagDistortion:
+    """Magnetic distortion around the sensor: hard iron h (3,) [µT], soft iron W (3, 3)
+    symmetric [1], cubic coefficients c (3, 3) [µT] at reference field cubic_ref_ut [µT]."""
+
+    hard_iron: np.ndarray
+    soft_iron: np.ndarray
+    cubic: np.ndarray
+    cubic_ref_ut: float
+
+    def apply(self, field: np.ndarray) -> np.ndarray:
+        """Distorted field (N, 3) [µT]: v = W m, m' = v + h + c · (v / m_ref)³ (element-wise cube)."""
+        v = field @ self.soft_iron.T
+        return v + self.hard_iron + (v / self.cubic_ref_ut) ** 3 @ self.cubic.T
+
+
+@dataclass(frozen=True)
+class SensorModel:
+    """One physical sensor unit: its name and the errors of its three triads."""
+
+    name: str
+    gyr: TriadErrors
+    acc: TriadErrors
+    mag: TriadErrors
+    mag_distortion: MagDistortion
+
+    def measure(self, ref_gyr: np.ndarray, ref_acc: np.ndarray, ref_mag: np.ndarray,
+                temp: np.ndarray, temp_rate: np.ndarray, rate_hz: float,
+                seed: np.random.SeedSequence) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Raw gyr [rad/s], acc [m/s²], mag [µT] (N, 3 each) from the truth; each triad draws
+        from its own stream spawned from `seed`."""
+        rng_gyr, rng_acc, rng_mag = (np.random.default_rng(s) for s in seed.spawn(3))
+        gyr = self.gyr.apply(ref_gyr, temp, temp_rate, rate_hz, rng_gyr)
+        acc = self.acc.apply(ref_acc, temp, temp_rate, rate_hz, rng_acc)
+        mag = self.mag.apply(self.mag_distortion.apply(ref_mag), temp, temp_rate, rate_hz, rng_mag)
+        return gyr, acc, mag
