@@ -94,6 +94,8 @@ def validate_fmu(path: str | Path) -> list[str]:
     binary exports exactly the 34 FMI 2.0 co-simulation functions, and a 1 s smoke co-simulation.
     """
     path = Path(path)
+    if not zipfile.is_zipfile(path):
+        return [f"{path}: not an FMU (an FMU is a zip archive)"]
     problems = list(fmpy_validate_fmu(str(path)))
     problems += _symbol_problems(path)
     if not problems:

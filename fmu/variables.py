@@ -117,3 +117,14 @@ def by_name(name: str) -> Variable:
             return v
     raise KeyError(f"unknown FMU variable '{name}' (known: {', '.join(v.name for v in VARIABLES)})")
 
+
+
+def markdown_table() -> str:
+    """The variable table as Markdown (README.md embeds it; tests/test_readme.py keeps them equal)."""
+    lines = ["| variable | causality | unit | description |", "|---|---|---|---|"]
+    for v in VARIABLES:
+        unit = v.unit or "1"
+        if v.display_unit:
+            unit += f" (shown in {v.display_unit})"
+        lines.append(f"| `{v.name}` | {v.causality} | {unit} | {v.description} |")
+    return "\n".join(lines)

@@ -1,0 +1,109 @@
+"""Every CLI verb turns bad input into one clear line on stderr and a non-zero exit status."""
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from training.cli import main
+
+HEADER = "t,gyr_x,gyr_y,gyr_z,acc_x,acc_y,acc_z,mag_x,mag_y,mag_z,temp"
+
+
+def _csv(tmp_path: Path, name: str, rows: list[str], header: str = HEADER) -> Path:
+    """Write a small CSV recording and return its path."""
+    p = tmp_path / name
+    p.write_text("\n".join([header, *rows]) + "\n")
+    return p
+
+
+def _row(t: float, mag=(20.0, 0.0, 40.0), gyr=(0.01, 0.0, 0.0)) -> str:
+    """One sample: level at rest, given field [µT] and rate [rad/s]."""
+    return ",".join(str(v) for v in (t, *gyr, 0.0, 0.0, -9.81, *mag, 25.0))
+
+
+def _fails(capsys, argv: list[str], *needles: str) -> str:
+    """Run the CLI, assert exit status 1 and a one-line error containing every needle."""
+    code = main(argv)
+    err = capsys.readouterr().err.strip()
+    assert code == 1, err
+    assert len(err.splitlines()) == 1, err
+    assert err.startswith(f"imufmu {argv[0]}: error:"), err
+    for n in needles:
+        assert n in err, err
+    return err
+
+
+def test_simulate_missing_scenario(tmp_path, capsys):
+    _fails(capsys, ["simulate", str(tmp_path / "nope.toml"), "--out", str(tmp_path)], "nope.toml")
+
+
+def test_simulate_unknown_key(tmp_path, capsys):
+    bad = tmp_path / "bad.toml"
+    bad.write_text('name = "x"\nbogus_key = 3\n')
+    _fails(capsys, ["simulate", str(bad), "--out", str(tmp_path)], "bad.toml")
+
+
+def test_train_missing_column(tmp_path, capsys):
+    p = _csv(tmp_path, "nocol.csv", ["0,0,0,0,0,0,-9.81,20,0,40"], header=HEADER.rsplit(",", 1)[0])
+    _fails(capsys, ["train", str(p), "--out", str(tmp_path)], "nocol.csv", "temp")
+
+
+def test_train_non_increasing_time(tmp_path, capsys):
+    p = _csv(tmp_path, "time.csv", [_row(0.0), _row(0.01), _row(0.01)])
+    _fails(capsys, ["train", str(p), "--out", str(tmp_path)], "time.csv", "row 4")
+
+
+def test_run_field_in_nanotesla(tmp_path, capsys):
+    rows = [_row(0.01 * k, mag=(20000.0, 0.0, 40000.0)) for k in range(50)]
+    p = _csv(tmp_path, "nt.csv", rows)
+    fmu = tmp_path / "x.fmu"
+    fmu.write_bytes(b"PK")
+    _fails(capsys, ["run", str(fmu), str(p), "--out", str(tmp_path / "o.csv")], "nt.csv", "nT")
+
+
+def test_run_rates_in_degrees(tmp_path, capsys):
+    rows = [_row(0.01 * k, gyr=(100.0, -80.0, 50.0)) for k in range(50)]
+    p = _csv(tmp_path, "deg.csv", rows)
+    fmu = tmp_path / "x.fmu"
+    fmu.write_bytes(b"PK")
+    _fails(capsys, ["run", str(fmu), str(p), "--out", str(tmp_path / "o.csv")], "deg.csv", "deg")
+
+
+def test_build_fmu_missing_model(tmp_path, capsys):
+    _fails(capsys, ["build-fmu", "--model", str(tmp_path / "m.json"), "--out", str(tmp_path / "a.fmu")],
+           "m.json", "not found")
+
+
+def test_build_fmu_model_not_json(tmp_path, capsys):
+    m = tmp_path / "model.json"
+    m.write_text("{ not json")
+    _fails(capsys, ["build-fmu", "--model", str(m), "--out", str(tmp_path / "a.fmu")], "model.json")
+
+
+def test_validate_not_an_fmu(tmp_path, capsys):
+    f = tmp_path / "broken.fmu"
+    f.write_text("this is not a zip archive")
+    _fails(capsys, ["validate", str(f)], "broken.fmu")
+
+
+def test_run_missing_fmu(tmp_path, capsys):
+    p = _csv(tmp_path, "ok.csv", [_row(0.0), _row(0.01)])
+    _fails(capsys, ["run", str(tmp_path / "none.fmu"), str(p), "--out", str(tmp_path / "o.csv")],
+           "none.fmu", "not found")
+
+
+def test_usage_error_exits_2():
+    with pytest.raises(SystemExit) as e:
+        main(["run"])
+    assert e.value.code == 2
+
+
+def test_console_script_reports_error_and_status(tmp_path):
+    """The installed entry point (python -m training.cli) exits non-zero with one stderr line."""
+    r = subprocess.run([sys.executable, "-m", "training.cli", "validate", str(tmp_path / "no.fmu")],
+                       capture_output=True, text=True)
+    assert r.returncode == 1
+    assert r.stderr.strip().count("\n") == 0 and "no.fmu" in r.stderr
