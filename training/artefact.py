@@ -1,0 +1,216 @@
+"""The trained-model artefact: versioned JSON (ARCHITECTURE.md, 'Training pipeline').
+
+One file carries everything needed to regenerate the FMU coefficient header and to reproduce
+the fit: format and version, model type, units, seed, library versions, training data, the
+per-triad gain/bias temperature models with their fit statistics, recommended FMU settings
+and notes. Floats are written by Python's shortest round-trip repr, so load(save(x)) is exact.
+"""
+from __future__ import annotations
+
+import json
+import platform
+from dataclasses import dataclass, field
+from datetime import datetime, timezone
+from pathlib import Path
+
+import numpy as np
+
+from .errors import ModelError
+from .layout import LAYOUT_VERSION, MAX_DEGREE, TRIAD_ORDER, settings_defaults
+from .thermal import ThermalModel
+
+FORMAT = "imufusion-model"
+FORMAT_VERSION = 1
+MODEL_TYPE = "imufusion-chain"
+UNITS = {"t": "s", "gyr": "rad/s", "acc": "m/s²", "mag": "µT", "temp": "°C",
+         "declination": "rad", "field_norm": "µT", "gyro_noise": "rad/s/√Hz",
+         "gyro_bias_residual": "rad/s"}
+_TOP_KEYS = ("format", "format_version", "model_type", "created", "seed", "units", "libraries",
+             "training_data", "thermal", "fit_stats", "settings", "notes")
+_THERMAL_KEYS = ("enabled", "t0", "ts", "degree", "A", "g", "b")
+
+
+def library_versions() -> dict[str, str]:
+    """Versions of python, numpy, torch and imufusion in this process."""
+    import torch
+    from . import __version__
+    return {"python": platform.python_version(), "numpy": np.__version__,
+            "torch": torch.__version__, "imufusion": __version__}
+
+
+def utc_now() -> str:
+    """Current UTC time, ISO 8601 to the second."""
+    return datetime.now(timezone.utc).isoformat(timespec="seconds")
+
+
+@dataclass
+class ModelArtefact:
+    """A trained ImuFusion model.
+
+    thermal: triad ('gyr', 'acc', 'mag') -> ThermalModel. fit_stats: triad -> dict of fit
+    statistics (JSON scalars). training_data: [{'name', 'samples'}]. settings: setting name ->
+    recommended FMU parameter value (training.layout.SETTINGS units). notes: warnings.
+    """
+
+    seed: int
+    thermal: dict[str, ThermalModel]
+    settings: dict[str, float]
+    training_data: list[dict] = field(default_factory=list)
+    fit_stats: dict[str, dict] = field(default_factory=dict)
+    notes: list[str] = field(default_factory=list)
+    units: dict[str, str] = field(default_factory=lambda: dict(UNITS))
+    libraries: dict[str, str] = field(default_factory=library_versions)
+    created: str = field(default_factory=utc_now)
+    format: str = FORMAT
+    format_version: int = FORMAT_VERSION
+    model_type: str = MODEL_TYPE
+
+    def to_json_dict(self) -> dict:
+        """The JSON document as plain Python objects."""
+        return {"format": self.format, "format_version": self.format_version,
+                "model_type": self.model_type, "created": self.created, "seed": self.seed,
+                "units": dict(self.units), "libraries": dict(self.libraries),
+                "training_data": list(self.training_data),
+                "thermal": {k: _thermal_to_json(self.thermal[k]) for k in TRIAD_ORDER},
+                "fit_stats": dict(self.fit_stats), "settings": dict(self.settings),
+                "notes": list(self.notes)}
+
+    def to_json(self) -> str:
+        """JSON text; NaN/inf are rejected (ValueError) rather than written non-standard."""
+        return json.dumps(self.to_json_dict(), indent=2, ensure_ascii=False, allow_nan=False)
+
+    def save(self, path) -> Path:
+        """Write the artefact to `path` (UTF-8 JSON) and return the path."""
+        path = Path(path)
+        path.write_text(self.to_json() + "\n", encoding="utf-8")
+        return path
+
+
+def _thermal_to_json(model: ThermalModel) -> dict:
+    """ThermalModel -> JSON object with nested lists (rows = axes)."""
+    return {"enabled": model.enabled, "t0": model.t0, "ts": model.ts, "degree": model.degree,
+            "A": model.A.tolist(), "g": model.g.tolist(), "b": model.b.tolist()}
+
+
+def _fail(path, problem: str):
+    """Raise the ModelError 'path: problem'."""
+    raise ModelError(f"{path}: {problem}")
+
+
+def _require(doc: dict, keys, where: str, path) -> None:
+    """ModelError naming the first of `keys` missing from `doc`."""
+    if not isinstance(doc, dict):
+        _fail(path, f"'{where}' is not an object")
+    for k in keys:
+        if k not in doc:
+            _fail(path, f"missing key '{where + '.' if where else ''}{k}'")
+
+
+def _thermal_from_json(doc: dict, triad: str, path) -> ThermalModel:
+    """JSON object -> ThermalModel; ModelError naming the triad and the bad entry."""
+    where = f"thermal.{triad}"
+    _require(doc, _THERMAL_KEYS, where, path)
+    degree = doc["degree"]
+    if not isinstance(degree, int) or isinstance(degree, bool) or not 0 <= degree <= MAX_DEGREE:
+        _fail(path, f"'{where}.degree' is {degree!r}, expected an integer in 0..{MAX_DEGREE}")
+    for name, shape in (("A", (3, 3)), ("g", (3, degree)), ("b", (3, degree + 1))):
+        _check_shape(doc[name], shape, f"{where}.{name}", path)
+    try:
+        return ThermalModel(bool(doc["enabled"]), doc["t0"], doc["ts"], degree,
+                            np.array(doc["A"], dtype=float), np.array(doc["g"], dtype=float),
+                            np.array(doc["b"], dtype=float))
+    except (TypeError, ValueError) as exc:
+        _fail(path, f"'{where}': {exc}")
+
+
+def _check_shape(value, shape: tuple[int, int], where: str, path) -> None:
+    """ModelError unless `value` is a list of `shape[0]` numeric lists of length `shape[1]`."""
+    rows_ok = isinstance(value, list) and len(value) == shape[0]
+    if not rows_ok or not all(isinstance(r, list) and len(r) == shape[1] for r in value):
+        got = np.shape(value) if isinstance(value, list) else type(value).__name__
+        _fail(path, f"'{where}' has shape {got}, expected {shape}")
+    if not all(isinstance(v, (int, float)) and not isinstance(v, bool) for r in value for v in r):
+        _fail(path, f"'{where}' has non-numeric entries")
+
+
+def _read_document(path) -> dict:
+    """Parse the file as JSON; ModelError for a missing file or invalid JSON."""
+    path = Path(path)
+    if not path.is_file():
+        _fail(path, "no such model file")
+    try:
+        doc = json.loads(path.read_text(encoding="utf-8"))
+    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+        _fail(path, f"not a JSON file ({exc})")
+    if not isinstance(doc, dict):
+        _fail(path, "not a model artefact (top level is not a JSON object)")
+    return doc
+
+
+def _check_header(doc: dict, path) -> None:
+    """ModelError for a wrong format, format version or model type."""
+    _require(doc, ("format", "format_version", "model_type"), "", path)
+    if doc["format"] != FORMAT:
+        _fail(path, f"format is {doc['format']!r}, expected {FORMAT!r}")
+    if doc["format_version"] != FORMAT_VERSION:
+        _fail(path, f"format_version {doc['format_version']!r} is not supported "
+                    f"(this version reads {FORMAT_VERSION})")
+    if doc["model_type"] != MODEL_TYPE:
+        _fail(path, f"model_type is {doc['model_type']!r}, expected {MODEL_TYPE!r}")
+
+
+def _settings_from_json(doc, path) -> dict[str, float]:
+    """Settings object -> dict; ModelError for an unknown name or a non-numeric value."""
+    known = settings_defaults()
+    if not isinstance(doc, dict):
+        _fail(path, "'settings' is not an object")
+    for name, value in doc.items():
+        if name not in known:
+            _fail(path, f"unknown setting 'settings.{name}' (known: {', '.join(known)})")
+        if not isinstance(value, (int, float)) or isinstance(value, bool):
+            _fail(path, f"'settings.{name}' is {value!r}, expected a number")
+    return {k: float(v) for k, v in doc.items()}
+
+
+def _check_types(doc: dict, path) -> None:
+    """ModelError for a top-level entry of the wrong JSON type."""
+    expected = {"seed": int, "created": str, "units": dict, "libraries": dict,
+                "training_data": list, "fit_stats": dict, "notes": list}
+    for key, kind in expected.items():
+        if not isinstance(doc[key], kind) or isinstance(doc[key], bool):
+            _fail(path, f"'{key}' is {type(doc[key]).__name__}, expected {kind.__name__}")
+
+
+def load_artefact(path) -> ModelArtefact:
+    """Read a model artefact written by `ModelArtefact.save`.
+
+    Raises ModelError naming the file and the problem: missing file, not JSON, wrong
+    format/format_version/model_type, missing keys, wrong coefficient shapes.
+    """
+    doc = _read_document(path)
+    _check_header(doc, path)
+    _require(doc, _TOP_KEYS, "", path)
+    _require(doc["thermal"], TRIAD_ORDER, "thermal", path)
+    thermal = {k: _thermal_from_json(doc["thermal"][k], k, path) for k in TRIAD_ORDER}
+    _check_types(doc, path)
+    return ModelArtefact(
+        seed=doc["seed"], thermal=thermal, settings=_settings_from_json(doc["settings"], path),
+        training_data=doc["training_data"], fit_stats=doc["fit_stats"], notes=doc["notes"],
+        units=doc["units"], libraries=doc["libraries"], created=doc["created"],
+        format=doc["format"], format_version=doc["format_version"], model_type=doc["model_type"])
+
+
+def coefficients_array(artefact: ModelArtefact) -> np.ndarray:
+    """The flat coefficient array of training.layout, (N_COEFFICIENTS,) float64:
+    [LAYOUT_VERSION, gyr block, acc block, mag block]."""
+    values = [float(LAYOUT_VERSION)]
+    for triad in TRIAD_ORDER:
+        values += artefact.thermal[triad].to_block()
+    return np.array(values, dtype=np.float64)
+
+
+def settings_dict(artefact: ModelArtefact) -> dict[str, float]:
+    """Every setting in training.layout.SETTINGS order: the artefact's value, else the default."""
+    values = settings_defaults()
+    values.update(artefact.settings)
+    return values

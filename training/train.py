@@ -1,0 +1,181 @@
+"""`train`: fit the per-triad gain/bias temperature models and build the model artefact."""
+from __future__ import annotations
+
+from contextlib import contextmanager
+
+import numpy as np
+import torch
+from tqdm import tqdm
+
+from .artefact import ModelArtefact
+from .dataset import ImuData
+from .errors import ModelError
+from .layout import TRIAD_ORDER, settings_defaults
+from .thermal import GainBiasFitter, ThermalFit, ThermalModel, apply_thermal
+
+UNITS = {"gyr": "rad/s", "acc": "m/s²", "mag": "µT"}
+#: A sample counts as static for the gyro bias residual when the true rate is below this
+#: [rad/s] (0.3 °/s: far above the reference noise of a rate table, far below any motion).
+STATIC_RATE = 0.005
+#: Lower bound of the recommended gyro_bias_residual [rad/s]: 1e-5 rad/s ≈ 2 °/h, the bias
+#: instability of a good consumer MEMS gyro. A fit to simulated data leaves a near-zero mean
+#: residual, but run-to-run bias changes that no calibration captures remain in the field.
+GYRO_BIAS_RESIDUAL_FLOOR = 1e-5
+#: Sidecar earth-field magnitudes of the training sets may differ by this much [µT] before
+#: the artefact warns that their mean is a poor single field_norm.
+FIELD_NORM_SPREAD = 1.0
+
+
+@contextmanager
+def _deterministic(seed: int):
+    """Seed torch and force deterministic kernels; restore the previous mode afterwards."""
+    previous = torch.are_deterministic_algorithms_enabled()
+    torch.use_deterministic_algorithms(True)
+    torch.manual_seed(seed)
+    try:
+        yield
+    finally:
+        torch.use_deterministic_algorithms(previous)
+
+
+def _stack(datasets: list[ImuData], name: str) -> np.ndarray:
+    """Concatenate attribute `name` ((N, 3) triad) over the datasets; NaN where absent."""
+    parts = [getattr(d, name) if getattr(d, name) is not None else np.full((len(d), 3), np.nan)
+             for d in datasets]
+    return np.concatenate(parts).astype(np.float64)
+
+
+def _n_parameters(degree: int) -> int:
+    """Free coefficients of one triad: 6 of symmetric A, 3P of g, 3(P+1) of b."""
+    return 6 + 3 * degree + 3 * (degree + 1)
+
+
+def _skip_reason(datasets: list[ImuData], triad: str, raw: np.ndarray, ref: np.ndarray,
+                 degree: int) -> str | None:
+    """Why `triad` cannot be fitted (for the artefact notes), or None when it can."""
+    if all(getattr(d, f"ref_{triad}") is None for d in datasets) or not np.isfinite(ref).any():
+        return f"{triad}: no reference (ref_{triad}) in the training data"
+    if not np.isfinite(raw).any():
+        return f"{triad}: raw data are all NaN"
+    rows = int(np.sum(np.all(np.isfinite(raw), axis=1) & np.all(np.isfinite(ref), axis=1)))
+    if rows < _n_parameters(degree):
+        return f"{triad}: only {rows} usable rows for {_n_parameters(degree)} coefficients"
+    return None
+
+
+def _fit_notes(triad: str, fit: ThermalFit, degree: int) -> list[str]:
+    """Warnings about one completed fit."""
+    notes = []
+    if fit.model.degree < degree:
+        notes.append(f"{triad}: no finite temperature; fitted degree 0 (constant A, G, B)")
+    if not fit.converged:
+        notes.append(f"{triad}: fit stopped after {fit.iterations} iterations before "
+                     "reaching the tolerance")
+    if fit.rows_dropped:
+        notes.append(f"{triad}: {fit.rows_dropped} rows with non-finite values dropped")
+    return notes
+
+
+def _fit_stats(fit: ThermalFit) -> dict:
+    """JSON-ready statistics of one fit (rms in the triad unit, loss normalised)."""
+    return {"unit": fit.unit, "rows_used": fit.rows_used, "rows_dropped": fit.rows_dropped,
+            "iterations": fit.iterations, "converged": fit.converged,
+            "final_loss": fit.loss_history[-1], "rms_before": fit.rms_before,
+            "rms_after": fit.rms_after}
+
+
+def _sidecar_values(datasets: list[ImuData], key: str) -> list[float]:
+    """earth_field[key] of every dataset whose sidecar gives it."""
+    values = [(d.meta.get("earth_field") or {}).get(key) for d in datasets]
+    return [float(v) for v in values if v is not None]
+
+
+def _rate_hz(data: ImuData) -> float:
+    """Sample rate [Hz]: sidecar rate_hz, else 1 / median time step."""
+    rate = data.meta.get("rate_hz")
+    return float(rate) if rate else float(1.0 / np.median(np.diff(data.t)))
+
+
+def _gyro_residuals(datasets: list[ImuData], model: ThermalModel):
+    """[(residual (M, 3) rad/s, true rate (M, 3) rad/s, rate_hz)] per dataset with gyro
+    reference, finite rows only; residual = corrected gyro - true rate."""
+    out = []
+    for d in datasets:
+        if d.ref_gyr is None or len(d) < 2:
+            continue
+        res = apply_thermal(model, d.gyr, d.temp) - d.ref_gyr
+        ok = np.all(np.isfinite(res), axis=1)
+        if ok.any():
+            out.append((res[ok], d.ref_gyr[ok], _rate_hz(d)))
+    return out
+
+
+def _gyro_settings(residuals) -> dict[str, float]:
+    """gyro_noise and gyro_bias_residual from the gyro fit residuals.
+
+    gyro_noise [rad/s/√Hz]: white-noise density N = σ / √f_s (σ per-sample std at rate f_s,
+    IEEE Std 952 convention), σ = RMS over axes of the residual std, row-weighted mean over
+    the datasets. gyro_bias_residual [rad/s]: largest per-axis |mean residual| over static
+    rows (all rows when none is static), not below GYRO_BIAS_RESIDUAL_FLOOR.
+    """
+    rows = np.array([len(r) for r, _, _ in residuals], dtype=float)
+    density = [np.sqrt(np.mean(np.var(r, axis=0))) / np.sqrt(f) for r, _, f in residuals]
+    res = np.concatenate([r for r, _, _ in residuals])
+    ref = np.concatenate([w for _, w, _ in residuals])
+    static = np.linalg.norm(ref, axis=1) < STATIC_RATE
+    bias = np.max(np.abs(np.mean(res[static] if static.any() else res, axis=0)))
+    return {"gyro_noise": float(np.average(density, weights=rows)),
+            "gyro_bias_residual": float(max(bias, GYRO_BIAS_RESIDUAL_FLOOR))}
+
+
+def recommended_settings(datasets: list[ImuData], thermal: dict[str, ThermalModel],
+                         notes: list[str]) -> dict[str, float]:
+    """FMU parameter values from the data's sidecars and the gyro fit (defaults otherwise);
+    appends a note for each value left at its default or taken from inconsistent data."""
+    settings = settings_defaults()
+    norms = _sidecar_values(datasets, "norm_ut")
+    if norms:
+        settings["field_norm"] = float(np.mean(norms))
+        if max(norms) - min(norms) > FIELD_NORM_SPREAD:
+            notes.append(f"field_norm: sidecar values {norms} µT differ; using their mean")
+    else:
+        notes.append("field_norm: no earth_field.norm_ut in the sidecars; default kept")
+    declinations = _sidecar_values(datasets, "declination_deg")
+    if declinations:
+        settings["declination"] = float(np.deg2rad(np.mean(declinations)))
+    residuals = _gyro_residuals(datasets, thermal["gyr"]) if thermal["gyr"].enabled else []
+    if residuals:
+        settings.update(_gyro_settings(residuals))
+    else:
+        notes.append("gyro_noise, gyro_bias_residual: no fitted gyro; defaults kept")
+    return settings
+
+
+def train(datasets: list[ImuData], seed: int = 0, degree: int = 2,
+          progress: bool = True) -> ModelArtefact:
+    """Fit the gain/bias temperature model of every triad and return the model artefact.
+
+    datasets: calibration recordings with references (ref_gyr / ref_acc / ref_mag); they
+    are concatenated. A triad without reference, with all-NaN raw data or with too few rows
+    gets a disabled identity model and a note. degree: polynomial degree (0..MAX_DEGREE).
+    Deterministic given `seed`. Raises ModelError when `datasets` is empty.
+    """
+    if not datasets:
+        raise ModelError("train: no training data given")
+    temp = np.concatenate([d.temp for d in datasets]).astype(np.float64)
+    thermal, stats, notes = {}, {}, []
+    with _deterministic(seed):
+        for triad in tqdm(TRIAD_ORDER, desc="thermal fit", disable=not progress):
+            raw, ref = _stack(datasets, triad), _stack(datasets, f"ref_{triad}")
+            reason = _skip_reason(datasets, triad, raw, ref, degree)
+            if reason:
+                notes.append(f"{reason}; thermal model disabled")
+                thermal[triad] = ThermalModel.identity(enabled=False)
+                continue
+            fit = GainBiasFitter(degree=degree).fit(raw, ref, temp, seed, UNITS[triad])
+            thermal[triad], stats[triad] = fit.model, _fit_stats(fit)
+            notes += _fit_notes(triad, fit, degree)
+    settings = recommended_settings(datasets, thermal, notes)
+    return ModelArtefact(seed=seed, thermal=thermal, settings=settings, fit_stats=stats,
+                         training_data=[{"name": d.name, "samples": len(d)} for d in datasets],
+                         notes=notes)
