@@ -82,6 +82,7 @@ class ModelArtefact:
     def save(self, path) -> Path:
         """Write the artefact to `path` (UTF-8 JSON) and return the path."""
         path = Path(path)
+        path.parent.mkdir(parents=True, exist_ok=True)
         path.write_text(self.to_json() + "\n", encoding="utf-8")
         return path
 

@@ -142,6 +142,9 @@ def main(argv: list[str] | None = None) -> int:
     except ImuFusionError as e:
         print(f"imufmu {args.verb}: error: {e}", file=sys.stderr)
         return 1
+    except OSError as e:  # unwritable output folder, disk full, ...
+        print(f"imufmu {args.verb}: error: {e.filename or ''}: {e.strerror or e}", file=sys.stderr)
+        return 1
     return 0
 
 

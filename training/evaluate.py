@@ -14,6 +14,11 @@ from .layout import OUTPUTS
 
 _COL = {name: i for i, name in enumerate(OUTPUTS)}
 
+#: Roll and yaw are undefined at pitch ±90° (gimbal lock): there a tiny attitude error moves both
+#: by up to 180°. Their RMSE therefore counts only samples whose reference |pitch| is below this
+#: limit; the singularity-free tilt and heading errors (BROAD's definitions) count every sample.
+EULER_PITCH_LIMIT_DEG = 80.0
+
 
 def wrap_angle(a: np.ndarray) -> np.ndarray:
     """Wrap angles [rad] to (−π, π]."""
@@ -54,15 +59,18 @@ class Metrics:
     rate_dps: float       # corrected rate error RMS over all axes [°/s]
     accel_ms2: float      # corrected specific-force error RMS [m/s²]
     field_ut: float       # corrected field error RMS [µT]
-    roll_deg: float       # roll error RMS [°]
+    roll_deg: float       # roll error RMS [°] (samples with |pitch| < EULER_PITCH_LIMIT_DEG)
     pitch_deg: float      # pitch error RMS [°]
-    yaw_deg: float        # yaw (magnetic) error RMS [°]
+    yaw_deg: float        # yaw (magnetic) error RMS [°] (samples with |pitch| < limit)
+    tilt_deg: float       # inclination error RMS [°], 2·acos(√(w²+z²)) of q_est ⊗ q_ref⁻¹
+    heading_deg: float    # heading error RMS [°], 2·atan(|z/w|) of q_est ⊗ q_ref⁻¹
 
     def as_dict(self) -> dict[str, float]:
         """Plain dict, keys with units."""
         return {"rate_err_dps": self.rate_dps, "accel_err_ms2": self.accel_ms2,
                 "field_err_ut": self.field_ut, "roll_err_deg": self.roll_deg,
-                "pitch_err_deg": self.pitch_deg, "yaw_err_deg": self.yaw_deg}
+                "pitch_err_deg": self.pitch_deg, "yaw_err_deg": self.yaw_deg,
+                "tilt_err_deg": self.tilt_deg, "heading_err_deg": self.heading_deg}
 
 
 def _triad_error(out: np.ndarray, names: tuple[str, str, str], ref: np.ndarray | None,
@@ -87,11 +95,40 @@ def compute_metrics(out: np.ndarray, data: ImuData) -> Metrics:
     accel = _triad_error(out, ("accel_x", "accel_y", "accel_z"), data.ref_acc, m)
     field = _triad_error(out, ("field_x", "field_y", "field_z"), data.ref_mag, m)
     if data.ref_q is None:
-        ang = [float("nan")] * 3
+        ang = [float("nan")] * 5
     else:
-        e = np.rad2deg(attitude_errors(out, data)[m])
-        ang = [_rms(e[:, i]) for i in range(3)]
+        e = np.rad2deg(attitude_errors(out, data))
+        defined = m & (np.abs(np.rad2deg(reference_euler_magnetic(data)[:, 1])) < EULER_PITCH_LIMIT_DEG)
+        tilt, heading = np.rad2deg(tilt_heading_errors(out, data)).T
+        ang = [_rms(e[defined, 0]), _rms(e[m, 1]), _rms(e[defined, 2]), _rms(tilt[m]), _rms(heading[m])]
     return Metrics(np.rad2deg(rate), accel, field, *ang)
+
+
+def quaternion_multiply(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Hamilton product of (N, 4) quaternions [w, x, y, z]."""
+    aw, ax, ay, az = a.T
+    bw, bx, by, bz = b.T
+    return np.column_stack([aw * bw - ax * bx - ay * by - az * bz,
+                            aw * bx + ax * bw + ay * bz - az * by,
+                            aw * by - ax * bz + ay * bw + az * bx,
+                            aw * bz + ax * by - ay * bx + az * bw])
+
+
+def reference_quaternion_magnetic(data: ImuData) -> np.ndarray:
+    """Reference attitude relative to magnetic north: rotate the true-north ref_q by −declination about down."""
+    half = -0.5 * data.declination_rad
+    rot = np.tile([np.cos(half), 0.0, 0.0, np.sin(half)], (len(data), 1))
+    return quaternion_multiply(rot, data.ref_q)
+
+
+def tilt_heading_errors(out: np.ndarray, data: ImuData) -> np.ndarray:
+    """(N, 2) [inclination, heading] errors [rad] of q_err = q_est ⊗ q_ref⁻¹ (BROAD's definitions)."""
+    q_est = out[:, [_COL["q_w"], _COL["q_x"], _COL["q_y"], _COL["q_z"]]]
+    q_ref = reference_quaternion_magnetic(data) * np.array([1.0, -1.0, -1.0, -1.0])
+    w, _, _, z = quaternion_multiply(q_est, q_ref).T
+    heading = 2.0 * np.arctan(np.abs(z / w))
+    tilt = 2.0 * np.arccos(np.clip(np.sqrt(w * w + z * z), 0.0, 1.0))
+    return np.column_stack([tilt, heading])
 
 
 def raw_sensor_metrics(data: ImuData) -> dict[str, float]:

@@ -363,6 +363,7 @@ def _write_bytes(path: Path, payload: bytes) -> None:
                            compresslevel=GZIP_LEVEL) as gz:
             gz.write(payload)
         payload = buffer.getvalue()
+    path.parent.mkdir(parents=True, exist_ok=True)
     path.write_bytes(payload)
 
 

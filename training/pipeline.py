@@ -89,7 +89,7 @@ def evaluate_recording(fmu_path: Path, coefficients: np.ndarray, settings: np.nd
     raw_out = run_batch(coefficients, uncompensated_settings(s), data.t, data.inputs())
     raw = raw_sensor_metrics(data)
     raw_att = compute_metrics(raw_out, data)
-    raw.update({k: raw_att.as_dict()[k] for k in ("roll_err_deg", "pitch_err_deg", "yaw_err_deg")})
+    raw.update({k: v for k, v in raw_att.as_dict().items() if k.endswith("_deg")})
     write_outputs_csv(out_csv, data.t, out_fmu)
     return ScenarioResult(data.name, len(data), compute_metrics(out_fmu, data).as_dict(), raw,
                           diff, str(out_csv), data, out_fmu, raw_out)

@@ -12,9 +12,11 @@ from .layout import OUTPUTS
 ROWS = (("rate_err_dps", "corrected rate error RMS [°/s]"),
         ("accel_err_ms2", "corrected specific-force error RMS [m/s²]"),
         ("field_err_ut", "corrected field error RMS [µT]"),
-        ("roll_err_deg", "roll RMSE [°]"),
+        ("roll_err_deg", "roll RMSE [°] (|pitch| < 80°)"),
         ("pitch_err_deg", "pitch RMSE [°]"),
-        ("yaw_err_deg", "yaw RMSE [°]"))
+        ("yaw_err_deg", "yaw RMSE [°] (|pitch| < 80°)"),
+        ("tilt_err_deg", "inclination error RMS [°]"),
+        ("heading_err_deg", "heading error RMS [°]"))
 
 
 def _fmt(v: float) -> str:

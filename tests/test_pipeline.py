@@ -1,0 +1,63 @@
+"""The main job end to end: simulated calibration -> trained model -> FMU -> fmpy co-simulation.
+
+Asserts against simulator truth on evaluation scenarios that were not used for training, with the
+acceptance bounds of issue 2 (training.pipeline.ACCEPTANCE, justified there).
+"""
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from training.pipeline import ACCEPTANCE, DEFAULT_EVALUATIONS, run_pipeline
+
+#: FMU through fmpy and the batch library run the same C code on the same doubles; the only
+#: admissible difference is none at all, 1e-12 leaves room for nothing but printing round-off.
+FMU_BATCH_TOLERANCE = 1e-12
+
+
+@pytest.fixture(scope="module")
+def summary(tmp_path_factory):
+    return run_pipeline(tmp_path_factory.mktemp("pipeline"), seed=0)
+
+
+def test_fmu_validates(summary):
+    assert summary.validation_problems == []
+
+
+def test_at_least_two_held_out_scenarios(summary):
+    assert len(summary.scenarios) == len(DEFAULT_EVALUATIONS) >= 2
+
+
+@pytest.mark.parametrize("metric", sorted(ACCEPTANCE))
+def test_accuracy_against_truth(summary, metric):
+    for s in summary.scenarios:
+        assert s.corrected[metric] <= ACCEPTANCE[metric], (s.name, metric, s.corrected[metric])
+
+
+def test_compensation_beats_raw_sensors(summary):
+    for s in summary.scenarios:
+        for metric in ("rate_err_dps", "field_err_ut"):
+            assert s.corrected[metric] < 0.5 * s.raw[metric], (s.name, metric)
+
+
+def test_fmu_equals_batch_runtime(summary):
+    for s in summary.scenarios:
+        assert s.fmu_vs_batch_max_diff <= FMU_BATCH_TOLERANCE, s.name
+
+
+def test_outputs_finite(summary):
+    for s in summary.scenarios:
+        assert np.all(np.isfinite(s.out)), s.name
+
+
+def test_report_and_summary_written(summary):
+    from pathlib import Path
+    out = Path(summary.out_dir)
+    report = (out / "report.md").read_text()
+    assert "ImuFusion FMU" in report and "plots/" in report
+    data = json.loads((out / "summary.json").read_text())
+    assert data["passed"] is True
+    for s in summary.scenarios:
+        assert (out / "plots" / f"{s.name}.png").stat().st_size > 10_000
