@@ -1,4 +1,4 @@
-"""Co-simulate the ImuFusion FMU with fmpy's FMU2Slave, one communication step per sample."""
+"""Co-simulate the ImuFusion FMU (FMI 2.0 or 3.0) with fmpy, one communication step per sample."""
 from __future__ import annotations
 
 import ctypes
@@ -12,6 +12,7 @@ from fmpy import calloc, extract, free, read_model_description
 from fmpy.fmi1 import FMICallException
 from fmpy.fmi2 import (FMU2Slave, fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE,
                        fmi2CallbackFunctions, fmi2CallbackLoggerTYPE, fmi2Real, fmi2ValueReference)
+from fmpy.fmi3 import FMU3Slave, fmi3Boolean, fmi3Float64, fmi3ValueReference
 from fmpy.logging import addLoggerProxy  # formats the logger's variadic message natively
 from tqdm import tqdm
 
@@ -21,24 +22,31 @@ from training.layout import INPUTS, OUTPUTS
 
 _STATUS = ("OK", "WARNING", "DISCARD", "ERROR", "FATAL", "PENDING")
 
+#: fmi2Status / fmi3Status values that doStep may return without failing.
+OK, WARNING, DISCARD = 0, 1, 2
+
 
 class FmuError(ImuFusionError):
     """An FMI call failed; the message carries the call and the FMU's log messages."""
 
 
 class _Log:
-    """Collects the FMU's log messages through an fmi2 logger callback."""
+    """Collects the FMU's log messages through an fmi2 logger or an fmi3 logMessage callback."""
 
     def __init__(self) -> None:
         self.messages: list[str] = []
         self.callbacks = fmi2CallbackFunctions()
-        self.callbacks.logger = fmi2CallbackLoggerTYPE(self._log)
+        self.callbacks.logger = fmi2CallbackLoggerTYPE(self._log2)
         self.callbacks.allocateMemory = fmi2CallbackAllocateMemoryTYPE(calloc)
         self.callbacks.freeMemory = fmi2CallbackFreeMemoryTYPE(free)
         addLoggerProxy(ctypes.byref(self.callbacks))
 
-    def _log(self, environment, instance_name: bytes, status: int, category: bytes, message: bytes) -> None:
-        """fmi2CallbackLogger: remember '[STATUS] category: message'."""
+    def _log2(self, environment, instance_name: bytes, status: int, category: bytes, message: bytes) -> None:
+        """fmi2CallbackLogger (behind fmpy's proxy, which formats the message)."""
+        self.log3(environment, status, category, message)
+
+    def log3(self, environment, status: int, category: bytes, message: bytes) -> None:
+        """fmi3LogMessageCallback: remember '[STATUS] category: message'."""
         label = _STATUS[status] if 0 <= status < len(_STATUS) else str(status)
         self.messages.append(f"[{label}] {category.decode(errors='replace')}: {message.decode(errors='replace')}")
 
@@ -46,6 +54,52 @@ class _Log:
         """An FmuError for `what`, with every message logged so far."""
         log = "\n".join(self.messages) if self.messages else "(the FMU logged nothing)"
         return FmuError(f"{what}\nFMU log:\n{log}")
+
+
+class Stepper:
+    """Raw per-sample FMI calls on an initialised FMU2Slave or FMU3Slave: set the 10 inputs,
+    doStep, get the 20 outputs (training.layout order)."""
+
+    def __init__(self, fmu: FMU2Slave | FMU3Slave) -> None:
+        self.fmu = fmu
+        self.fmi3 = isinstance(fmu, FMU3Slave)
+        real, vr = (fmi3Float64, fmi3ValueReference) if self.fmi3 else (fmi2Real, fmi2ValueReference)
+        self.vr_in = (vr * len(INPUTS))(*(by_name(n).value_reference for n in INPUTS))
+        self.vr_out = (vr * len(OUTPUTS))(*(by_name(n).value_reference for n in OUTPUTS))
+        self.values_in = (real * len(INPUTS))()
+        self.values_out = (real * len(OUTPUTS))()
+        self._flags = [fmi3Boolean() for _ in range(3)]
+        self._last_time = fmi3Float64()
+
+    def set_inputs(self, values) -> None:
+        """Set the raw inputs: (10,) rad/s, m/s², µT, °C (NaN and Inf are passed as they are)."""
+        self.values_in[:] = [float(v) for v in values]
+        n = len(INPUTS)
+        if self.fmi3:
+            self.fmu.fmi3SetFloat64(self.fmu.component, self.vr_in, n, self.values_in, n)
+        else:
+            self.fmu.fmi2SetReal(self.fmu.component, self.vr_in, n, self.values_in)
+
+    def do_step(self, t: float, h: float) -> int:
+        """doStep(t, h); returns OK, WARNING or DISCARD; FMICallException for Error and worse."""
+        try:
+            if self.fmi3:
+                return self.fmu.fmi3DoStep(self.fmu.component, float(t), float(h), fmi3Boolean(True),
+                                           *(ctypes.byref(f) for f in self._flags), ctypes.byref(self._last_time))
+            return self.fmu.fmi2DoStep(self.fmu.component, float(t), float(h), 1)
+        except FMICallException as e:
+            if e.status == DISCARD:
+                return DISCARD
+            raise
+
+    def get_outputs(self) -> np.ndarray:
+        """(20,) current outputs."""
+        n = len(OUTPUTS)
+        if self.fmi3:
+            self.fmu.fmi3GetFloat64(self.fmu.component, self.vr_out, n, self.values_out, n)
+        else:
+            self.fmu.fmi2GetReal(self.fmu.component, self.vr_out, n, self.values_out)
+        return np.array(self.values_out[:])
 
 
 def _check_arrays(t: np.ndarray, inputs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -70,8 +124,9 @@ def step_sizes(t: np.ndarray, default: float) -> np.ndarray:
     return np.append(h, h[-1])
 
 
-def _set_parameters(fmu: FMU2Slave, parameters: dict) -> None:
-    """Set parameters by name (Real or Boolean); FmuError for names that are not parameters."""
+def _set_parameters(fmu: FMU2Slave | FMU3Slave, parameters: dict) -> None:
+    """Set parameters by name (Real, Integer or Boolean); FmuError for names that are not parameters."""
+    fmi3 = isinstance(fmu, FMU3Slave)
     for name, value in parameters.items():
         try:
             variable = by_name(name)
@@ -79,58 +134,73 @@ def _set_parameters(fmu: FMU2Slave, parameters: dict) -> None:
             raise FmuError(str(e.args[0])) from e
         if variable.causality != "parameter":
             raise FmuError(f"'{name}' is an {variable.causality}, not a parameter")
+        vr = [variable.value_reference]
         if variable.type == "Boolean":
-            fmu.setBoolean([variable.value_reference], [bool(value)])
+            fmu.setBoolean(vr, [bool(value)])
+        elif variable.type == "Integer":
+            (fmu.setInt32 if fmi3 else fmu.setInteger)(vr, [int(value)])
         else:
-            fmu.setReal([variable.value_reference], [float(value)])
+            (fmu.setFloat64 if fmi3 else fmu.setReal)(vr, [float(value)])
 
 
-def step_samples(fmu: FMU2Slave, t: np.ndarray, inputs: np.ndarray, h: np.ndarray,
-                 progress: bool = False) -> np.ndarray:
+def step_samples(fmu: FMU2Slave | FMU3Slave, t: np.ndarray, inputs: np.ndarray, h: np.ndarray,
+                 progress: bool = False, statuses: list[int] | None = None) -> np.ndarray:
     """Per sample k: set inputs[k], doStep(t[k], h[k]), get the outputs; returns (N, 20).
 
-    fmu: an initialised FMU (see `initialised_fmu`); t, h: (N,) [s]; inputs: (N, 10).
+    fmu: an initialised FMU (see `initialised_fmu`); t, h: (N,) [s]; inputs: (N, 10). The doStep
+    status of each sample (OK, WARNING or DISCARD) is appended to `statuses` when given.
     """
-    n_in, n_out = len(INPUTS), len(OUTPUTS)
-    vr_in = (fmi2ValueReference * n_in)(*(by_name(n).value_reference for n in INPUTS))
-    vr_out = (fmi2ValueReference * n_out)(*(by_name(n).value_reference for n in OUTPUTS))
-    values_in = (fmi2Real * n_in)()
-    values_out = (fmi2Real * n_out)()
-    result = np.empty((len(t), n_out))
+    stepper = Stepper(fmu)
+    result = np.empty((len(t), len(OUTPUTS)))
     for k in tqdm(range(len(t)), desc="co-simulation", unit="sample", disable=not progress):
-        values_in[:] = [float(v) for v in inputs[k]]
-        fmu.fmi2SetReal(fmu.component, vr_in, n_in, values_in)
-        fmu.fmi2DoStep(fmu.component, float(t[k]), float(h[k]), 1)
-        fmu.fmi2GetReal(fmu.component, vr_out, n_out, values_out)
-        result[k] = values_out[:]
+        stepper.set_inputs(inputs[k])
+        status = stepper.do_step(t[k], h[k])
+        if statuses is not None:
+            statuses.append(status)
+        result[k] = stepper.get_outputs()
     return result
 
 
-@contextmanager
-def initialised_fmu(fmu_path: str | Path, start_time: float = 0.0,
-                    parameters: dict | None = None) -> Iterator[FMU2Slave]:
-    """Extract and instantiate the FMU, set up the experiment at start_time [s], set the
-    parameters by name, initialise, and yield the FMU2Slave ready for doStep; terminate, free
-    and clean up afterwards. Every failing FMI call inside the block becomes an FmuError that
-    carries the FMU's log messages.
-    """
+def _instantiate(fmu_path: str | Path, unzipdir: str, log: _Log, instance_name: str) -> FMU2Slave | FMU3Slave:
+    """Load the binary and instantiate an FMU2Slave or FMU3Slave; FmuError with the log on failure."""
     description = read_model_description(str(fmu_path))
+    cls = FMU3Slave if description.fmiVersion.startswith("3") else FMU2Slave
+    fmu = cls(guid=description.guid, unzipDirectory=unzipdir,
+              modelIdentifier=description.coSimulation.modelIdentifier, instanceName=instance_name)
+    try:
+        if cls is FMU3Slave:
+            fmu.instantiate(logMessage=log.log3)
+        else:
+            fmu.instantiate(callbacks=log.callbacks)
+    except Exception as e:
+        fmu.freeLibrary()
+        raise log.error(f"instantiation failed: {e}") from e
+    return fmu
+
+
+@contextmanager
+def initialised_fmu(fmu_path: str | Path, start_time: float = 0.0, parameters: dict | None = None,
+                    instance_name: str = "ImuFusion") -> Iterator[FMU2Slave | FMU3Slave]:
+    """Extract and instantiate the FMU (FMI 2 or 3), start the experiment at start_time [s], set
+    the parameters by name, initialise, and yield the FMU2Slave / FMU3Slave ready for doStep;
+    its `log_messages` list collects the FMU's log ('[STATUS] category: message'). Terminate,
+    free and clean up afterwards. Every failing FMI call inside the block becomes an FmuError
+    that carries the FMU's log messages.
+    """
     unzipdir = extract(str(fmu_path))
     log = _Log()
     fmu = None
     try:
-        fmu = FMU2Slave(guid=description.guid, unzipDirectory=unzipdir,
-                        modelIdentifier=description.coSimulation.modelIdentifier, instanceName="ImuFusion")
+        fmu = _instantiate(fmu_path, unzipdir, log, instance_name)
+        fmu.log_messages = log.messages
         try:
-            fmu.instantiate(callbacks=log.callbacks)
-        except Exception as e:
-            fmu.freeLibrary()
-            fmu = None
-            raise log.error(f"fmi2Instantiate failed: {e}") from e
-        try:
-            fmu.setupExperiment(startTime=float(start_time))
-            _set_parameters(fmu, parameters or {})
-            fmu.enterInitializationMode()
+            if isinstance(fmu, FMU3Slave):
+                _set_parameters(fmu, parameters or {})
+                fmu.enterInitializationMode(startTime=float(start_time))
+            else:
+                fmu.setupExperiment(startTime=float(start_time))
+                _set_parameters(fmu, parameters or {})
+                fmu.enterInitializationMode()
             fmu.exitInitializationMode()
             yield fmu
             fmu.terminate()
@@ -144,7 +214,7 @@ def initialised_fmu(fmu_path: str | Path, start_time: float = 0.0,
 
 def run_fmu(fmu_path: str | Path, t: np.ndarray, inputs: np.ndarray, parameters: dict | None = None,
             progress: bool = False) -> np.ndarray:
-    """Run the FMU over a recording and return its outputs.
+    """Run the FMU (FMI 2 or 3) over a recording and return its outputs.
 
     t: (N,) sample times [s], strictly increasing (steps may vary); inputs: (N, 10) raw samples in
     training.layout.INPUTS order (rad/s, m/s², µT, °C; NaN allowed); parameters: start values by

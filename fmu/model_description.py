@@ -1,10 +1,10 @@
-"""modelDescription.xml (FMI 2.0 co-simulation, source FMU) generated from the variable table."""
+"""modelDescription.xml (FMI 2.0 and FMI 3.0 co-simulation, source FMU) generated from the variable table."""
 from __future__ import annotations
 
 import math
 from xml.sax.saxutils import quoteattr
 
-from fmu.compiler import fmu_source_files
+from fmu.compiler import check_fmi_version, fmu_source_files
 from fmu.variables import VARIABLES, Variable
 from training.layout import settings_defaults
 
@@ -14,12 +14,22 @@ GENERATION_TOOL = "imufusion fmu package"
 #: Default experiment: 10 s at 100 Hz.
 DEFAULT_EXPERIMENT = {"startTime": 0.0, "stopTime": 10.0, "stepSize": 0.01}
 
-#: Log categories, in the order of the LogCategory enum of sources/fmi2Functions.c.
+#: Log categories, in the order of the ModelLogCategory enum of sources/model.h.
 LOG_CATEGORIES = (
     ("logEvents", "Instantiation, initialisation and other life-cycle events"),
-    ("logStatusWarning", "Calls that return fmi2Warning"),
-    ("logStatusError", "Calls that return fmi2Error, with the reason"),
+    ("logBadInput", "Bad input (not finite, saturated, out of range, bad step size): one Warning when an "
+                    "episode starts (the FMU holds its last valid estimate), one OK message when it ends"),
+    ("logStatusWarning", "Other calls that return a Warning"),
+    ("logStatusError", "Calls that return an Error, with the reason"),
 )
+
+#: Value reference of the FMI 3 independent variable "time" (VR_TIME in sources/config.h).
+TIME_VALUE_REFERENCE = 1000000
+_TIME_XML = (f'    <Float64 name="time" valueReference="{TIME_VALUE_REFERENCE}" causality="independent" '
+             'variability="continuous" description="Simulation time (communication point)" unit="s"/>')
+
+#: FMI 3 type element of each variable-table type.
+FMI3_TYPES = {"Real": "Float64", "Boolean": "Boolean", "Integer": "Int32"}
 
 _DEG = f'<DisplayUnit name="deg" factor="{180.0 / math.pi!r}"/>'
 _DEG_S = f'<DisplayUnit name="deg/s" factor="{180.0 / math.pi!r}"/>'
@@ -39,70 +49,155 @@ UNITS = {
 
 
 def _start_text(variable: Variable, value: float | bool) -> str:
-    """XML text of a start value (xs:double round-trip repr, or true/false)."""
+    """XML text of a start value (xs:double round-trip repr, an integer, or true/false)."""
     if variable.type == "Boolean":
         return "true" if value else "false"
+    if variable.type == "Integer":
+        return str(int(value))
     return repr(float(value))
 
 
-def _variable_xml(variable: Variable, settings: dict) -> str:
-    """One ScalarVariable element; parameter start values come from `settings`."""
-    start = variable.start
-    if variable.causality == "parameter":
-        start = settings[variable.name]
+def _start(variable: Variable, settings: dict) -> float | bool | None:
+    """Start value of a variable: parameters from `settings`, the others from the table."""
+    return settings[variable.name] if variable.causality == "parameter" else variable.start
+
+
+def _common_attributes(variable: Variable) -> list[str]:
+    """name, valueReference, description, causality, variability (and initial for parameters)."""
     attributes = [f"name={quoteattr(variable.name)}", f'valueReference="{variable.value_reference}"',
                   f"description={quoteattr(variable.description)}", f'causality="{variable.causality}"',
                   f'variability="{variable.variability}"']
     if variable.causality == "parameter":
         attributes.append('initial="exact"')
-    type_attributes = []
-    if variable.unit is not None:
-        type_attributes.append(f"unit={quoteattr(variable.unit)}")
+    return attributes
+
+
+def _unit_attributes(variable: Variable, start) -> list[str]:
+    """unit, displayUnit and start attributes (those that apply)."""
+    attributes = []
+    if variable.type != "Boolean":  # a number without a unit in the table is dimensionless
+        attributes.append(f"unit={quoteattr(variable.unit or '1')}")
     if variable.display_unit is not None:
-        type_attributes.append(f"displayUnit={quoteattr(variable.display_unit)}")
+        attributes.append(f"displayUnit={quoteattr(variable.display_unit)}")
     if start is not None:
-        type_attributes.append(f'start="{_start_text(variable, start)}"')
+        attributes.append(f'start="{_start_text(variable, start)}"')
+    return attributes
+
+
+def _variable_xml3(variable: Variable, settings: dict) -> str:
+    """One FMI 3 variable element (Float64, Boolean or Int32)."""
+    attributes = _common_attributes(variable) + _unit_attributes(variable, _start(variable, settings))
+    return f'    <{FMI3_TYPES[variable.type]} {" ".join(attributes)}/>'
+
+
+def _variable_xml(variable: Variable, settings: dict) -> str:
+    """One ScalarVariable element; parameter start values come from `settings`."""
+    attributes = _common_attributes(variable)
+    type_attributes = _unit_attributes(variable, _start(variable, settings))
     return (f'    <ScalarVariable {" ".join(attributes)}>\n'
             f'      <{variable.type} {" ".join(type_attributes)}/>\n'
             f'    </ScalarVariable>')
 
 
-def _model_structure_xml() -> str:
-    """Outputs (no direct feedthrough in co-simulation) and InitialUnknowns (every output)."""
+def _initial_dependencies(variable: Variable) -> list[Variable]:
+    """What an output depends on before the first sample: heading = declination, the rest constant."""
+    return [v for v in VARIABLES if v.name == "declination"] if variable.name == "heading" else []
+
+
+def _model_structure_xml(fmi_version: int) -> str:
+    """Outputs (no direct feedthrough in co-simulation) and InitialUnknowns (every output).
+
+    FMI 2 refers to variables by their 1-based index, FMI 3 by value reference.
+    """
     index = {v.name: i + 1 for i, v in enumerate(VARIABLES)}
     outputs = [v for v in VARIABLES if v.causality == "output"]
+    if fmi_version == 3:
+        lines = ["  <ModelStructure>"]
+        lines += [f'    <Output valueReference="{v.value_reference}" dependencies=""/>' for v in outputs]
+        for v in outputs:
+            dependencies = " ".join(str(d.value_reference) for d in _initial_dependencies(v))
+            lines.append(f'    <InitialUnknown valueReference="{v.value_reference}" dependencies="{dependencies}"/>')
+        return "\n".join(lines + ["  </ModelStructure>"])
     lines = ["  <ModelStructure>", "    <Outputs>"]
     lines += [f'      <Unknown index="{index[v.name]}" dependencies=""/>' for v in outputs]
     lines += ["    </Outputs>", "    <InitialUnknowns>"]
     for v in outputs:
-        # Before the first sample every output is constant except heading = declination.
-        dependencies = str(index["declination"]) if v.name == "heading" else ""
+        dependencies = " ".join(str(index[d.name]) for d in _initial_dependencies(v))
         lines.append(f'      <Unknown index="{index[v.name]}" dependencies="{dependencies}"/>')
     lines += ["    </InitialUnknowns>", "  </ModelStructure>"]
     return "\n".join(lines)
 
 
-def model_description_xml(settings: dict, guid: str, description: str,
-                          source_files: list[str] | None = None) -> str:
-    """Text of modelDescription.xml.
-
-    settings: parameter start values by name (missing names take training.layout defaults);
-    guid: the GUID also compiled into the binary; description: the model's one-line description;
-    source_files: the .c files to list under SourceFiles (default: those of fmu.compiler).
-    Raises KeyError for an unknown setting name.
-    """
+def _settings_values(settings: dict) -> dict:
+    """Every setting by name: training.layout defaults overridden by `settings`; KeyError for unknown names."""
     values = settings_defaults()
     for name, value in settings.items():
         if name not in values:
             raise KeyError(f"unknown setting '{name}' (known: {', '.join(values)})")
         values[name] = value
-    if source_files is None:
-        source_files = [p.name for p in fmu_source_files() if p.suffix == ".c"]
-    files = "\n".join(f"      <File name={quoteattr(name)}/>" for name in source_files)
+    return values
+
+
+def _shared_sections(values: dict) -> str:
+    """UnitDefinitions, LogCategories and DefaultExperiment (the same in FMI 2 and FMI 3)."""
     units = "\n".join(f"    <Unit name={quoteattr(name)}>{inner}</Unit>" if inner else f"    <Unit name={quoteattr(name)}/>"
                       for name, inner in UNITS.items())
     categories = "\n".join(f"    <Category name={quoteattr(n)} description={quoteattr(d)}/>" for n, d in LOG_CATEGORIES)
     experiment = " ".join(f'{k}="{v!r}"' for k, v in DEFAULT_EXPERIMENT.items())
+    return f"""  <UnitDefinitions>
+{units}
+  </UnitDefinitions>
+  <LogCategories>
+{categories}
+  </LogCategories>
+  <DefaultExperiment {experiment}/>"""
+
+
+def _fmi3_xml(values: dict, guid: str, description: str) -> str:
+    """Text of an FMI 3.0 modelDescription.xml (sources are listed in buildDescription.xml)."""
+    variables = "\n".join([_TIME_XML] + [_variable_xml3(v, values) for v in VARIABLES])
+    return f"""<?xml version="1.0" encoding="UTF-8"?>
+<fmiModelDescription
+  fmiVersion="3.0"
+  modelName="{MODEL_NAME}"
+  instantiationToken={quoteattr(guid)}
+  description={quoteattr(description)}
+  generationTool="{GENERATION_TOOL}"
+  variableNamingConvention="flat">
+  <CoSimulation
+    modelIdentifier="{MODEL_NAME}"
+    canHandleVariableCommunicationStepSize="true"
+    maxOutputDerivativeOrder="0"
+    canGetAndSetFMUState="true"
+    canSerializeFMUState="true"
+    providesDirectionalDerivatives="false"
+    providesAdjointDerivatives="false"
+    hasEventMode="false"/>
+{_shared_sections(values)}
+  <ModelVariables>
+{variables}
+  </ModelVariables>
+{_model_structure_xml(3)}
+</fmiModelDescription>
+"""
+
+
+def model_description_xml(settings: dict, guid: str, description: str,
+                          source_files: list[str] | None = None, fmi_version: int = 2) -> str:
+    """Text of modelDescription.xml for FMI `fmi_version` (2 or 3).
+
+    settings: parameter start values by name (missing names take training.layout defaults);
+    guid: the GUID (FMI 3: instantiation token) also compiled into the binary; description: the
+    model's one-line description; source_files: the .c files to list under SourceFiles (FMI 2
+    only; default: those of fmu.compiler; FMI 3 lists them in buildDescription.xml).
+    Raises KeyError for an unknown setting name, BuildError for another FMI version.
+    """
+    values = _settings_values(settings)
+    if check_fmi_version(fmi_version) == 3:
+        return _fmi3_xml(values, guid, description)
+    if source_files is None:
+        source_files = [p.name for p in fmu_source_files(fmi_version=2) if p.suffix == ".c"]
+    files = "\n".join(f"      <File name={quoteattr(name)}/>" for name in source_files)
     variables = "\n".join(_variable_xml(v, values) for v in VARIABLES)
     return f"""<?xml version="1.0" encoding="UTF-8"?>
 <fmiModelDescription
@@ -125,16 +220,10 @@ def model_description_xml(settings: dict, guid: str, description: str,
 {files}
     </SourceFiles>
   </CoSimulation>
-  <UnitDefinitions>
-{units}
-  </UnitDefinitions>
-  <LogCategories>
-{categories}
-  </LogCategories>
-  <DefaultExperiment {experiment}/>
+{_shared_sections(values)}
   <ModelVariables>
 {variables}
   </ModelVariables>
-{_model_structure_xml()}
+{_model_structure_xml(2)}
 </fmiModelDescription>
 """

@@ -1,4 +1,9 @@
-"""Assemble, compile and zip the ImuFusion FMU (FMI 2.0 co-simulation, source + linux64 binary)."""
+"""Assemble, compile and zip the ImuFusion FMU (FMI 2.0 or 3.0 co-simulation, sources + binary).
+
+Every FMU ships a reference result: extra/imufusion/reference_input.csv (a short built-in
+recording) and reference_output.csv (the batch runtime's outputs for it, written at build time),
+which tests and `fmu.validator` reproduce through the FMU.
+"""
 from __future__ import annotations
 
 import hashlib
@@ -10,18 +15,74 @@ from pathlib import Path
 
 import numpy as np
 
-from fmu.compiler import compile_binary, fmu_source_files
+from fmu.build_description import BUILD_DESCRIPTION, build_description_xml
+from fmu.compiler import check_fmi_version, compile_binary, fmu_source_files
 from fmu.header import HEADER_NAME, coefficient_header
 from fmu.model_description import MODEL_NAME, model_description_xml
 from fmu.variables import VARIABLES, Variable
 from training.errors import ModelError
-from training.layout import SETTINGS, settings_array
+from training.layout import INPUTS, OUTPUTS, SETTINGS, settings_array
+from training.runtime import run_batch
 
 DEFAULT_DESCRIPTION = ("IMU calibration and attitude: temperature-compensated gyro, accelerometer and "
                        "magnetometer, adaptive-gain Euler-angle fusion")
 
 #: Timestamp of every zip entry, so the same inputs give the same archive bytes.
 _ZIP_DATE = (1980, 1, 1, 0, 0, 0)
+
+#: The reference input/output pair inside the FMU.
+REFERENCE_INPUT = "extra/imufusion/reference_input.csv"
+REFERENCE_OUTPUT = "extra/imufusion/reference_output.csv"
+
+#: The built-in reference recording: 2 s at 100 Hz.
+_REFERENCE_SAMPLES = 200
+_REFERENCE_RATE_HZ = 100.0
+
+
+def reference_recording() -> tuple[np.ndarray, np.ndarray]:
+    """(t, inputs): the built-in reference recording, closed form (no random numbers).
+
+    t: (200,) s at 100 Hz from 0; inputs: (200, 10) in training.layout.INPUTS order — a sensor
+    rocking in roll and pitch and turning in yaw, gravity and a 20/40 µT field rotated into the
+    body frame, temperature rising from 20 to 30 °C.
+    """
+    t = np.arange(_REFERENCE_SAMPLES) / _REFERENCE_RATE_HZ
+    roll, pitch, yaw = 0.3 * np.sin(1.3 * t), 0.2 * np.sin(0.9 * t + 0.5), 0.8 * t
+    gyr = np.stack([0.39 * np.cos(1.3 * t), 0.18 * np.cos(0.9 * t + 0.5), np.full_like(t, 0.8)], axis=1)
+    c, s = np.cos, np.sin
+    zero, one = np.zeros_like(t), np.ones_like(t)
+    rx = np.stack([one, zero, zero, zero, c(roll), -s(roll), zero, s(roll), c(roll)], axis=1).reshape(-1, 3, 3)
+    ry = np.stack([c(pitch), zero, s(pitch), zero, one, zero, -s(pitch), zero, c(pitch)], axis=1).reshape(-1, 3, 3)
+    rz = np.stack([c(yaw), -s(yaw), zero, s(yaw), c(yaw), zero, zero, zero, one], axis=1).reshape(-1, 3, 3)
+    ned_to_body = np.transpose(rz @ ry @ rx, (0, 2, 1))  # (R_z R_y R_x)^T, R: body -> NED (ZYX)
+    acc = ned_to_body @ np.array([0.0, 0.0, -9.80665])   # specific force at rest
+    mag = ned_to_body @ np.array([20.0, 0.0, 40.0])      # µT, magnetic north and down
+    temp = 20.0 + 5.0 * t
+    return t, np.column_stack([gyr, acc, mag, temp])
+
+
+def _csv_text(t: np.ndarray, values: np.ndarray, names: tuple[str, ...]) -> str:
+    """CSV with header 't,<names>' and every value written so that it reads back exactly."""
+    rows = [",".join(["t", *names])]
+    rows += [",".join(repr(float(v)) for v in (tk, *row)) for tk, row in zip(t, values)]
+    return "\n".join(rows) + "\n"
+
+
+def reference_files(coefficients: np.ndarray, settings: dict[str, float]) -> dict[str, str]:
+    """The reference pair by FMU path: the built-in recording and the batch runtime's outputs
+    for it (row k = the estimate for sample k) with these coefficients and parameter values."""
+    t, inputs = reference_recording()
+    try:
+        outputs = run_batch(coefficients, settings_array(settings), t, inputs)
+    except ValueError as e:
+        raise ModelError(f"cannot compute the reference result: {e}") from e
+    return {REFERENCE_INPUT: _csv_text(t, inputs, INPUTS), REFERENCE_OUTPUT: _csv_text(t, outputs, OUTPUTS)}
+
+
+def read_reference_csv(text: str) -> tuple[tuple[str, ...], np.ndarray]:
+    """(column names, (N, columns) array) of a reference CSV written by `reference_files`."""
+    lines = text.strip().splitlines()
+    return tuple(lines[0].split(",")), np.array([[float(v) for v in line.split(",")] for line in lines[1:]])
 
 
 def _settings_dict(settings: dict) -> dict[str, float]:
@@ -60,8 +121,9 @@ def _table_html(title: str, variables: tuple[Variable, ...], settings: dict[str,
             + "\n".join(rows) + "\n</table>")
 
 
-def documentation_html(settings: dict[str, float], description: str) -> str:
-    """documentation/index.html: what the FMU is, its conventions and its variables with units."""
+def documentation_html(settings: dict[str, float], description: str, fmi_version: int = 2) -> str:
+    """documentation/index.html: what the FMU is, its conventions, bad-input handling, the
+    reference result and its variables with units."""
     by_causality = {c: tuple(v for v in VARIABLES if v.causality == c) for c in ("input", "output", "parameter")}
     return f"""<!DOCTYPE html>
 <html lang="en">
@@ -69,9 +131,16 @@ def documentation_html(settings: dict[str, float], description: str) -> str:
 <body>
 <h1>{MODEL_NAME}</h1>
 <p>{html.escape(description)}.</p>
-<p>FMI 2.0 co-simulation FMU with C sources. Each <code>fmi2DoStep(t, h)</code> consumes the one raw
+<p>FMI {fmi_version}.0 co-simulation FMU with C sources. Each <code>fmi{fmi_version}DoStep(t, h)</code> consumes the one raw
 sample whose inputs were set before it; afterwards the outputs are the estimate for the sample at
 <code>t</code>, and <code>h</code> is the time to the next sample (step sizes may vary).</p>
+<p>Bad input (not finite, saturated or implausible sensor values, temperatures outside [-60, 125] &#176;C,
+a step size that is not finite and positive) never produces NaN or Inf outputs: the FMU skips the
+bad triad, holds its last valid estimate, returns a Warning (a Discard for a bad step size, which
+consumes nothing) and logs one message per episode in the category <code>logBadInput</code>.
+Invalid parameters make initialisation fail with an Error naming the parameter and its range.</p>
+<p>Reference result: <code>{REFERENCE_INPUT}</code> is a short recording and <code>{REFERENCE_OUTPUT}</code>
+the outputs this FMU must give for it (row k = estimate for sample k, default parameters).</p>
 <p>Conventions: body axes are the sensor axes; the navigation frame is magnetic NED; the quaternion
 [w, x, y, z] (Hamilton) rotates body to magnetic NED; Euler angles are ZYX (yaw, pitch, roll);
 heading = yaw + declination is the true heading. Units: rad/s, m/s&#178;, &#181;T, &#176;C, s.</p>
@@ -96,30 +165,38 @@ def _zip_directory(directory: Path, out_path: Path) -> None:
 
 def build_fmu(coefficients: np.ndarray, settings: dict, out_path: str | Path,
               description: str = DEFAULT_DESCRIPTION,
-              provenance: str = "untrained identity coefficients") -> Path:
-    """Build ImuFusion.fmu at out_path and return its path.
+              provenance: str = "untrained identity coefficients", fmi_version: int = 2) -> Path:
+    """Build ImuFusion.fmu for FMI `fmi_version` (2 or 3) at out_path and return its path.
 
     coefficients: (N_COEFFICIENTS,) flat array (training/layout.py); settings: parameter start
     values by name (missing names take the defaults); provenance goes into the coefficient
-    header's comment. The FMU holds modelDescription.xml, sources/ (runtime + FMI 2.0 glue + the
-    generated ImuCoefficientsData.h), documentation/index.html and the compiled binary.
-    Raises ModelError for bad coefficients or settings, BuildError when compilation fails.
+    header's comment. The FMU holds modelDescription.xml, sources/ (runtime + the version's FMI
+    wrapper + the generated ImuCoefficientsData.h; FMI 3 also buildDescription.xml),
+    documentation/index.html, the reference pair in extra/imufusion/ and the compiled binary.
+    Raises ModelError for bad coefficients or settings, BuildError when compilation fails or the
+    FMI version is not 2 or 3.
     """
     out_path = Path(out_path)
+    check_fmi_version(fmi_version)
     values = _settings_dict(settings)
-    sources = fmu_source_files()
+    sources = fmu_source_files(fmi_version=fmi_version)
     guid = model_guid(coefficients, values, sources)
     header = coefficient_header(coefficients, values, guid, provenance)
+    c_files = [p.name for p in sources if p.suffix == ".c"]
+    files = {"modelDescription.xml": model_description_xml(values, guid, description, c_files, fmi_version),
+             f"sources/{HEADER_NAME}": header,
+             "documentation/index.html": documentation_html(values, description, fmi_version),
+             **reference_files(np.asarray(coefficients, dtype=float), values)}
+    if fmi_version == 3:
+        files[BUILD_DESCRIPTION] = build_description_xml(c_files)
     with tempfile.TemporaryDirectory(prefix="imufusion-fmu-") as tmp:
         stage = Path(tmp)
         (stage / "sources").mkdir()
         for path in sources:
             shutil.copyfile(path, stage / "sources" / path.name)
-        (stage / "sources" / HEADER_NAME).write_text(header)
-        c_files = [p.name for p in sources if p.suffix == ".c"]
-        (stage / "modelDescription.xml").write_text(model_description_xml(values, guid, description, c_files))
-        (stage / "documentation").mkdir()
-        (stage / "documentation" / "index.html").write_text(documentation_html(values, description))
+        for name, text in files.items():
+            (stage / name).parent.mkdir(parents=True, exist_ok=True)
+            (stage / name).write_text(text)
         compile_binary(stage)
         out_path.parent.mkdir(parents=True, exist_ok=True)
         partial = out_path.with_name(out_path.name + ".partial")

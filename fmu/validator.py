@@ -1,7 +1,10 @@
-"""Checks of a built ImuFusion FMU: model description, exported symbols, smoke co-simulation."""
+"""Checks of a built ImuFusion FMU (FMI 2 or 3): model description, exported symbols, smoke
+co-simulation and the shipped reference result."""
 from __future__ import annotations
 
+import shutil
 import subprocess
+import sys
 import tempfile
 import zipfile
 from pathlib import Path
@@ -10,8 +13,10 @@ import fmpy
 import numpy as np
 from fmpy.validation import validate_fmu as fmpy_validate_fmu
 
+from fmu.compiler import binary_path
 from fmu.cosim import run_fmu
 from fmu.model_description import MODEL_NAME
+from fmu.packer import REFERENCE_INPUT, REFERENCE_OUTPUT, read_reference_csv
 from training.errors import ImuFusionError
 from training.layout import INPUTS, OUTPUTS
 
@@ -29,14 +34,49 @@ FMI2_CS_FUNCTIONS = frozenset({
     "fmi2GetStringStatus",
 })
 
+#: Every FMI 3.0 function (fmi3Functions.h): exactly what the FMI 3 binary exports.
+FMI3_FUNCTIONS = frozenset({
+    "fmi3GetVersion", "fmi3SetDebugLogging", "fmi3InstantiateModelExchange",
+    "fmi3InstantiateCoSimulation", "fmi3InstantiateScheduledExecution", "fmi3FreeInstance",
+    "fmi3EnterInitializationMode", "fmi3ExitInitializationMode", "fmi3EnterEventMode", "fmi3Terminate",
+    "fmi3Reset", "fmi3GetFloat32", "fmi3GetFloat64", "fmi3GetInt8", "fmi3GetUInt8", "fmi3GetInt16",
+    "fmi3GetUInt16", "fmi3GetInt32", "fmi3GetUInt32", "fmi3GetInt64", "fmi3GetUInt64", "fmi3GetBoolean",
+    "fmi3GetString", "fmi3GetBinary", "fmi3GetClock", "fmi3SetFloat32", "fmi3SetFloat64", "fmi3SetInt8",
+    "fmi3SetUInt8", "fmi3SetInt16", "fmi3SetUInt16", "fmi3SetInt32", "fmi3SetUInt32", "fmi3SetInt64",
+    "fmi3SetUInt64", "fmi3SetBoolean", "fmi3SetString", "fmi3SetBinary", "fmi3SetClock",
+    "fmi3GetNumberOfVariableDependencies", "fmi3GetVariableDependencies", "fmi3GetFMUState",
+    "fmi3SetFMUState", "fmi3FreeFMUState", "fmi3SerializedFMUStateSize", "fmi3SerializeFMUState",
+    "fmi3DeserializeFMUState", "fmi3GetDirectionalDerivative", "fmi3GetAdjointDerivative",
+    "fmi3EnterConfigurationMode", "fmi3ExitConfigurationMode", "fmi3GetIntervalDecimal",
+    "fmi3GetIntervalFraction", "fmi3GetShiftDecimal", "fmi3GetShiftFraction", "fmi3SetIntervalDecimal",
+    "fmi3SetIntervalFraction", "fmi3SetShiftDecimal", "fmi3SetShiftFraction", "fmi3EvaluateDiscreteStates",
+    "fmi3UpdateDiscreteStates", "fmi3EnterContinuousTimeMode", "fmi3CompletedIntegratorStep", "fmi3SetTime",
+    "fmi3SetContinuousStates", "fmi3GetContinuousStateDerivatives", "fmi3GetEventIndicators",
+    "fmi3GetContinuousStates", "fmi3GetNominalsOfContinuousStates", "fmi3GetNumberOfEventIndicators",
+    "fmi3GetNumberOfContinuousStates", "fmi3EnterStepMode", "fmi3GetOutputDerivatives", "fmi3DoStep",
+    "fmi3ActivateModelPartition",
+})
+
+#: The exported function set of each FMI version.
+EXPORTED_FUNCTIONS = {2: FMI2_CS_FUNCTIONS, 3: FMI3_FUNCTIONS}
+
+#: The FMU reproduces its reference output to this bound: FMU (fmpy's CMake, -O3) and batch
+#: library (-O2) compile the same C code; only instruction choice may differ.
+REFERENCE_TOLERANCE = 1e-12
+
 #: Smoke test: 1 s at 100 Hz, sensor at rest and level in a 20/40 µT field.
 _SMOKE_SAMPLES = 100
 _SMOKE_RATE_HZ = 100.0
 
 
-def binary_member() -> str:
-    """Path of this platform's binary inside the FMU archive."""
-    return f"binaries/{fmpy.platform}/{MODEL_NAME}{fmpy.sharedLibraryExtension}"
+def fmi_version_of(path: str | Path) -> int:
+    """2 or 3: the FMI version of the FMU at path (from its modelDescription.xml)."""
+    return int(fmpy.read_model_description(str(path), validate=False).fmiVersion[0])
+
+
+def binary_member(fmi_version: int = 2) -> str:
+    """Path of this platform's binary inside an FMI `fmi_version` FMU archive."""
+    return binary_path(Path(), MODEL_NAME, fmi_version).as_posix()
 
 
 def exported_symbols(path: str | Path) -> set[str]:
@@ -49,10 +89,11 @@ def exported_symbols(path: str | Path) -> set[str]:
     with tempfile.TemporaryDirectory(prefix="imufusion-nm-") as tmp:
         library = path
         if zipfile.is_zipfile(path):
+            member = binary_member(fmi_version_of(path))
             with zipfile.ZipFile(path) as zf:
-                if binary_member() not in zf.namelist():
-                    raise ImuFusionError(f"{path}: no binary {binary_member()} in the FMU")
-                library = Path(zf.extract(binary_member(), tmp))
+                if member not in zf.namelist():
+                    raise ImuFusionError(f"{path}: no binary {member} in the FMU")
+                library = Path(zf.extract(member, tmp))
         result = subprocess.run(["nm", "-D", "--defined-only", str(library)],
                                 stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
     if result.returncode != 0:
@@ -60,18 +101,56 @@ def exported_symbols(path: str | Path) -> set[str]:
     return {line.split()[-1] for line in result.stdout.splitlines() if line.strip()}
 
 
-def _symbol_problems(path: Path) -> list[str]:
-    """Problems with the exported symbol set (it must be exactly FMI2_CS_FUNCTIONS)."""
+def _symbol_problems(path: Path, fmi_version: int) -> list[str]:
+    """Problems with the exported symbol set (it must be exactly EXPORTED_FUNCTIONS[fmi_version])."""
     try:
         symbols = exported_symbols(path)
     except ImuFusionError as e:
         return [str(e)]
+    expected = EXPORTED_FUNCTIONS[fmi_version]
     problems = []
-    if symbols - FMI2_CS_FUNCTIONS:
-        problems.append(f"the binary exports non-FMI symbols: {', '.join(sorted(symbols - FMI2_CS_FUNCTIONS))}")
-    if FMI2_CS_FUNCTIONS - symbols:
-        problems.append(f"the binary lacks FMI functions: {', '.join(sorted(FMI2_CS_FUNCTIONS - symbols))}")
+    if symbols - expected:
+        problems.append(f"the binary exports non-FMI symbols: {', '.join(sorted(symbols - expected))}")
+    if expected - symbols:
+        problems.append(f"the binary lacks FMI functions: {', '.join(sorted(expected - symbols))}")
     return problems
+
+
+def fmutool_problems(path: str | Path) -> list[str]:
+    """Problems that fmu-manipulation-toolbox's static checker (`fmutool -input FMU -check`)
+    reports: its conformity and semantic checks must both pass without an error or warning line."""
+    tool = shutil.which("fmutool", path=str(Path(sys.executable).parent)) or shutil.which("fmutool")
+    if tool is None:
+        return ["fmutool (package fmu-manipulation-toolbox) is not installed"]
+    result = subprocess.run([tool, "-input", str(path), "-check"], stdout=subprocess.PIPE,
+                            stderr=subprocess.STDOUT, text=True)
+    report = result.stdout
+    version = fmi_version_of(path)
+    passed = (f"compliant with FMI-{version}.0" in report and f"No semantic error against the FMI-{version}" in report
+              and result.returncode == 0)
+    bad_lines = [line for line in report.splitlines() if line.startswith(("ERROR", "WARNING"))]
+    return [] if passed and not bad_lines else [f"fmutool -check reported problems:\n{report}"]
+
+
+def reference_problems(path: str | Path) -> list[str]:
+    """Problems reproducing the shipped reference: the FMU run on extra/.../reference_input.csv
+    must give reference_output.csv within REFERENCE_TOLERANCE."""
+    try:
+        with zipfile.ZipFile(path) as zf:
+            in_names, inputs = read_reference_csv(zf.read(REFERENCE_INPUT).decode())
+            out_names, expected = read_reference_csv(zf.read(REFERENCE_OUTPUT).decode())
+    except (KeyError, ValueError) as e:
+        return [f"the FMU's reference result is missing or malformed: {e}"]
+    if in_names != ("t", *INPUTS) or out_names != ("t", *OUTPUTS):
+        return ["the reference CSV columns do not match the FMU's inputs and outputs"]
+    try:
+        outputs = run_fmu(path, inputs[:, 0], inputs[:, 1:])
+    except Exception as e:
+        return [f"co-simulating the reference input failed: {e}"]
+    error = float(np.max(np.abs(outputs - expected[:, 1:])))
+    if not error <= REFERENCE_TOLERANCE:
+        return [f"the FMU does not reproduce its reference output: max difference {error:g} > {REFERENCE_TOLERANCE:g}"]
+    return []
 
 
 def _smoke_problems(path: Path) -> list[str]:
@@ -88,16 +167,23 @@ def _smoke_problems(path: Path) -> list[str]:
 
 
 def validate_fmu(path: str | Path) -> list[str]:
-    """Every problem found in the FMU at path (empty list = valid).
+    """Every problem found in the FMU (FMI 2 or 3) at path (empty list = valid).
 
     Checks fmpy's model-description validation (schema, names, model structure, units), that the
-    binary exports exactly the 34 FMI 2.0 co-simulation functions, and a 1 s smoke co-simulation.
+    binary exports exactly the 34 FMI 2.0 co-simulation functions or all 75 FMI 3.0 functions,
+    fmutool's static check (fmu-manipulation-toolbox), a
+    1 s smoke co-simulation, and that the FMU reproduces its shipped reference result.
     """
     path = Path(path)
     if not zipfile.is_zipfile(path):
         return [f"{path}: not an FMU (an FMU is a zip archive)"]
     problems = list(fmpy_validate_fmu(str(path)))
-    problems += _symbol_problems(path)
+    if problems:
+        return problems
+    problems += _symbol_problems(path, fmi_version_of(path))
+    problems += fmutool_problems(path)
     if not problems:
         problems += _smoke_problems(path)
+    if not problems:
+        problems += reference_problems(path)
     return problems

@@ -92,6 +92,23 @@ VARIABLES: tuple[Variable, ...] = (
                _DEFAULTS["angle_noise"], "deg"),
     _parameter("enable_thermal", 36, None, "Apply the gain/bias temperature model",
                bool(_DEFAULTS["enable_thermal"]), type_="Boolean"),
+    _parameter("attitude_mode", 37, "1", "Attitude filter: 0 = adaptive-gain Euler fusion, 1 = quaternion filter "
+               "with gyro bias at rest and magnetic disturbance rejection", _DEFAULTS["attitude_mode"]),
+    _parameter("field_dip", 38, "rad", "Local earth-field dip (inclination, positive down)",
+               _DEFAULTS["field_dip"], "deg"),
+    _parameter("tau_acc", 39, "s", "Time constant of the inclination correction (quaternion filter)",
+               _DEFAULTS["tau_acc"]),
+    _parameter("tau_mag", 40, "s", "Time constant of the heading correction (quaternion filter)",
+               _DEFAULTS["tau_mag"]),
+    _parameter("rest_gyro_threshold", 41, "rad/s", "Rest detection rate threshold for the gyro bias estimate "
+               "(0 = no bias estimation)", _DEFAULTS["rest_gyro_threshold"], "deg/s"),
+    _parameter("rest_acc_threshold", 42, "m/s2", "Rest detection specific-force deviation threshold",
+               _DEFAULTS["rest_acc_threshold"]),
+    _parameter("mag_reject_time", 43, "s", "Longest rejection of a magnetic field whose norm or dip is disturbed "
+               "(0 = no rejection; quaternion filter)", _DEFAULTS["mag_reject_time"]),
+    _parameter("enable_elm", 44, None, "Apply the extreme-learning-machine model of the nonlinear "
+               "magnetometer distortion (when the artefact carries one)",
+               bool(_DEFAULTS["enable_elm"]), type_="Boolean"),
 )
 
 

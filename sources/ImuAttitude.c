@@ -1,8 +1,13 @@
 /**
  * @file ImuAttitude.c
- * @brief Adaptive-gain fusion of a gyro Euler set and an accelerometer/magnetometer Euler set.
+ * @brief Attitude: adaptive-gain Euler fusion (the method) or a quaternion filter, both on gyro
+ *        rates corrected by a bias estimated at rest.
  *
- * Per sample (dt since the previous one):
+ * Gyro bias (both modes): while the rest detector holds (ImuRestDetector.h; enabled by
+ * rest_gyro_threshold > 0), the bias follows the low-passed rate with time constant
+ * IMU_ATTITUDE_REST_BIAS_TIME; every rate is used minus the bias.
+ *
+ * Euler mode, per sample (dt since the previous one):
  * 1. Gyro set: the previous fused rotation R is propagated over dt with the mean of the previous
  *    and the current corrected rate (trapezoidal rule: holding the previous rate alone lags by
  *    half a sample, about 0.1 deg RMS at 100 Hz and 100 deg/s), R <- R exp([w x] dt), and
@@ -17,13 +22,30 @@
  *    departure of |f| from g (or |m| from field_norm); K_i = P_i / (P_i + R_i); fused angle =
  *    wrap(gyro angle + K_i e_i); P_i <- (1 - K_i) P_i. R is rebuilt from the fused angles.
  * Roll/pitch are set directly from the first finite accelerometer sample and yaw from the first
- * finite magnetometer sample (P_i = angle_noise^2 from the start). A non-finite rate is left out
- * of the propagation (the other one is held alone; neither finite: no propagation) and a
- * non-finite acc/mag sample skips its correction, so the state stays finite.
+ * finite magnetometer sample (P_i = angle_noise^2 from the start).
+ *
+ * Quaternion mode, q = Rz(heading offset) (x) qAcc (x) qGyr:
+ * 1. qGyr <- qGyr (x) exp(w dt / 2) with the trapezoidal rate (strapdown into a frame that is
+ *    inertial up to the gyro's drift).
+ * 2. f is rotated into that frame and low-passed by two first-order stages of time constant
+ *    tau_acc / 2: there a linear acceleration, which integrates to a velocity change, averages
+ *    out while gravity stays put. qAcc is then turned about a horizontal axis so that the
+ *    low-passed f points up (-z); the heading is untouched.
+ * 3. The field is rotated into the level frame qAcc (x) qGyr; its heading gives the measured
+ *    offset -atan2(m_y, m_x). A field whose norm departs from field_norm by more than
+ *    IMU_ATTITUDE_MAG_NORM_TOLERANCE or whose dip departs from field_dip by more than
+ *    IMU_ATTITUDE_MAG_DIP_TOLERANCE is rejected for at most mag_reject_time (the rejection time
+ *    decays IMU_ATTITUDE_MAG_RECOVERY times faster while the field is clean, so a persistent new
+ *    field is accepted again); an accepted one moves the offset with gain 1 - exp(-dt/tau_mag)
+ *    (1/n over the first n samples, so the start averages instead of trusting one sample).
+ *
+ * A non-finite rate is left out of the propagation (the other one is held alone; neither finite:
+ * no propagation) and a non-finite acc/mag sample skips its correction, so the state stays finite.
  */
 #include <math.h>
 #include "ImuAttitude.h"
 #include "ImuMath.h"
+#include "ImuQuaternion.h"
 
 /*
  * Roll/pitch measurement variance [rad^2] added per squared relative departure of |f| from g.
@@ -43,6 +65,18 @@
  * order of the possible rotation and the next acc/mag fix is trusted accordingly.
  */
 #define IMU_ATTITUDE_UNTRACKED_MOTION 1.0
+/*
+ * Time constant [s] of the bias estimate at rest: averages the rest detector's low-passed rate
+ * (itself 0.5 s) further, so sensor noise leaves a bias error far below the rest threshold.
+ */
+#define IMU_ATTITUDE_REST_BIAS_TIME 2.0
+/* Relative tolerance of the field norm: the field of an undisturbed, calibrated magnetometer
+ * stays within a few percent of the earth-field norm (BROAD undisturbed: 5-95 % within 7 %). */
+#define IMU_ATTITUDE_MAG_NORM_TOLERANCE 0.1
+/* Tolerance [rad] of the dip: 10 deg (BROAD undisturbed: 5-95 % within about 5 deg). */
+#define IMU_ATTITUDE_MAG_DIP_TOLERANCE 0.1745329252
+/* Rejection time decays this many times faster than it grows while the field is clean. */
+#define IMU_ATTITUDE_MAG_RECOVERY 2.0
 
 /** @brief Set the settings and reset the state (level, yaw 0, nothing initialised). */
 void ImuAttitudeInitialise(ImuAttitude *a, const ImuAttitudeSettings *s)
@@ -66,6 +100,19 @@ void ImuAttitudeReset(ImuAttitude *a)
     ImuMatrixFromEuler(0.0, 0.0, 0.0, a->rotation);
     a->tiltInitialised = 0;
     a->yawInitialised = 0;
+    for (i = 0; i < 4; i++) {
+        a->qGyr[i] = i == 0 ? 1.0 : 0.0;
+        a->qAcc[i] = i == 0 ? 1.0 : 0.0;
+    }
+    for (i = 0; i < 3; i++) {
+        a->bias[i] = 0.0;
+        a->accLp[0][i] = 0.0;
+        a->accLp[1][i] = 0.0;
+    }
+    ImuRestDetectorReset(&a->rest);
+    a->headingOffset = 0.0;
+    a->magRejected = 0.0;
+    a->magSamples = 0.0;
 }
 
 /**
@@ -163,21 +210,16 @@ static void ImuAttitudeCorrectYaw(ImuAttitude *a, const double mag[3], const dou
     ImuAttitudeCorrect(a, 2, yaw, IMU_ATTITUDE_MAG_DEPARTURE_VARIANCE * departure * departure, alpha);
 }
 
-/** @brief Process one sample: gyr [rad/s], acc [m/s^2], mag [uT]; dt [s] since the previous. */
-void ImuAttitudeUpdate(ImuAttitude *a, const double gyr[3], const double acc[3], const double mag[3],
-                       double dt)
+/** @brief Euler mode: one sample of corrected gyr [rad/s], acc [m/s^2], mag [uT]; dt [s]. */
+static void ImuAttitudeUpdateEuler(ImuAttitude *a, const double gyr[3], const double acc[3], const double mag[3],
+                                   double dt)
 {
     const double alpha = dt > 0.0 ? 1.0 - exp(-dt / a->settings.mseTimeConstant) : 0.0;
     const int tiltWasInitialised = a->tiltInitialised;
     double predictedTilt[2];
-    int i;
     ImuAttitudePredict(a, gyr, dt);
     predictedTilt[0] = a->euler[0];
     predictedTilt[1] = a->euler[1];
-    for (i = 0; i < 3; i++) {
-        a->gain[i] = 0.0;
-        a->previousRate[i] = gyr[i];
-    }
     if (ImuAllFinite(acc, 3)) {
         ImuAttitudeCorrectTilt(a, acc, alpha);
     }
@@ -187,6 +229,145 @@ void ImuAttitudeUpdate(ImuAttitude *a, const double gyr[3], const double acc[3],
         ImuAttitudeCorrectYaw(a, mag, tiltWasInitialised ? predictedTilt : a->euler, alpha);
     }
     ImuMatrixFromEuler(a->euler[0], a->euler[1], a->euler[2], a->rotation);
+}
+
+/** @brief Quaternion mode: strapdown qGyr with the rate gyr [rad/s] over dt [s]. */
+static void ImuAttitudeQuaternionPredict(ImuAttitude *a, const double gyr[3], double dt)
+{
+    double rate[3];
+    if (dt > 0.0 && ImuAttitudeStepRate(a, gyr, rate)) {
+        ImuQuaternionIntegrate(a->qGyr, rate, dt);
+    }
+}
+
+/** @brief Quaternion mode: low-pass f [m/s^2] in the inertial frame, turn qAcc to level it. */
+static void ImuAttitudeQuaternionTilt(ImuAttitude *a, const double acc[3], double dt)
+{
+    const double alpha = dt > 0.0 ? 1.0 - exp(-2.0 * dt / a->settings.tauAcc) : 0.0;
+    double inertial[3], e[3], turn[4], product[4], n;
+    int i;
+    ImuQuaternionRotate(a->qGyr, acc, inertial);
+    for (i = 0; i < 3; i++) {
+        if (!a->tiltInitialised) {
+            a->accLp[0][i] = inertial[i];
+            a->accLp[1][i] = inertial[i];
+        }
+        a->accLp[0][i] += alpha * (inertial[i] - a->accLp[0][i]);
+        a->accLp[1][i] += alpha * (a->accLp[0][i] - a->accLp[1][i]);
+    }
+    ImuQuaternionRotate(a->qAcc, a->accLp[1], e);
+    n = ImuVectorNorm(e);
+    if (!(n > 0.0)) {
+        return;
+    }
+    /* Shortest turn of the unit vector e onto up (0, 0, -1): [1 + e.up, e x up], normalised;
+     * about x when e points straight down. */
+    turn[0] = 1.0 - e[2] / n;
+    turn[1] = -e[1] / n;
+    turn[2] = e[0] / n;
+    turn[3] = 0.0;
+    if (turn[0] < 1e-12) {
+        turn[0] = 0.0;
+        turn[1] = 1.0;
+        turn[2] = 0.0;
+    }
+    ImuQuaternionNormalise(turn);
+    ImuQuaternionMultiply(turn, a->qAcc, product);
+    for (i = 0; i < 4; i++) {
+        a->qAcc[i] = product[i];
+    }
+    ImuQuaternionNormalise(a->qAcc);
+    a->gain[0] = a->gain[1] = a->tiltInitialised ? alpha : 1.0;
+    a->tiltInitialised = 1;
+}
+
+/** @brief 1 if the level-frame field m [uT] disagrees with field_norm or field_dip. */
+static int ImuAttitudeMagDisturbed(const ImuAttitude *a, const double m[3])
+{
+    const double norm = ImuVectorNorm(m);
+    const double dip = atan2(m[2], sqrt(m[0] * m[0] + m[1] * m[1]));
+    return fabs(norm - a->settings.fieldNorm) > IMU_ATTITUDE_MAG_NORM_TOLERANCE * a->settings.fieldNorm
+           || fabs(dip - a->settings.fieldDip) > IMU_ATTITUDE_MAG_DIP_TOLERANCE;
+}
+
+/** @brief Quaternion mode: correct the heading offset with the field mag [uT] after dt [s]. */
+static void ImuAttitudeQuaternionHeading(ImuAttitude *a, const double mag[3], double dt)
+{
+    double level[4], m[3], k;
+    ImuQuaternionMultiply(a->qAcc, a->qGyr, level);
+    ImuQuaternionRotate(level, mag, m);
+    if (!(ImuVectorNorm(m) > 0.0)) {
+        return;
+    }
+    if (a->yawInitialised && a->settings.magRejectTime > 0.0 && ImuAttitudeMagDisturbed(a, m)) {
+        if (a->magRejected < a->settings.magRejectTime) {
+            a->magRejected += dt;
+            return;
+        }
+    } else {
+        a->magRejected = fmax(0.0, a->magRejected - IMU_ATTITUDE_MAG_RECOVERY * dt);
+    }
+    a->magSamples += 1.0;
+    k = fmax(dt > 0.0 ? 1.0 - exp(-dt / a->settings.tauMag) : 0.0, 1.0 / a->magSamples);
+    a->headingOffset = ImuWrapAngle(a->headingOffset + k * ImuWrapAngle(-atan2(m[1], m[0]) - a->headingOffset));
+    a->gain[2] = k;
+    a->yawInitialised = 1;
+}
+
+/** @brief Quaternion mode: one sample of corrected gyr [rad/s], acc [m/s^2], mag [uT]; dt [s]. */
+static void ImuAttitudeUpdateQuaternion(ImuAttitude *a, const double gyr[3], const double acc[3],
+                                        const double mag[3], double dt)
+{
+    double q[4];
+    ImuAttitudeQuaternionPredict(a, gyr, dt);
+    if (ImuAllFinite(acc, 3)) {
+        ImuAttitudeQuaternionTilt(a, acc, dt);
+    }
+    if (ImuAllFinite(mag, 3)) {
+        ImuAttitudeQuaternionHeading(a, mag, dt);
+    }
+    ImuQuaternionMultiply(a->qAcc, a->qGyr, q);
+    ImuQuaternionTurnNav(q, a->headingOffset);
+    ImuQuaternionToMatrix(q, a->rotation);
+    ImuMatrixToEuler(a->rotation, a->euler);
+}
+
+/** @brief Update the gyro bias [rad/s] from a finite sample gyr [rad/s], acc [m/s^2] at rest. */
+static void ImuAttitudeUpdateBias(ImuAttitude *a, const double gyr[3], const double acc[3], double dt)
+{
+    const ImuAttitudeSettings *s = &a->settings;
+    const double k = 1.0 - exp(-dt / IMU_ATTITUDE_REST_BIAS_TIME);
+    double rate[3];
+    int i;
+    if (ImuRestDetectorUpdate(&a->rest, gyr, acc, dt, s->restGyroThreshold, s->restAccThreshold)) {
+        ImuRestDetectorGetRate(&a->rest, rate);
+        for (i = 0; i < 3; i++) {
+            a->bias[i] += k * (rate[i] - a->bias[i]);
+        }
+    }
+}
+
+/** @brief Process one sample: gyr [rad/s], acc [m/s^2], mag [uT]; dt [s] since the previous. */
+void ImuAttitudeUpdate(ImuAttitude *a, const double gyr[3], const double acc[3], const double mag[3],
+                       double dt)
+{
+    double rate[3];
+    int i;
+    if (a->settings.restGyroThreshold > 0.0 && dt > 0.0 && ImuAllFinite(gyr, 3) && ImuAllFinite(acc, 3)) {
+        ImuAttitudeUpdateBias(a, gyr, acc, dt);
+    }
+    for (i = 0; i < 3; i++) {
+        rate[i] = gyr[i] - a->bias[i];
+        a->gain[i] = 0.0;
+    }
+    if (a->settings.mode == IMU_ATTITUDE_QUATERNION) {
+        ImuAttitudeUpdateQuaternion(a, rate, acc, mag, dt);
+    } else {
+        ImuAttitudeUpdateEuler(a, rate, acc, mag, dt);
+    }
+    for (i = 0; i < 3; i++) {
+        a->previousRate[i] = rate[i];
+    }
 }
 
 /** @brief Fused roll, pitch, yaw [rad], each in (-pi, pi]. */

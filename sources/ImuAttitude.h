@@ -1,18 +1,34 @@
 /**
  * @file ImuAttitude.h
- * @brief Attitude by adaptive-gain fusion of two ZYX Euler sets: one from the gyro (rotation-
- *        matrix update), one from accelerometer (roll, pitch) and magnetometer (yaw).
+ * @brief Attitude body -> magnetic NED from corrected gyro, accelerometer and magnetometer, in
+ *        one of two modes:
  *
- * Angles are body -> magnetic NED; the gains come from the mean-square errors of the two sets
- * (gyro: propagated variance P; acc/mag: moving mean-square innovation R), K = P / (P + R).
+ * - IMU_ATTITUDE_EULER: adaptive-gain fusion of two ZYX Euler sets, one from the gyro (rotation-
+ *   matrix update), one from accelerometer (roll, pitch) and magnetometer (yaw); the gains come
+ *   from the mean-square errors of the two sets (gyro: propagated variance P; acc/mag: moving
+ *   mean-square innovation R), K = P / (P + R).
+ * - IMU_ATTITUDE_QUATERNION: singularity-free quaternion filter: gyro strapdown, inclination
+ *   correction from the specific force low-passed in the almost-inertial strapdown frame (a
+ *   linear acceleration averages out there), heading offset corrected by the magnetometer with
+ *   rejection of fields whose norm or dip disagree with the earth field (with recovery after
+ *   mag_reject_time). Ideas of VQF (Laidig & Seel, Information Fusion 91, 2023).
+ *
+ * Both modes subtract a gyro bias estimated while a rest detector (gyro + accelerometer) holds.
  */
 #ifndef IMU_ATTITUDE_H
 #define IMU_ATTITUDE_H
 
 #include "ImuCommon.h"
+#include "ImuRestDetector.h"
 
 /** Standard gravity [m/s^2]: the specific-force norm at rest. */
 #define IMU_ATTITUDE_GRAVITY 9.80665
+
+/** Attitude modes (setting attitude_mode). */
+typedef enum {
+    IMU_ATTITUDE_EULER = 0,      /* adaptive-gain Euler fusion (the method) */
+    IMU_ATTITUDE_QUATERNION = 1  /* quaternion filter with disturbance rejection */
+} ImuAttitudeMode;
 
 /** Settings in user units. */
 typedef struct {
@@ -21,6 +37,13 @@ typedef struct {
     double mseTimeConstant;  /* s, averaging time of the innovation mean-square errors (> 0) */
     double angleNoise;       /* rad, floor of the acc/mag angle error standard deviation (> 0) */
     double fieldNorm;        /* uT, local earth-field magnitude (> 0) */
+    int mode;                /* ImuAttitudeMode */
+    double fieldDip;         /* rad, local earth-field dip (inclination, positive down) */
+    double tauAcc;           /* s, time constant of the inclination correction (> 0) */
+    double tauMag;           /* s, time constant of the heading correction (> 0) */
+    double restGyroThreshold; /* rad/s, rest-detection rate threshold (0: no bias estimation) */
+    double restAccThreshold; /* m/s^2, rest-detection specific-force threshold (> 0) */
+    double magRejectTime;    /* s, longest rejection of a disturbed field (0: no rejection) */
 } ImuAttitudeSettings;
 
 /** Settings and evolving state (plain struct: copy = save state). */
@@ -34,6 +57,14 @@ typedef struct {
     double previousRate[3]; /* rad/s, corrected rate of the previous sample (may be NaN) */
     int tiltInitialised;    /* roll/pitch were set from the accelerometer */
     int yawInitialised;     /* yaw was set from the magnetometer */
+    double bias[3];         /* rad/s, gyro bias estimated at rest */
+    ImuRestDetector rest;   /* rest detection feeding the bias */
+    double qGyr[4];         /* 1, quaternion mode: strapdown body -> almost-inertial frame */
+    double qAcc[4];         /* 1, quaternion mode: inclination correction, inertial -> level frame */
+    double accLp[2][3];     /* m/s^2, quaternion mode: two-stage low-pass of f in the inertial frame */
+    double headingOffset;   /* rad, quaternion mode: level frame -> magnetic NED about down */
+    double magRejected;     /* s, quaternion mode: time the field has been rejected */
+    double magSamples;      /* 1, quaternion mode: accepted field samples (start-up averaging) */
 } ImuAttitude;
 
 /** @brief Set the settings and reset the state (level, yaw 0, nothing initialised). */

@@ -81,3 +81,14 @@ void ImuBatchLayout(int *version, int *nCoefficients, int *nSettings, int *nInpu
     *nInputs = IMU_INPUT_COUNT;
     *nOutputs = IMU_OUTPUT_COUNT;
 }
+
+void ImuBatchTermSignals(size_t nSamples, const double *t, const double *components,
+                         const double *temperature, double *signals)
+{
+    ImuTermsState state;
+    size_t k;
+    ImuTermsReset(&state);
+    for (k = 0; k < nSamples; k++) {
+        ImuTermsSignals(&state, t[k], components + 9 * k, temperature[k], signals + IMU_TERM_SIGNAL_COUNT * k);
+    }
+}

@@ -35,6 +35,13 @@ IMU_EXPORT int ImuBatchRun(const double *coefficients, size_t nCoefficients, con
  *        the setting and its range (else NULL). @return ImuBatchOk or a negative ImuBatchResult.
  */
 IMU_EXPORT int ImuBatchCheckSettings(const double *settings, size_t nSettings, const char **message);
+/**
+ * @brief The correction-term signals (ImuTerms.h) of a series, exactly as the pipeline forms them.
+ * @param t nSamples times [s]; components nSamples x 9 compensated gyr, acc, mag; temperature
+ *        nSamples [degC]; signals nSamples x IMU_TERM_SIGNAL_COUNT row-major.
+ */
+IMU_EXPORT void ImuBatchTermSignals(size_t nSamples, const double *t, const double *components,
+                                    const double *temperature, double *signals);
 /** @brief Layout version and the lengths of the coefficient, settings, input and output arrays. */
 IMU_EXPORT void ImuBatchLayout(int *version, int *nCoefficients, int *nSettings, int *nInputs, int *nOutputs);
 

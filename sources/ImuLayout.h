@@ -7,7 +7,10 @@
 #ifndef IMU_LAYOUT_H
 #define IMU_LAYOUT_H
 
-#define IMU_LAYOUT_VERSION 1
+#include "ImuTerms.h"
+#include "ImuElm.h"
+
+#define IMU_LAYOUT_VERSION 2
 
 /** Runtime inputs per sample (rad/s, m/s^2, uT, degC). */
 typedef enum {
@@ -39,13 +42,24 @@ typedef enum {
     ImuSetMseTimeConstant,   /* s */
     ImuSetAngleNoise,        /* rad */
     ImuSetEnableThermal,     /* 0 or 1 */
+    ImuSetAttitudeMode,      /* 0 Euler, 1 quaternion */
+    ImuSetFieldDip,          /* rad */
+    ImuSetTauAcc,            /* s */
+    ImuSetTauMag,            /* s */
+    ImuSetRestGyroThreshold, /* rad/s */
+    ImuSetRestAccThreshold,  /* m/s^2 */
+    ImuSetMagRejectTime,     /* s */
+    ImuSetEnableElm,         /* 0 or 1 */
     IMU_SETTING_COUNT
 } ImuSetting;
 
 #define IMU_THERMAL_MAX_DEGREE 3
 /** One triad block: enabled, t0, ts, degree, A[9], g[3][MAX], b[3][MAX+1]. */
 #define IMU_THERMAL_BLOCK (4 + 9 + 3 * IMU_THERMAL_MAX_DEGREE + 3 * (IMU_THERMAL_MAX_DEGREE + 1))
-/** Coefficient array: [version, gyr block, acc block, mag block]. */
-#define IMU_COEFFICIENT_COUNT (1 + 3 * IMU_THERMAL_BLOCK)
+/** Offsets of the blocks in the coefficient array: [version, gyr, acc, mag thermal blocks, terms]. */
+#define IMU_OFFSET_THERMAL 1
+#define IMU_OFFSET_TERMS (IMU_OFFSET_THERMAL + 3 * IMU_THERMAL_BLOCK)
+#define IMU_OFFSET_ELM (IMU_OFFSET_TERMS + IMU_TERMS_BLOCK)
+#define IMU_COEFFICIENT_COUNT (IMU_OFFSET_ELM + IMU_ELM_BLOCK)
 
 #endif

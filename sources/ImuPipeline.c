@@ -14,11 +14,21 @@ int ImuCoefficientsFromArray(ImuCoefficients *c, const double *a, size_t n)
         return -1;
     }
     for (i = 0; i < 3; i++) {
-        if (ImuThermalFromBlock(&c->thermal[i], a + 1 + i * IMU_THERMAL_BLOCK) != 0) {
+        if (ImuThermalFromBlock(&c->thermal[i], a + IMU_OFFSET_THERMAL + i * IMU_THERMAL_BLOCK) != 0) {
             return -2;
         }
     }
+    if (ImuTermsFromBlock(&c->terms, a + IMU_OFFSET_TERMS) != 0
+        || ImuElmFromBlock(&c->elm, a + IMU_OFFSET_ELM) != 0) {
+        return -2;
+    }
     return 0;
+}
+
+/** @brief A 0/1 switch from a setting value; -1 (rejected by the settings check) otherwise. */
+static int ImuPipelineFlag(double value)
+{
+    return value == 0.0 ? 0 : (value == 1.0 ? 1 : -1);
 }
 
 /** @brief Unpack a flat settings array (enable_thermal other than 0/1 becomes -1); 0 or -1 on bad size. */
@@ -36,6 +46,14 @@ int ImuPipelineSettingsFromArray(ImuPipelineSettings *s, const double *a, size_t
     s->mseTimeConstant = a[ImuSetMseTimeConstant];
     s->angleNoise = a[ImuSetAngleNoise];
     s->enableThermal = enable == 0.0 ? 0 : (enable == 1.0 ? 1 : -1);
+    s->attitudeMode = a[ImuSetAttitudeMode] == 0.0 ? 0 : (a[ImuSetAttitudeMode] == 1.0 ? 1 : -1);
+    s->fieldDip = a[ImuSetFieldDip];
+    s->tauAcc = a[ImuSetTauAcc];
+    s->tauMag = a[ImuSetTauMag];
+    s->restGyroThreshold = a[ImuSetRestGyroThreshold];
+    s->restAccThreshold = a[ImuSetRestAccThreshold];
+    s->magRejectTime = a[ImuSetMagRejectTime];
+    s->enableElm = ImuPipelineFlag(a[ImuSetEnableElm]);
     return 0;
 }
 
@@ -43,6 +61,27 @@ int ImuPipelineSettingsFromArray(ImuPipelineSettings *s, const double *a, size_t
 static int ImuPipelineInRange(double x, int zeroAllowed)
 {
     return isfinite(x) && (x > 0.0 || (zeroAllowed && x == 0.0));
+}
+
+/** @brief Range problem of an attitude setting (static text naming it and its range), or NULL. */
+static const char *ImuPipelineCheckAttitude(const ImuPipelineSettings *s)
+{
+    if (s->attitudeMode != 0 && s->attitudeMode != 1) {
+        return "attitude_mode must be 0 (Euler) or 1 (quaternion)";
+    } else if (!(fabs(s->fieldDip) <= 0.5 * IMU_PI)) {
+        return "field_dip must be within [-pi/2, pi/2] [rad]";
+    } else if (!ImuPipelineInRange(s->tauAcc, 0)) {
+        return "tau_acc must be finite and > 0 [s]";
+    } else if (!ImuPipelineInRange(s->tauMag, 0)) {
+        return "tau_mag must be finite and > 0 [s]";
+    } else if (!ImuPipelineInRange(s->restGyroThreshold, 1)) {
+        return "rest_gyro_threshold must be finite and >= 0 [rad/s]";
+    } else if (!ImuPipelineInRange(s->restAccThreshold, 0)) {
+        return "rest_acc_threshold must be finite and > 0 [m/s^2]";
+    } else if (!ImuPipelineInRange(s->magRejectTime, 1)) {
+        return "mag_reject_time must be finite and >= 0 [s]";
+    }
+    return NULL;
 }
 
 /** @brief Check settings; -1 with *message naming the setting and its range, else 0. */
@@ -63,6 +102,10 @@ int ImuPipelineSettingsCheck(const ImuPipelineSettings *s, const char **message)
         problem = "angle_noise must be finite and > 0 [rad]";
     } else if (s->enableThermal != 0 && s->enableThermal != 1) {
         problem = "enable_thermal must be 0 or 1";
+    } else if (s->enableElm != 0 && s->enableElm != 1) {
+        problem = "enable_elm must be 0 or 1";
+    } else {
+        problem = ImuPipelineCheckAttitude(s);
     }
     if (message != NULL) {
         *message = problem;
@@ -81,6 +124,13 @@ void ImuPipelineInitialise(ImuPipeline *p, const ImuPipelineSettings *s, const I
     a.mseTimeConstant = s->mseTimeConstant;
     a.angleNoise = s->angleNoise;
     a.fieldNorm = s->fieldNorm;
+    a.mode = s->attitudeMode;
+    a.fieldDip = s->fieldDip;
+    a.tauAcc = s->tauAcc;
+    a.tauMag = s->tauMag;
+    a.restGyroThreshold = s->restGyroThreshold;
+    a.restAccThreshold = s->restAccThreshold;
+    a.magRejectTime = s->magRejectTime;
     ImuAttitudeInitialise(&p->attitude, &a);
     ImuPipelineReset(p);
 }
@@ -89,6 +139,7 @@ void ImuPipelineInitialise(ImuPipeline *p, const ImuPipelineSettings *s, const I
 void ImuPipelineReset(ImuPipeline *p)
 {
     ImuAttitudeReset(&p->attitude);
+    ImuTermsReset(&p->terms);
     p->lastTime = 0.0;
     p->hasLastTime = 0;
 }
@@ -110,13 +161,10 @@ static double ImuPipelineStep(ImuPipeline *p, double t)
     return dt;
 }
 
-/** @brief Process one sample at time t [s]: raw inputs in (ImuLayout.h units) -> outputs out. */
-void ImuPipelineUpdate(ImuPipeline *p, double t, const double in[IMU_INPUT_COUNT],
-                       double out[IMU_OUTPUT_COUNT])
+/** @brief Gain/bias temperature compensation of the three raw triads into out[rate..field]. */
+static void ImuPipelineThermal(const ImuPipeline *p, const double in[IMU_INPUT_COUNT], double temperature,
+                               double out[IMU_OUTPUT_COUNT])
 {
-    const double temperature = in[ImuInTemp];
-    const double dt = ImuPipelineStep(p, t);
-    double *gyr = &out[ImuOutRateX], *acc = &out[ImuOutAccelX], *mag = &out[ImuOutFieldX];
     int i;
     for (i = 0; i < 3; i++) {
         const double *raw = &in[ImuInGyrX + 3 * i];
@@ -129,7 +177,28 @@ void ImuPipelineUpdate(ImuPipeline *p, double t, const double in[IMU_INPUT_COUNT
             corrected[2] = raw[2];
         }
     }
-    ImuAttitudeUpdate(&p->attitude, gyr, acc, mag, dt);
+}
+
+/** @brief Subtract the diagnosed correction terms from the compensated triads out[rate..field]. */
+static void ImuPipelineTerms(ImuPipeline *p, double t, double temperature, double out[IMU_OUTPUT_COUNT])
+{
+    double signals[IMU_TERM_SIGNAL_COUNT];
+    ImuTermsSignals(&p->terms, t, &out[ImuOutRateX], temperature, signals);
+    ImuTermsApply(&p->coefficients.terms, signals, &out[ImuOutRateX]);
+}
+
+/** @brief Process one sample at time t [s]: raw inputs in (ImuLayout.h units) -> outputs out. */
+void ImuPipelineUpdate(ImuPipeline *p, double t, const double in[IMU_INPUT_COUNT],
+                       double out[IMU_OUTPUT_COUNT])
+{
+    const double temperature = in[ImuInTemp];
+    const double dt = ImuPipelineStep(p, t);
+    ImuPipelineThermal(p, in, temperature, out);
+    ImuPipelineTerms(p, t, temperature, out);
+    if (p->settings.enableElm) {
+        ImuElmApply(&p->coefficients.elm, &out[ImuOutFieldX], &out[ImuOutFieldX]);
+    }
+    ImuAttitudeUpdate(&p->attitude, &out[ImuOutRateX], &out[ImuOutAccelX], &out[ImuOutFieldX], dt);
     ImuAttitudeGetEuler(&p->attitude, &out[ImuOutRoll]);
     out[ImuOutHeading] = ImuWrapAngle(out[ImuOutYaw] + p->settings.declination);
     ImuAttitudeGetQuaternion(&p->attitude, &out[ImuOutQw]);

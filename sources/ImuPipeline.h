@@ -13,10 +13,14 @@
 #include "ImuLayout.h"
 #include "ImuThermal.h"
 #include "ImuAttitude.h"
+#include "ImuTerms.h"
+#include "ImuElm.h"
 
 /** Trained coefficients of every stage (unpacked from the flat coefficient array). */
 typedef struct {
     ImuThermalCoefficients thermal[3]; /* gyr, acc, mag */
+    ImuTermsCoefficients terms;        /* additive terms found by `imufmu diagnose` */
+    ImuElm elm;                        /* nonlinear field model (field form) */
 } ImuCoefficients;
 
 /** User settings in user units (the FMU parameters). */
@@ -28,6 +32,14 @@ typedef struct {
     double mseTimeConstant;  /* s */
     double angleNoise;       /* rad */
     int enableThermal;       /* 0 or 1 */
+    int attitudeMode;        /* ImuAttitudeMode; -1 marks a value other than 0/1 for the check */
+    double fieldDip;         /* rad */
+    double tauAcc;           /* s */
+    double tauMag;           /* s */
+    double restGyroThreshold; /* rad/s, 0 = no bias estimation */
+    double restAccThreshold; /* m/s^2 */
+    double magRejectTime;    /* s, 0 = no rejection */
+    int enableElm;           /* 0 or 1: apply the ELM nonlinear field model */
 } ImuPipelineSettings;
 
 /** Whole pipeline: settings, coefficients and evolving state in one plain struct (copyable). */
@@ -35,6 +47,7 @@ typedef struct {
     ImuPipelineSettings settings;
     ImuCoefficients coefficients;
     ImuAttitude attitude;
+    ImuTermsState terms;
     double lastTime;   /* s, time of the previous sample */
     int hasLastTime;   /* 0 before the first sample */
 } ImuPipeline;

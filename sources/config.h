@@ -52,12 +52,28 @@ typedef enum {
     vr_gyro_bias_residual = 33,
     vr_mse_time_constant = 34,
     vr_angle_noise = 35,
-    vr_enable_thermal = 36
+    vr_enable_thermal = 36,
+    vr_attitude_mode = 37,
+    vr_field_dip = 38,
+    vr_tau_acc = 39,
+    vr_tau_mag = 40,
+    vr_rest_gyro_threshold = 41,
+    vr_rest_acc_threshold = 42,
+    vr_mag_reject_time = 43,
+    vr_enable_elm = 44
 } ValueReference;
+
+/** Parameters of type Boolean; every other variable is Real (FMI 3: Float64) unless VR_IS_INTEGER. */
+#define VR_IS_BOOLEAN(vr) ((vr) == vr_enable_thermal || (vr) == vr_enable_elm)
+/** Parameters of type Integer (FMI 3: Int32), stored as whole numbers in the settings array. */
+#define VR_IS_INTEGER(vr) ((void)(vr), 0)
+
+/** FMI 3 only: the independent variable "time" [s], outside the variable table's range. */
+#define VR_TIME 1000000u
 
 #define VR_FIRST_INPUT vr_gyr_x
 #define VR_FIRST_OUTPUT vr_rate_x
 #define VR_FIRST_SETTING vr_declination
-#define VR_COUNT (vr_enable_thermal + 1)
+#define VR_COUNT (vr_enable_elm + 1)
 
 #endif

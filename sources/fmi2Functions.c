@@ -1,100 +1,43 @@
 /**
  * @file fmi2Functions.c
- * @brief FMI 2.0 co-simulation interface of ImuFusion: state machine, logging, FMU state.
+ * @brief FMI 2.0 co-simulation interface of ImuFusion: FMI 2 types and callbacks around model.c.
  *
- * The only file that includes FMI headers. It exports exactly the 34 FMI 2.0 co-simulation
- * functions (no prefix); everything else here is static.
+ * One of the two files that include FMI headers. It exports exactly the 34 FMI 2.0
+ * co-simulation functions (no prefix); the state machine, logging and values are model.c's.
  */
-#include <stdarg.h>
-#include <stdio.h>
+#include <math.h>
 #include <string.h>
 
 #include "fmi2Functions.h"
 #include "model.h"
 
-/** Phases of the FMI 2.0 co-simulation state machine (one bit each). */
-typedef enum {
-    PhaseInstantiated = 1 << 0,
-    PhaseInitialization = 1 << 1,
-    PhaseStepComplete = 1 << 2,
-    PhaseTerminated = 1 << 3,
-    PhaseError = 1 << 4
-} Phase;
-
-#define ANY_PHASE (PhaseInstantiated | PhaseInitialization | PhaseStepComplete | PhaseTerminated | PhaseError)
-#define RUNNING_PHASES (PhaseInstantiated | PhaseInitialization | PhaseStepComplete)
-
-/** Log categories, in the order of LogCategories in modelDescription.xml. */
-typedef enum {
-    LogEvents,
-    LogStatusWarning,
-    LogStatusError,
-    LOG_CATEGORY_COUNT
-} LogCategory;
-
-static const char *const logCategoryNames[LOG_CATEGORY_COUNT] = {
-    "logEvents", "logStatusWarning", "logStatusError"
-};
-
-#define STATE_MAGIC 0x494D5546u /* "IMUF" */
-#define LOG_BUFFER_SIZE 512
-
-/** The FMU state: a copy of everything that evolves, so get/set/serialize are copies. */
+/** One FMU instance: the shared core and the importer's FMI 2 callbacks. */
 typedef struct {
-    unsigned int magic;  /* STATE_MAGIC */
-    unsigned int size;   /* sizeof(FmuState) */
-    int phase;           /* Phase when the state was taken */
-    double time;         /* s, current communication point */
-    ModelData model;
-} FmuState;
-
-/** One FMU instance. */
-typedef struct {
+    ModelInstance core;
     fmi2CallbackLogger logger;
     fmi2CallbackAllocateMemory allocateMemory;
     fmi2CallbackFreeMemory freeMemory;
     fmi2ComponentEnvironment environment;
     char *instanceName;
-    int loggingOn;
-    int categoryOn[LOG_CATEGORY_COUNT];
-    FmuState state;
 } Instance;
 
-/** @brief Send a printf-style message to the importer's logger (errors and warnings always, events when enabled). */
-static void logMessage(const Instance *inst, fmi2Status status, LogCategory category, const char *format, ...) {
-    char buffer[LOG_BUFFER_SIZE];
-    va_list args;
-    int isProblem = status == fmi2Warning || status == fmi2Error || status == fmi2Fatal;
-    if (inst->logger == NULL || !(isProblem || (inst->loggingOn && inst->categoryOn[category]))) {
-        return;
-    }
-    va_start(args, format);
-    vsnprintf(buffer, sizeof buffer, format, args);
-    va_end(args);
-    inst->logger(inst->environment, inst->instanceName, status, logCategoryNames[category], "%s", buffer);
+/** @brief ModelLogCallback: forward a finished message to the importer's fmi2 logger. */
+static void forwardLog(void *environment, ModelStatus status, const char *category, const char *message) {
+    const Instance *inst = (const Instance *)environment;
+    inst->logger(inst->environment, inst->instanceName, (fmi2Status)status, category, "%s", message);
 }
 
-/** @brief Log an error and return fmi2Error. */
-static fmi2Status fail(const Instance *inst, const char *function, const char *message) {
-    logMessage(inst, fmi2Error, LogStatusError, "%s: %s", function, message);
-    return fmi2Error;
+/** @brief The shared core of component c (NULL for NULL). */
+static ModelInstance *core(fmi2Component c) {
+    return c != NULL ? &((Instance *)c)->core : NULL;
 }
 
-/** @brief Check that c is an instance and that function may be called in its current phase. */
-static int allowed(const Instance *inst, const char *function, int phases) {
-    if (inst == NULL) {
-        return 0;
+/** @brief Log that function is not provided by this FMU and return fmi2Error. */
+static fmi2Status notProvided(fmi2Component c, const char *function, const char *why) {
+    if (!ModelAllowed(core(c), function, MODEL_ANY_PHASE)) {
+        return fmi2Error;
     }
-    if ((inst->state.phase & phases) == 0) {
-        logMessage(inst, fmi2Error, LogStatusError, "%s must not be called in the current state", function);
-        return 0;
-    }
-    return 1;
-}
-
-/** @brief Allocate n zeroed bytes through the importer's allocator. */
-static void *allocate(const Instance *inst, size_t n) {
-    return inst->allocateMemory(1, n);
+    return (fmi2Status)ModelFail(core(c), function, why);
 }
 
 /* ---- common functions ---------------------------------------------------------------------- */
@@ -108,26 +51,10 @@ const char *fmi2GetVersion(void) {
 }
 
 fmi2Status fmi2SetDebugLogging(fmi2Component c, fmi2Boolean loggingOn, size_t nCategories, const fmi2String categories[]) {
-    Instance *inst = (Instance *)c;
-    size_t i;
-    int k;
-    if (!allowed(inst, "fmi2SetDebugLogging", ANY_PHASE)) {
+    if (!ModelAllowed(core(c), "fmi2SetDebugLogging", MODEL_ANY_PHASE)) {
         return fmi2Error;
     }
-    inst->loggingOn = loggingOn != fmi2False;
-    for (k = 0; k < LOG_CATEGORY_COUNT; k++) {
-        inst->categoryOn[k] = nCategories == 0;
-    }
-    for (i = 0; i < nCategories; i++) {
-        for (k = 0; k < LOG_CATEGORY_COUNT && strcmp(categories[i], logCategoryNames[k]) != 0; k++) {
-        }
-        if (k == LOG_CATEGORY_COUNT) {
-            logMessage(inst, fmi2Warning, LogStatusWarning, "fmi2SetDebugLogging: unknown log category '%s'", categories[i]);
-            return fmi2Warning;
-        }
-        inst->categoryOn[k] = 1;
-    }
-    return fmi2OK;
+    return (fmi2Status)ModelSetDebugLogging(core(c), loggingOn != fmi2False, nCategories, categories);
 }
 
 fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuType, fmi2String fmuGUID,
@@ -153,23 +80,18 @@ fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuType, fmi2Str
     if (inst == NULL) {
         return NULL;
     }
-    inst->logger = functions->logger;
-    inst->allocateMemory = functions->allocateMemory;
-    inst->freeMemory = functions->freeMemory;
-    inst->environment = functions->componentEnvironment;
-    inst->instanceName = (char *)allocate(inst, strlen(name) + 1);
+    inst->instanceName = (char *)functions->allocateMemory(1, strlen(name) + 1);
     if (inst->instanceName == NULL) {
         functions->freeMemory(inst);
         return NULL;
     }
     memcpy(inst->instanceName, name, strlen(name) + 1);
-    inst->state.magic = STATE_MAGIC;
-    inst->state.size = (unsigned int)sizeof(FmuState);
-    inst->state.phase = PhaseInstantiated;
-    inst->state.time = 0.0;
-    ModelSetStartValues(&inst->state.model);
-    fmi2SetDebugLogging(inst, loggingOn, 0, NULL);
-    logMessage(inst, fmi2OK, LogEvents, "fmi2Instantiate: instance '%s' created", name);
+    inst->logger = functions->logger;
+    inst->allocateMemory = functions->allocateMemory;
+    inst->freeMemory = functions->freeMemory;
+    inst->environment = functions->componentEnvironment;
+    ModelInstanceInitialise(&inst->core, inst->logger != NULL ? forwardLog : NULL, inst, loggingOn != fmi2False);
+    ModelLog(&inst->core, ModelOk, LogEvents, "fmi2Instantiate: instance '%s' created", name);
     return inst;
 }
 
@@ -184,75 +106,52 @@ void fmi2FreeInstance(fmi2Component c) {
 
 fmi2Status fmi2SetupExperiment(fmi2Component c, fmi2Boolean toleranceDefined, fmi2Real tolerance,
                                fmi2Real startTime, fmi2Boolean stopTimeDefined, fmi2Real stopTime) {
-    Instance *inst = (Instance *)c;
+    ModelInstance *mi = core(c);
     (void)toleranceDefined;
     (void)tolerance;
-    if (!allowed(inst, "fmi2SetupExperiment", PhaseInstantiated)) {
+    if (!ModelAllowed(mi, "fmi2SetupExperiment", PhaseInstantiated)) {
         return fmi2Error;
     }
-    if (stopTimeDefined && stopTime < startTime) {
-        return fail(inst, "fmi2SetupExperiment", "stopTime is before startTime");
+    if (!isfinite(startTime) || (stopTimeDefined && !(stopTime >= startTime))) {
+        return (fmi2Status)ModelFail(mi, "fmi2SetupExperiment", "startTime must be finite and stopTime not before it");
     }
-    inst->state.time = startTime;
+    mi->state.time = startTime;
     return fmi2OK;
 }
 
 fmi2Status fmi2EnterInitializationMode(fmi2Component c) {
-    Instance *inst = (Instance *)c;
-    if (!allowed(inst, "fmi2EnterInitializationMode", PhaseInstantiated)) {
+    ModelInstance *mi = core(c);
+    if (mi == NULL) {
         return fmi2Error;
     }
-    inst->state.phase = PhaseInitialization;
-    return fmi2OK;
+    return (fmi2Status)ModelEnterInitialization(mi, "fmi2EnterInitializationMode", mi->state.time, 0, 0.0);
 }
 
 fmi2Status fmi2ExitInitializationMode(fmi2Component c) {
-    Instance *inst = (Instance *)c;
-    const char *message = "";
-    if (!allowed(inst, "fmi2ExitInitializationMode", PhaseInitialization)) {
-        return fmi2Error;
-    }
-    if (ModelInitialise(&inst->state.model, &message) != ModelOk) {
-        inst->state.phase = PhaseError;
-        return fail(inst, "fmi2ExitInitializationMode", message);
-    }
-    inst->state.phase = PhaseStepComplete;
-    logMessage(inst, fmi2OK, LogEvents, "fmi2ExitInitializationMode: initialised at t = %g s", inst->state.time);
-    return fmi2OK;
+    return (fmi2Status)ModelExitInitialization(core(c), "fmi2ExitInitializationMode");
 }
 
 fmi2Status fmi2Terminate(fmi2Component c) {
-    Instance *inst = (Instance *)c;
-    if (!allowed(inst, "fmi2Terminate", PhaseStepComplete)) {
-        return fmi2Error;
-    }
-    inst->state.phase = PhaseTerminated;
-    return fmi2OK;
+    return (fmi2Status)ModelTerminate(core(c), "fmi2Terminate");
 }
 
 fmi2Status fmi2Reset(fmi2Component c) {
-    Instance *inst = (Instance *)c;
-    if (!allowed(inst, "fmi2Reset", ANY_PHASE)) {
+    if (!ModelAllowed(core(c), "fmi2Reset", MODEL_ANY_PHASE)) {
         return fmi2Error;
     }
-    inst->state.phase = PhaseInstantiated;
-    inst->state.time = 0.0;
-    ModelSetStartValues(&inst->state.model);
+    ModelReset(core(c));
     return fmi2OK;
 }
 
 /* ---- getting and setting values ------------------------------------------------------------- */
 
 fmi2Status fmi2GetReal(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, fmi2Real value[]) {
-    Instance *inst = (Instance *)c;
-    const char *message = "";
     size_t i;
-    if (!allowed(inst, "fmi2GetReal", ANY_PHASE)) {
+    if (!ModelAllowed(core(c), "fmi2GetReal", MODEL_ANY_PHASE)) {
         return fmi2Error;
     }
     for (i = 0; i < nvr; i++) {
-        if (ModelGetReal(&inst->state.model, vr[i], &value[i], &message) != ModelOk) {
-            logMessage(inst, fmi2Error, LogStatusError, "fmi2GetReal: %s (value reference %u)", message, vr[i]);
+        if (ModelGetReal(core(c), "fmi2GetReal", vr[i], &value[i]) != ModelOk) {
             return fmi2Error;
         }
     }
@@ -260,29 +159,28 @@ fmi2Status fmi2GetReal(fmi2Component c, const fmi2ValueReference vr[], size_t nv
 }
 
 fmi2Status fmi2GetInteger(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, fmi2Integer value[]) {
-    Instance *inst = (Instance *)c;
-    (void)value;
-    if (!allowed(inst, "fmi2GetInteger", ANY_PHASE)) {
+    size_t i;
+    int v;
+    if (!ModelAllowed(core(c), "fmi2GetInteger", MODEL_ANY_PHASE)) {
         return fmi2Error;
     }
-    if (nvr > 0) {
-        logMessage(inst, fmi2Error, LogStatusError, "fmi2GetInteger: " MODEL_NAME " has no Integer variables (value reference %u)", vr[0]);
-        return fmi2Error;
+    for (i = 0; i < nvr; i++) {
+        if (ModelGetInteger(core(c), "fmi2GetInteger", vr[i], &v) != ModelOk) {
+            return fmi2Error;
+        }
+        value[i] = v;
     }
     return fmi2OK;
 }
 
 fmi2Status fmi2GetBoolean(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, fmi2Boolean value[]) {
-    Instance *inst = (Instance *)c;
-    const char *message = "";
     size_t i;
     int v;
-    if (!allowed(inst, "fmi2GetBoolean", ANY_PHASE)) {
+    if (!ModelAllowed(core(c), "fmi2GetBoolean", MODEL_ANY_PHASE)) {
         return fmi2Error;
     }
     for (i = 0; i < nvr; i++) {
-        if (ModelGetBoolean(&inst->state.model, vr[i], &v, &message) != ModelOk) {
-            logMessage(inst, fmi2Error, LogStatusError, "fmi2GetBoolean: %s (value reference %u)", message, vr[i]);
+        if (ModelGetBoolean(core(c), "fmi2GetBoolean", vr[i], &v) != ModelOk) {
             return fmi2Error;
         }
         value[i] = v ? fmi2True : fmi2False;
@@ -291,28 +189,24 @@ fmi2Status fmi2GetBoolean(fmi2Component c, const fmi2ValueReference vr[], size_t
 }
 
 fmi2Status fmi2GetString(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, fmi2String value[]) {
-    Instance *inst = (Instance *)c;
     (void)value;
-    if (!allowed(inst, "fmi2GetString", ANY_PHASE)) {
+    if (!ModelAllowed(core(c), "fmi2GetString", MODEL_ANY_PHASE)) {
         return fmi2Error;
     }
     if (nvr > 0) {
-        logMessage(inst, fmi2Error, LogStatusError, "fmi2GetString: " MODEL_NAME " has no String variables (value reference %u)", vr[0]);
+        ModelLog(core(c), ModelError, LogStatusError, "fmi2GetString: " MODEL_NAME " has no String variables (value reference %u)", vr[0]);
         return fmi2Error;
     }
     return fmi2OK;
 }
 
 fmi2Status fmi2SetReal(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, const fmi2Real value[]) {
-    Instance *inst = (Instance *)c;
-    const char *message = "";
     size_t i;
-    if (!allowed(inst, "fmi2SetReal", RUNNING_PHASES)) {
+    if (!ModelAllowed(core(c), "fmi2SetReal", MODEL_SET_PHASES)) {
         return fmi2Error;
     }
     for (i = 0; i < nvr; i++) {
-        if (ModelSetReal(&inst->state.model, vr[i], value[i], &message) != ModelOk) {
-            logMessage(inst, fmi2Error, LogStatusError, "fmi2SetReal: %s (value reference %u)", message, vr[i]);
+        if (ModelSetReal(core(c), "fmi2SetReal", vr[i], value[i]) != ModelOk) {
             return fmi2Error;
         }
     }
@@ -320,28 +214,25 @@ fmi2Status fmi2SetReal(fmi2Component c, const fmi2ValueReference vr[], size_t nv
 }
 
 fmi2Status fmi2SetInteger(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, const fmi2Integer value[]) {
-    Instance *inst = (Instance *)c;
-    (void)value;
-    if (!allowed(inst, "fmi2SetInteger", RUNNING_PHASES)) {
+    size_t i;
+    if (!ModelAllowed(core(c), "fmi2SetInteger", MODEL_SET_PHASES)) {
         return fmi2Error;
     }
-    if (nvr > 0) {
-        logMessage(inst, fmi2Error, LogStatusError, "fmi2SetInteger: " MODEL_NAME " has no Integer variables (value reference %u)", vr[0]);
-        return fmi2Error;
+    for (i = 0; i < nvr; i++) {
+        if (ModelSetInteger(core(c), "fmi2SetInteger", vr[i], value[i]) != ModelOk) {
+            return fmi2Error;
+        }
     }
     return fmi2OK;
 }
 
 fmi2Status fmi2SetBoolean(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, const fmi2Boolean value[]) {
-    Instance *inst = (Instance *)c;
-    const char *message = "";
     size_t i;
-    if (!allowed(inst, "fmi2SetBoolean", RUNNING_PHASES)) {
+    if (!ModelAllowed(core(c), "fmi2SetBoolean", MODEL_SET_PHASES)) {
         return fmi2Error;
     }
     for (i = 0; i < nvr; i++) {
-        if (ModelSetBoolean(&inst->state.model, vr[i], value[i] != fmi2False, &message) != ModelOk) {
-            logMessage(inst, fmi2Error, LogStatusError, "fmi2SetBoolean: %s (value reference %u)", message, vr[i]);
+        if (ModelSetBoolean(core(c), "fmi2SetBoolean", vr[i], value[i] != fmi2False) != ModelOk) {
             return fmi2Error;
         }
     }
@@ -349,50 +240,44 @@ fmi2Status fmi2SetBoolean(fmi2Component c, const fmi2ValueReference vr[], size_t
 }
 
 fmi2Status fmi2SetString(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, const fmi2String value[]) {
-    Instance *inst = (Instance *)c;
     (void)value;
-    if (!allowed(inst, "fmi2SetString", RUNNING_PHASES)) {
+    if (!ModelAllowed(core(c), "fmi2SetString", MODEL_SET_PHASES)) {
         return fmi2Error;
     }
     if (nvr > 0) {
-        logMessage(inst, fmi2Error, LogStatusError, "fmi2SetString: " MODEL_NAME " has no String variables (value reference %u)", vr[0]);
+        ModelLog(core(c), ModelError, LogStatusError, "fmi2SetString: " MODEL_NAME " has no String variables (value reference %u)", vr[0]);
         return fmi2Error;
     }
     return fmi2OK;
 }
 
-/* ---- FMU state: copies of FmuState ---------------------------------------------------------- */
+/* ---- FMU state: copies of ModelState --------------------------------------------------------- */
 
 fmi2Status fmi2GetFMUstate(fmi2Component c, fmi2FMUstate *FMUstate) {
     Instance *inst = (Instance *)c;
-    if (!allowed(inst, "fmi2GetFMUstate", ANY_PHASE)) {
+    if (!ModelAllowed(core(c), "fmi2GetFMUstate", MODEL_ANY_PHASE)) {
         return fmi2Error;
     }
     if (*FMUstate == NULL) {
-        *FMUstate = allocate(inst, sizeof(FmuState));
+        *FMUstate = inst->allocateMemory(1, sizeof(ModelState));
         if (*FMUstate == NULL) {
-            return fail(inst, "fmi2GetFMUstate", "out of memory");
+            return (fmi2Status)ModelFail(core(c), "fmi2GetFMUstate", "out of memory");
         }
     }
-    memcpy(*FMUstate, &inst->state, sizeof(FmuState));
+    memcpy(*FMUstate, &inst->core.state, sizeof(ModelState));
     return fmi2OK;
 }
 
 fmi2Status fmi2SetFMUstate(fmi2Component c, fmi2FMUstate FMUstate) {
-    Instance *inst = (Instance *)c;
-    if (!allowed(inst, "fmi2SetFMUstate", ANY_PHASE)) {
+    if (!ModelAllowed(core(c), "fmi2SetFMUstate", MODEL_ANY_PHASE)) {
         return fmi2Error;
     }
-    if (FMUstate == NULL) {
-        return fail(inst, "fmi2SetFMUstate", "the FMU state is NULL");
-    }
-    memcpy(&inst->state, FMUstate, sizeof(FmuState));
-    return fmi2OK;
+    return (fmi2Status)ModelSetState(core(c), "fmi2SetFMUstate", (const ModelState *)FMUstate);
 }
 
 fmi2Status fmi2FreeFMUstate(fmi2Component c, fmi2FMUstate *FMUstate) {
     Instance *inst = (Instance *)c;
-    if (!allowed(inst, "fmi2FreeFMUstate", ANY_PHASE)) {
+    if (!ModelAllowed(core(c), "fmi2FreeFMUstate", MODEL_ANY_PHASE)) {
         return fmi2Error;
     }
     if (FMUstate != NULL && *FMUstate != NULL) {
@@ -403,171 +288,124 @@ fmi2Status fmi2FreeFMUstate(fmi2Component c, fmi2FMUstate *FMUstate) {
 }
 
 fmi2Status fmi2SerializedFMUstateSize(fmi2Component c, fmi2FMUstate FMUstate, size_t *size) {
-    Instance *inst = (Instance *)c;
     (void)FMUstate;
-    if (!allowed(inst, "fmi2SerializedFMUstateSize", ANY_PHASE)) {
+    if (!ModelAllowed(core(c), "fmi2SerializedFMUstateSize", MODEL_ANY_PHASE)) {
         return fmi2Error;
     }
-    *size = sizeof(FmuState);
+    *size = sizeof(ModelState);
     return fmi2OK;
 }
 
 fmi2Status fmi2SerializeFMUstate(fmi2Component c, fmi2FMUstate FMUstate, fmi2Byte serializedState[], size_t size) {
-    Instance *inst = (Instance *)c;
-    if (!allowed(inst, "fmi2SerializeFMUstate", ANY_PHASE)) {
+    if (!ModelAllowed(core(c), "fmi2SerializeFMUstate", MODEL_ANY_PHASE)) {
         return fmi2Error;
     }
-    if (FMUstate == NULL || size != sizeof(FmuState)) {
-        return fail(inst, "fmi2SerializeFMUstate", "NULL state or wrong buffer size");
+    if (FMUstate == NULL || size != sizeof(ModelState)) {
+        return (fmi2Status)ModelFail(core(c), "fmi2SerializeFMUstate", "NULL state or wrong buffer size");
     }
-    memcpy(serializedState, FMUstate, sizeof(FmuState));
+    memcpy(serializedState, FMUstate, sizeof(ModelState));
     return fmi2OK;
 }
 
 fmi2Status fmi2DeSerializeFMUstate(fmi2Component c, const fmi2Byte serializedState[], size_t size, fmi2FMUstate *FMUstate) {
     Instance *inst = (Instance *)c;
-    FmuState incoming;
-    if (!allowed(inst, "fmi2DeSerializeFMUstate", ANY_PHASE)) {
+    if (!ModelAllowed(core(c), "fmi2DeSerializeFMUstate", MODEL_ANY_PHASE)) {
         return fmi2Error;
     }
-    if (size != sizeof(FmuState)) {
-        return fail(inst, "fmi2DeSerializeFMUstate", "the serialized state has the wrong size for this binary");
-    }
-    memcpy(&incoming, serializedState, sizeof(FmuState));
-    if (incoming.magic != STATE_MAGIC || incoming.size != sizeof(FmuState)) {
-        return fail(inst, "fmi2DeSerializeFMUstate", "the bytes are not an ImuFusion FMU state");
+    if (ModelCheckSerialized(core(c), "fmi2DeSerializeFMUstate", serializedState, size) != ModelOk) {
+        return fmi2Error;
     }
     if (*FMUstate == NULL) {
-        *FMUstate = allocate(inst, sizeof(FmuState));
+        *FMUstate = inst->allocateMemory(1, sizeof(ModelState));
         if (*FMUstate == NULL) {
-            return fail(inst, "fmi2DeSerializeFMUstate", "out of memory");
+            return (fmi2Status)ModelFail(core(c), "fmi2DeSerializeFMUstate", "out of memory");
         }
     }
-    memcpy(*FMUstate, &incoming, sizeof(FmuState));
+    memcpy(*FMUstate, serializedState, sizeof(ModelState));
     return fmi2OK;
 }
 
 fmi2Status fmi2GetDirectionalDerivative(fmi2Component c, const fmi2ValueReference vUnknown_ref[], size_t nUnknown,
                                         const fmi2ValueReference vKnown_ref[], size_t nKnown,
                                         const fmi2Real dvKnown[], fmi2Real dvUnknown[]) {
-    Instance *inst = (Instance *)c;
     (void)vUnknown_ref;
     (void)nUnknown;
     (void)vKnown_ref;
     (void)nKnown;
     (void)dvKnown;
     (void)dvUnknown;
-    if (!allowed(inst, "fmi2GetDirectionalDerivative", ANY_PHASE)) {
-        return fmi2Error;
-    }
-    return fail(inst, "fmi2GetDirectionalDerivative", "directional derivatives are not provided");
+    return notProvided(c, "fmi2GetDirectionalDerivative", "directional derivatives are not provided");
 }
 
 /* ---- co-simulation -------------------------------------------------------------------------- */
 
 fmi2Status fmi2SetRealInputDerivatives(fmi2Component c, const fmi2ValueReference vr[], size_t nvr,
                                        const fmi2Integer order[], const fmi2Real value[]) {
-    Instance *inst = (Instance *)c;
     (void)vr;
     (void)nvr;
     (void)order;
     (void)value;
-    if (!allowed(inst, "fmi2SetRealInputDerivatives", ANY_PHASE)) {
-        return fmi2Error;
-    }
-    return fail(inst, "fmi2SetRealInputDerivatives", "input derivatives are not supported (canInterpolateInputs=false)");
+    return notProvided(c, "fmi2SetRealInputDerivatives", "input derivatives are not supported (canInterpolateInputs=false)");
 }
 
 fmi2Status fmi2GetRealOutputDerivatives(fmi2Component c, const fmi2ValueReference vr[], size_t nvr,
                                         const fmi2Integer order[], fmi2Real value[]) {
-    Instance *inst = (Instance *)c;
     (void)vr;
     (void)nvr;
     (void)order;
     (void)value;
-    if (!allowed(inst, "fmi2GetRealOutputDerivatives", ANY_PHASE)) {
-        return fmi2Error;
-    }
-    return fail(inst, "fmi2GetRealOutputDerivatives", "output derivatives are not provided (maxOutputDerivativeOrder=0)");
+    return notProvided(c, "fmi2GetRealOutputDerivatives", "output derivatives are not provided (maxOutputDerivativeOrder=0)");
 }
 
 fmi2Status fmi2DoStep(fmi2Component c, fmi2Real currentCommunicationPoint, fmi2Real communicationStepSize,
                       fmi2Boolean noSetFMUStatePriorToCurrentPoint) {
-    Instance *inst = (Instance *)c;
     (void)noSetFMUStatePriorToCurrentPoint;
-    if (!allowed(inst, "fmi2DoStep", PhaseStepComplete)) {
+    if (!ModelAllowed(core(c), "fmi2DoStep", PhaseStepMode)) {
         return fmi2Error;
     }
-    if (!(communicationStepSize >= 0.0)) {
-        logMessage(inst, fmi2Error, LogStatusError, "fmi2DoStep: communicationStepSize = %g s must not be negative",
-                   communicationStepSize);
-        return fmi2Error;
-    }
-    ModelDoStep(&inst->state.model, currentCommunicationPoint);
-    inst->state.time = currentCommunicationPoint + communicationStepSize;
-    return fmi2OK;
+    return (fmi2Status)ModelDoStep(core(c), "fmi2DoStep", currentCommunicationPoint, communicationStepSize);
 }
 
 fmi2Status fmi2CancelStep(fmi2Component c) {
-    Instance *inst = (Instance *)c;
-    if (!allowed(inst, "fmi2CancelStep", ANY_PHASE)) {
-        return fmi2Error;
-    }
-    return fail(inst, "fmi2CancelStep", "doStep never runs asynchronously, there is nothing to cancel");
+    return notProvided(c, "fmi2CancelStep", "doStep never runs asynchronously, there is nothing to cancel");
 }
 
 fmi2Status fmi2GetStatus(fmi2Component c, const fmi2StatusKind s, fmi2Status *value) {
-    Instance *inst = (Instance *)c;
-    if (!allowed(inst, "fmi2GetStatus", ANY_PHASE)) {
-        return fmi2Error;
-    }
-    if (s != fmi2DoStepStatus) {
-        return fail(inst, "fmi2GetStatus", "only fmi2DoStepStatus is provided");
-    }
-    *value = fmi2OK;
-    return fmi2OK;
+    (void)s;
+    (void)value;
+    return notProvided(c, "fmi2GetStatus", "doStep never returns fmi2Pending, so there is no status to query");
 }
 
 fmi2Status fmi2GetRealStatus(fmi2Component c, const fmi2StatusKind s, fmi2Real *value) {
-    Instance *inst = (Instance *)c;
-    if (!allowed(inst, "fmi2GetRealStatus", ANY_PHASE)) {
+    if (!ModelAllowed(core(c), "fmi2GetRealStatus", MODEL_ANY_PHASE)) {
         return fmi2Error;
     }
     if (s != fmi2LastSuccessfulTime) {
-        return fail(inst, "fmi2GetRealStatus", "only fmi2LastSuccessfulTime is provided");
+        return (fmi2Status)ModelFail(core(c), "fmi2GetRealStatus", "only fmi2LastSuccessfulTime is provided");
     }
-    *value = inst->state.time;
+    *value = core(c)->state.time;
     return fmi2OK;
 }
 
 fmi2Status fmi2GetIntegerStatus(fmi2Component c, const fmi2StatusKind s, fmi2Integer *value) {
-    Instance *inst = (Instance *)c;
     (void)s;
     (void)value;
-    if (!allowed(inst, "fmi2GetIntegerStatus", ANY_PHASE)) {
-        return fmi2Error;
-    }
-    return fail(inst, "fmi2GetIntegerStatus", "no integer status is provided");
+    return notProvided(c, "fmi2GetIntegerStatus", "no integer status is provided");
 }
 
 fmi2Status fmi2GetBooleanStatus(fmi2Component c, const fmi2StatusKind s, fmi2Boolean *value) {
-    Instance *inst = (Instance *)c;
-    if (!allowed(inst, "fmi2GetBooleanStatus", ANY_PHASE)) {
+    if (!ModelAllowed(core(c), "fmi2GetBooleanStatus", MODEL_ANY_PHASE)) {
         return fmi2Error;
     }
     if (s != fmi2Terminated) {
-        return fail(inst, "fmi2GetBooleanStatus", "only fmi2Terminated is provided");
+        return (fmi2Status)ModelFail(core(c), "fmi2GetBooleanStatus", "only fmi2Terminated is provided");
     }
     *value = fmi2False;
     return fmi2OK;
 }
 
 fmi2Status fmi2GetStringStatus(fmi2Component c, const fmi2StatusKind s, fmi2String *value) {
-    Instance *inst = (Instance *)c;
     (void)s;
     (void)value;
-    if (!allowed(inst, "fmi2GetStringStatus", ANY_PHASE)) {
-        return fmi2Error;
-    }
-    return fail(inst, "fmi2GetStringStatus", "no string status is provided");
+    return notProvided(c, "fmi2GetStringStatus", "no string status is provided");
 }

@@ -1,8 +1,13 @@
 /**
  * @file model.c
- * @brief Maps value references to the ImuFusion pipeline: start values, get/set, initialise, step.
+ * @brief FMI-free core of the FMU: value references, state machine, logging, bad-input handling.
  */
 #include "model.h"
+
+#include <math.h>
+#include <stdarg.h>
+#include <stdio.h>
+#include <string.h>
 
 #include "ImuCoefficientsData.h"
 
@@ -10,9 +15,43 @@
 typedef char ModelCheckInputs[(VR_FIRST_OUTPUT - VR_FIRST_INPUT == IMU_INPUT_COUNT) ? 1 : -1];
 typedef char ModelCheckOutputs[(VR_FIRST_SETTING - VR_FIRST_OUTPUT == IMU_OUTPUT_COUNT) ? 1 : -1];
 typedef char ModelCheckSettings[(VR_COUNT - VR_FIRST_SETTING == IMU_SETTING_COUNT) ? 1 : -1];
-typedef char ModelCheckBoolean[(vr_enable_thermal - VR_FIRST_SETTING == ImuSetEnableThermal) ? 1 : -1];
 
-static const char *const unknownReference = "unknown value reference";
+#define MODEL_STATE_MAGIC 0x494D5546u /* "IMUF" */
+#define MODEL_LOG_BUFFER_SIZE 640
+
+/* Plausibility limits of the raw inputs: beyond them a sensor is saturated, broken or the input
+ * is not in the documented unit. The magnetometer limits scale with the field_norm parameter. */
+#define MODEL_GYR_LIMIT 100.0      /* rad/s: beyond any MEMS gyro's full scale (about 70 rad/s) */
+#define MODEL_ACC_LIMIT 2000.0     /* m/s^2: about 200 g */
+#define MODEL_MAG_SATURATION 20.0  /* x field_norm: an axis at or beyond it is saturated */
+#define MODEL_MAG_MINIMUM 0.02     /* x field_norm: a smaller field magnitude means no field */
+#define MODEL_TEMP_MIN (-60.0)     /* degC, lower end of the valid temperature range */
+#define MODEL_TEMP_MAX 125.0       /* degC, upper end of the valid temperature range */
+#define MODEL_MAX_GAP 1.0e6        /* s: larger jumps of the sample time are integrated as this */
+
+static const char *const logCategoryNames[MODEL_LOG_CATEGORY_COUNT] = {
+    "logEvents", "logBadInput", "logStatusWarning", "logStatusError"
+};
+
+/** Short names of the ModelIssue kinds, in bit order (for the recovery messages). */
+static const char *const issueNames[MODEL_ISSUE_COUNT] = {
+    "gyroscope", "accelerometer", "magnetometer", "magnetometer field", "temperature",
+    "sample time order", "sample time gap", "step size", "non-finite output"
+};
+
+typedef char ModelCheckIssues[(1 << (MODEL_ISSUE_COUNT - 1)) == ModelIssueOutput ? 1 : -1];
+/* sanitiseInputs relies on the triad issue bits being 1 << triad (gyr, acc, mag). */
+typedef char ModelCheckTriadBits[(ModelIssueGyr == 1 && ModelIssueAcc == 2 && ModelIssueMag == 4) ? 1 : -1];
+
+const char *ModelGuid(void) {
+    return IMU_MODEL_GUID;
+}
+
+const char *ModelLogCategoryName(ModelLogCategory c) {
+    return logCategoryNames[c];
+}
+
+/* ---- values ---------------------------------------------------------------------------------- */
 
 /** @brief Outputs before the first sample: level, north-facing, zero signals, heading = declination [rad]. */
 static void setInitialOutputs(ModelData *m) {
@@ -24,57 +63,51 @@ static void setInitialOutputs(ModelData *m) {
     m->outputs[ImuOutHeading] = m->settings[ImuSetDeclination];
 }
 
-const char *ModelGuid(void) {
-    return IMU_MODEL_GUID;
-}
-
-void ModelSetStartValues(ModelData *m) {
+/** @brief Every variable at its start value (the state right after instantiation). */
+static void setStartValues(ModelData *m) {
     static const double startInputs[IMU_INPUT_COUNT] = {
         0.0, 0.0, 0.0,        /* rad/s */
         0.0, 0.0, -9.80665,   /* m/s^2: at rest and level */
         20.0, 0.0, 40.0,      /* uT: mid-latitude field, north and down */
         25.0                  /* degC */
     };
-    int i;
-    for (i = 0; i < IMU_INPUT_COUNT; i++) {
-        m->inputs[i] = startInputs[i];
-    }
-    for (i = 0; i < IMU_SETTING_COUNT; i++) {
-        m->settings[i] = IMU_SETTING_DEFAULTS[i];
-    }
-    m->initialised = 0;
+    memset(m, 0, sizeof *m);
+    memcpy(m->inputs, startInputs, sizeof startInputs);
+    memcpy(m->settings, IMU_SETTING_DEFAULTS, sizeof m->settings);
+    m->lastValidTemp = NAN;
     setInitialOutputs(m);
 }
 
-ModelStatus ModelGetReal(const ModelData *m, unsigned int vr, double *value, const char **message) {
-    if (vr < VR_FIRST_OUTPUT) {
-        *value = m->inputs[vr - VR_FIRST_INPUT];
-    } else if (vr < VR_FIRST_SETTING) {
-        *value = m->outputs[vr - VR_FIRST_OUTPUT];
-    } else if (vr < VR_COUNT && vr != vr_enable_thermal) {
-        *value = m->settings[vr - VR_FIRST_SETTING];
-    } else {
-        *message = vr == vr_enable_thermal ? "enable_thermal is a Boolean variable" : unknownReference;
-        return ModelError;
+/** @brief Kind of variable vr: 'R' Real, 'B' Boolean, 'I' Integer, 0 unknown. */
+static char variableType(unsigned int vr) {
+    if (vr >= VR_COUNT) {
+        return 0;
     }
-    return ModelOk;
+    if (VR_IS_BOOLEAN(vr)) {
+        return 'B';
+    }
+    return VR_IS_INTEGER(vr) ? 'I' : 'R';
 }
 
-ModelStatus ModelSetReal(ModelData *m, unsigned int vr, double value, const char **message) {
-    if (vr < VR_FIRST_OUTPUT) {
-        m->inputs[vr - VR_FIRST_INPUT] = value;
-        return ModelOk;
+/** @brief Log "function: problem (value reference vr)" and return ModelError. */
+static ModelStatus badReference(const ModelInstance *mi, const char *function, unsigned int vr, const char *type) {
+    if (variableType(vr) == 0) {
+        ModelLog(mi, ModelError, LogStatusError, "%s: unknown value reference %u", function, vr);
+    } else {
+        ModelLog(mi, ModelError, LogStatusError, "%s: value reference %u is not a %s variable", function, vr, type);
     }
+    return ModelError;
+}
+
+/** @brief Store parameter vr (any type, as double) if parameters may still change. */
+static ModelStatus setParameter(ModelInstance *mi, const char *function, unsigned int vr, double value) {
+    ModelData *m = &mi->state.model;
     if (vr < VR_FIRST_SETTING) {
-        *message = "outputs cannot be set";
-        return ModelError;
-    }
-    if (vr >= VR_COUNT || vr == vr_enable_thermal) {
-        *message = vr == vr_enable_thermal ? "enable_thermal is a Boolean variable" : unknownReference;
-        return ModelError;
+        return ModelFail(mi, function, "outputs cannot be set");
     }
     if (m->initialised) {
-        *message = "parameters are fixed: set them before fmi2ExitInitializationMode";
+        ModelLog(mi, ModelError, LogStatusError,
+                 "%s: parameters are fixed after initialisation (value reference %u)", function, vr);
         return ModelError;
     }
     m->settings[vr - VR_FIRST_SETTING] = value;
@@ -82,48 +115,365 @@ ModelStatus ModelSetReal(ModelData *m, unsigned int vr, double value, const char
     return ModelOk;
 }
 
-ModelStatus ModelGetBoolean(const ModelData *m, unsigned int vr, int *value, const char **message) {
-    if (vr != vr_enable_thermal) {
-        *message = vr < VR_COUNT ? "not a Boolean variable" : unknownReference;
-        return ModelError;
+ModelStatus ModelGetReal(const ModelInstance *mi, const char *function, unsigned int vr, double *value) {
+    const ModelData *m = &mi->state.model;
+    if (vr == VR_TIME) {
+        *value = mi->state.time;
+        return ModelOk;
     }
-    *value = m->settings[ImuSetEnableThermal] != 0.0;
+    if (variableType(vr) != 'R') {
+        return badReference(mi, function, vr, "Real/Float64");
+    }
+    if (vr < VR_FIRST_OUTPUT) {
+        *value = m->inputs[vr - VR_FIRST_INPUT];
+    } else if (vr < VR_FIRST_SETTING) {
+        *value = m->outputs[vr - VR_FIRST_OUTPUT];
+    } else {
+        *value = m->settings[vr - VR_FIRST_SETTING];
+    }
     return ModelOk;
 }
 
-ModelStatus ModelSetBoolean(ModelData *m, unsigned int vr, int value, const char **message) {
-    if (vr != vr_enable_thermal) {
-        *message = vr < VR_COUNT ? "not a Boolean variable" : unknownReference;
-        return ModelError;
+ModelStatus ModelSetReal(ModelInstance *mi, const char *function, unsigned int vr, double value) {
+    if (vr == VR_TIME) {
+        return ModelFail(mi, function, "time is the independent variable: it cannot be set");
     }
-    if (m->initialised) {
-        *message = "parameters are fixed: set them before fmi2ExitInitializationMode";
-        return ModelError;
+    if (variableType(vr) != 'R') {
+        return badReference(mi, function, vr, "Real/Float64");
     }
-    m->settings[ImuSetEnableThermal] = value ? 1.0 : 0.0;
+    if (vr < VR_FIRST_OUTPUT) {
+        mi->state.model.inputs[vr - VR_FIRST_INPUT] = value;
+        return ModelOk;
+    }
+    return setParameter(mi, function, vr, value);
+}
+
+ModelStatus ModelGetBoolean(const ModelInstance *mi, const char *function, unsigned int vr, int *value) {
+    if (variableType(vr) != 'B') {
+        return badReference(mi, function, vr, "Boolean");
+    }
+    *value = mi->state.model.settings[vr - VR_FIRST_SETTING] != 0.0;
     return ModelOk;
 }
 
-ModelStatus ModelInitialise(ModelData *m, const char **message) {
+ModelStatus ModelSetBoolean(ModelInstance *mi, const char *function, unsigned int vr, int value) {
+    if (variableType(vr) != 'B') {
+        return badReference(mi, function, vr, "Boolean");
+    }
+    return setParameter(mi, function, vr, value ? 1.0 : 0.0);
+}
+
+ModelStatus ModelGetInteger(const ModelInstance *mi, const char *function, unsigned int vr, int *value) {
+    if (variableType(vr) != 'I') {
+        return badReference(mi, function, vr, "Integer/Int32");
+    }
+    *value = (int)mi->state.model.settings[vr - VR_FIRST_SETTING];
+    return ModelOk;
+}
+
+ModelStatus ModelSetInteger(ModelInstance *mi, const char *function, unsigned int vr, int value) {
+    if (variableType(vr) != 'I') {
+        return badReference(mi, function, vr, "Integer/Int32");
+    }
+    return setParameter(mi, function, vr, (double)value);
+}
+
+/* ---- instance: logging and state machine ---------------------------------------------------- */
+
+void ModelLog(const ModelInstance *mi, ModelStatus status, ModelLogCategory category, const char *format, ...) {
+    char buffer[MODEL_LOG_BUFFER_SIZE];
+    va_list args;
+    if (mi == NULL || mi->log == NULL || !(status >= ModelWarning || (mi->loggingOn && mi->categoryOn[category]))) {
+        return;
+    }
+    va_start(args, format);
+    vsnprintf(buffer, sizeof buffer, format, args);
+    va_end(args);
+    mi->log(mi->environment, status, logCategoryNames[category], buffer);
+}
+
+ModelStatus ModelFail(const ModelInstance *mi, const char *function, const char *message) {
+    ModelLog(mi, ModelError, LogStatusError, "%s: %s", function, message);
+    return ModelError;
+}
+
+int ModelAllowed(const ModelInstance *mi, const char *function, int phases) {
+    if (mi == NULL) {
+        return 0;
+    }
+    if ((mi->state.phase & phases) == 0) {
+        ModelLog(mi, ModelError, LogStatusError, "%s must not be called in the current state", function);
+        return 0;
+    }
+    return 1;
+}
+
+ModelStatus ModelSetDebugLogging(ModelInstance *mi, int loggingOn, size_t n, const char *const categories[]) {
+    size_t i;
+    int k;
+    mi->loggingOn = loggingOn != 0;
+    for (k = 0; k < MODEL_LOG_CATEGORY_COUNT; k++) {
+        mi->categoryOn[k] = n == 0;
+    }
+    for (i = 0; i < n; i++) {
+        for (k = 0; k < MODEL_LOG_CATEGORY_COUNT && strcmp(categories[i], logCategoryNames[k]) != 0; k++) {
+        }
+        if (k == MODEL_LOG_CATEGORY_COUNT) {
+            ModelLog(mi, ModelWarning, LogStatusWarning, "SetDebugLogging: unknown log category '%s'", categories[i]);
+            return ModelWarning;
+        }
+        mi->categoryOn[k] = 1;
+    }
+    return ModelOk;
+}
+
+void ModelReset(ModelInstance *mi) {
+    ModelState *s = &mi->state;
+    memset(s, 0, sizeof *s);
+    s->header.magic = MODEL_STATE_MAGIC;
+    s->header.size = (unsigned int)sizeof(ModelState);
+    strncpy(s->header.guid, ModelGuid(), MODEL_GUID_SIZE - 1);
+    s->phase = PhaseInstantiated;
+    s->time = 0.0;
+    setStartValues(&s->model);
+}
+
+void ModelInstanceInitialise(ModelInstance *mi, ModelLogCallback log, void *environment, int loggingOn) {
+    mi->log = log;
+    mi->environment = environment;
+    ModelSetDebugLogging(mi, loggingOn, 0, NULL);
+    ModelReset(mi);
+}
+
+ModelStatus ModelEnterInitialization(ModelInstance *mi, const char *function, double startTime,
+                                     int stopTimeDefined, double stopTime) {
+    if (!ModelAllowed(mi, function, PhaseInstantiated)) {
+        return ModelError;
+    }
+    if (!isfinite(startTime) || (stopTimeDefined && !(stopTime >= startTime))) {
+        return ModelFail(mi, function, "startTime must be finite and stopTime not before it");
+    }
+    mi->state.time = startTime;
+    mi->state.phase = PhaseInitialization;
+    return ModelOk;
+}
+
+ModelStatus ModelExitInitialization(ModelInstance *mi, const char *function) {
+    ModelData *m;
     ImuCoefficients coefficients;
     ImuPipelineSettings settings;
+    const char *message = NULL;
+    if (!ModelAllowed(mi, function, PhaseInitialization)) {
+        return ModelError;
+    }
+    m = &mi->state.model;
     if (ImuCoefficientsFromArray(&coefficients, IMU_COEFFICIENT_DATA, IMU_COEFFICIENT_COUNT) != 0) {
-        *message = "the compiled-in coefficient data has the wrong size or layout version";
+        message = "the compiled-in coefficient data has the wrong size or layout version";
+    } else if (ImuPipelineSettingsFromArray(&settings, m->settings, IMU_SETTING_COUNT) != 0) {
+        message = "the settings array has the wrong size";
+    } else if (ImuPipelineSettingsCheck(&settings, &message) == 0) {
+        ImuPipelineInitialise(&m->pipeline, &settings, &coefficients);
+        m->initialised = 1;
+        setInitialOutputs(m);
+        mi->state.phase = PhaseStepMode;
+        ModelLog(mi, ModelOk, LogEvents, "%s: initialised at t = %g s", function, mi->state.time);
+        return ModelOk;
+    }
+    mi->state.phase = PhaseError;
+    ModelLog(mi, ModelError, LogStatusError, "%s: invalid parameter: %s", function, message);
+    return ModelError;
+}
+
+ModelStatus ModelTerminate(ModelInstance *mi, const char *function) {
+    if (!ModelAllowed(mi, function, PhaseStepMode)) {
         return ModelError;
     }
-    if (ImuPipelineSettingsFromArray(&settings, m->settings, IMU_SETTING_COUNT) != 0) {
-        *message = "the settings array has the wrong size";
-        return ModelError;
-    }
-    if (ImuPipelineSettingsCheck(&settings, message) != 0) {
-        return ModelError;
-    }
-    ImuPipelineInitialise(&m->pipeline, &settings, &coefficients);
-    m->initialised = 1;
-    setInitialOutputs(m);
+    mi->state.phase = PhaseTerminated;
     return ModelOk;
 }
 
-void ModelDoStep(ModelData *m, double time) {
-    ImuPipelineUpdate(&m->pipeline, time, m->inputs, m->outputs);
+/* ---- bad input ------------------------------------------------------------------------------- */
+
+/** @brief 1 if every one of the n values is finite and |value| < limit. */
+static int withinLimit(const double *x, int n, double limit) {
+    int i;
+    for (i = 0; i < n; i++) {
+        if (!(fabs(x[i]) < limit)) { /* also false for NaN */
+            return 0;
+        }
+    }
+    return 1;
+}
+
+/** @brief Copy the raw inputs to in, replacing bad triads by NaN (skipped by the pipeline) and a
+ *         bad temperature by the last valid one; return the ModelIssue bits found. */
+static int sanitiseInputs(ModelData *m, double in[IMU_INPUT_COUNT]) {
+    const double *raw = m->inputs;
+    const double fieldNorm = m->settings[ImuSetFieldNorm];
+    const double *mag = &raw[ImuInMagX];
+    int issues = 0, i;
+    memcpy(in, raw, sizeof m->inputs);
+    if (!withinLimit(&raw[ImuInGyrX], 3, MODEL_GYR_LIMIT)) {
+        issues |= ModelIssueGyr;
+    }
+    if (!withinLimit(&raw[ImuInAccX], 3, MODEL_ACC_LIMIT)) {
+        issues |= ModelIssueAcc;
+    }
+    if (!withinLimit(mag, 3, MODEL_MAG_SATURATION * fieldNorm)) {
+        issues |= ModelIssueMag;
+    } else if (!(sqrt(mag[0] * mag[0] + mag[1] * mag[1] + mag[2] * mag[2]) >= MODEL_MAG_MINIMUM * fieldNorm)) {
+        issues |= ModelIssueMagZero;
+    }
+    for (i = 0; i < 3; i++) {
+        if (issues & (1 << i)) {
+            in[ImuInGyrX + 3 * i] = in[ImuInGyrX + 3 * i + 1] = in[ImuInGyrX + 3 * i + 2] = NAN;
+        }
+    }
+    if (issues & ModelIssueMagZero) {
+        in[ImuInMagX] = in[ImuInMagY] = in[ImuInMagZ] = NAN;
+    }
+    if (raw[ImuInTemp] >= MODEL_TEMP_MIN && raw[ImuInTemp] <= MODEL_TEMP_MAX) {
+        m->lastValidTemp = raw[ImuInTemp];
+    } else {
+        issues |= ModelIssueTemp;
+        in[ImuInTemp] = m->lastValidTemp;
+    }
+    return issues;
+}
+
+/** @brief Time [s] of the sample at t [s] for the pipeline: jumps beyond MODEL_MAX_GAP are cut to
+ *         it; sets the ModelIssueOrder / ModelIssueGap bits in *issues. */
+static double pipelineTime(ModelData *m, double t, int *issues) {
+    if (m->hasSample && !(t > m->lastSampleTime)) {
+        *issues |= ModelIssueOrder;
+        return t - m->timeShift;
+    }
+    if (m->hasSample && t - m->lastSampleTime > MODEL_MAX_GAP) {
+        *issues |= ModelIssueGap;
+        m->timeShift += (t - m->lastSampleTime) - MODEL_MAX_GAP;
+    }
+    m->lastSampleTime = t;
+    m->hasSample = 1;
+    return t - m->timeShift;
+}
+
+/** @brief The warning that opens an episode of issue bit `issue` (the sample is in mi). */
+static void logIssue(const ModelInstance *mi, const char *function, int issue, double t, double h) {
+    const double *x = mi->state.model.inputs;
+    const double fieldNorm = mi->state.model.settings[ImuSetFieldNorm];
+    const ModelData *m = &mi->state.model;
+    static const char *const hold = "the triad is skipped and its corrected outputs hold their last valid values until it recovers";
+    switch (issue) {
+    case ModelIssueGyr:
+        ModelLog(mi, ModelWarning, LogBadInput, "%s: t = %g s: bad gyroscope input [%g, %g, %g] rad/s (not finite or beyond +-%g rad/s): %s",
+                 function, t, x[ImuInGyrX], x[ImuInGyrY], x[ImuInGyrZ], MODEL_GYR_LIMIT, hold);
+        break;
+    case ModelIssueAcc:
+        ModelLog(mi, ModelWarning, LogBadInput, "%s: t = %g s: bad accelerometer input [%g, %g, %g] m/s2 (not finite or beyond +-%g m/s2): %s",
+                 function, t, x[ImuInAccX], x[ImuInAccY], x[ImuInAccZ], MODEL_ACC_LIMIT, hold);
+        break;
+    case ModelIssueMag:
+        ModelLog(mi, ModelWarning, LogBadInput, "%s: t = %g s: bad magnetometer input [%g, %g, %g] uT (not finite, or an axis saturated at +-%g uT = %g x field_norm): %s",
+                 function, t, x[ImuInMagX], x[ImuInMagY], x[ImuInMagZ], MODEL_MAG_SATURATION * fieldNorm, MODEL_MAG_SATURATION, hold);
+        break;
+    case ModelIssueMagZero:
+        ModelLog(mi, ModelWarning, LogBadInput, "%s: t = %g s: magnetometer reads no field [%g, %g, %g] uT (magnitude below %g uT = %g x field_norm): %s",
+                 function, t, x[ImuInMagX], x[ImuInMagY], x[ImuInMagZ], MODEL_MAG_MINIMUM * fieldNorm, MODEL_MAG_MINIMUM, hold);
+        break;
+    case ModelIssueTemp:
+        ModelLog(mi, ModelWarning, LogBadInput, "%s: t = %g s: bad temperature %g degC (not finite or outside [%g, %g] degC): the last valid temperature %g degC is used until it recovers",
+                 function, t, x[ImuInTemp], MODEL_TEMP_MIN, MODEL_TEMP_MAX, m->lastValidTemp);
+        break;
+    case ModelIssueOrder:
+        ModelLog(mi, ModelWarning, LogBadInput, "%s: sample time t = %.17g s does not increase (last sample at %.17g s): the sample is fused without propagating the attitude",
+                 function, t, m->lastSampleTime);
+        break;
+    case ModelIssueGap:
+        ModelLog(mi, ModelWarning, LogBadInput, "%s: t = %g s: the sample time jumped by more than %g s: the gap is integrated as %g s",
+                 function, t, MODEL_MAX_GAP, MODEL_MAX_GAP);
+        break;
+    case ModelIssueStep:
+        ModelLog(mi, ModelWarning, LogBadInput, "%s: t = %g s: communicationStepSize = %g s must be finite and > 0 (and t and t + h finite): the step is discarded, outputs hold their last values",
+                 function, t, h);
+        break;
+    default:
+        ModelLog(mi, ModelWarning, LogBadInput, "%s: t = %g s: an output was not finite for valid inputs: the outputs hold their last finite values",
+                 function, t);
+        break;
+    }
+}
+
+/** @brief Log the episodes that start (Warning) and end (OK, logBadInput) when the issue bits
+ *         change to `issues`; store them; Warning if any is set. */
+static ModelStatus updateIssues(ModelInstance *mi, const char *function, int issues, double t, double h) {
+    const int previous = mi->state.model.issues;
+    int k;
+    mi->state.model.issues = issues;
+    for (k = 0; k < MODEL_ISSUE_COUNT; k++) {
+        const int bit = 1 << k;
+        if ((issues & bit) && !(previous & bit)) {
+            logIssue(mi, function, bit, t, h);
+        } else if (!(issues & bit) && (previous & bit)) {
+            ModelLog(mi, ModelOk, LogBadInput, "%s: t = %g s: %s input valid again", function, t, issueNames[k]);
+        }
+    }
+    return issues ? ModelWarning : ModelOk;
+}
+
+ModelStatus ModelDoStep(ModelInstance *mi, const char *function, double t, double h) {
+    ModelData *m = &mi->state.model;
+    double in[IMU_INPUT_COUNT], out[IMU_OUTPUT_COUNT];
+    int issues, j;
+    if (!isfinite(t) || !isfinite(h) || !(h > 0.0) || !isfinite(t + h)) {
+        updateIssues(mi, function, m->issues | ModelIssueStep, t, h);
+        return ModelDiscard;
+    }
+    issues = sanitiseInputs(m, in);
+    ImuPipelineUpdate(&m->pipeline, pipelineTime(m, t, &issues), in, out);
+    for (j = 0; j < IMU_OUTPUT_COUNT; j++) {
+        if (isfinite(out[j])) {
+            m->outputs[j] = out[j];
+        } else if (issues == 0) {
+            issues |= ModelIssueOutput;
+        }
+    }
+    mi->state.time = t + h;
+    return updateIssues(mi, function, issues, t, h);
+}
+
+/* ---- FMU state ------------------------------------------------------------------------------- */
+
+/** @brief NULL if *h heads a state of this binary, else what is wrong with it. */
+static const char *stateProblem(const ModelStateHeader *h) {
+    if (h->magic != MODEL_STATE_MAGIC || h->size != sizeof(ModelState)) {
+        return "the bytes are not an " MODEL_NAME " FMU state of this binary";
+    }
+    if (strncmp(h->guid, ModelGuid(), MODEL_GUID_SIZE) != 0) {
+        return "the FMU state was made by a different build (GUID differs)";
+    }
+    return NULL;
+}
+
+ModelStatus ModelSetState(ModelInstance *mi, const char *function, const ModelState *state) {
+    const char *problem;
+    if (state == NULL) {
+        return ModelFail(mi, function, "the FMU state is NULL");
+    }
+    problem = stateProblem(&state->header);
+    if (problem != NULL) {
+        return ModelFail(mi, function, problem);
+    }
+    memcpy(&mi->state, state, sizeof(ModelState));
+    return ModelOk;
+}
+
+ModelStatus ModelCheckSerialized(const ModelInstance *mi, const char *function, const void *bytes, size_t size) {
+    ModelStateHeader incoming;
+    const char *problem;
+    if (bytes == NULL || size != sizeof(ModelState)) {
+        return ModelFail(mi, function, "the serialized FMU state has the wrong size for this binary");
+    }
+    memcpy(&incoming, bytes, sizeof incoming); /* the header is the state's first member */
+    problem = stateProblem(&incoming);
+    return problem == NULL ? ModelOk : ModelFail(mi, function, problem);
 }

@@ -1,51 +1,159 @@
 /**
  * @file model.h
- * @brief Maps the FMU's value references to the ImuFusion runtime (no FMI types here).
+ * @brief FMI-free core of the ImuFusion FMU, shared by the FMI 2.0 and FMI 3.0 wrappers.
  *
- * ModelData is one plain struct: the FMU state that fmi2GetFMUstate / fmi2SerializeFMUstate
- * copy. fmi2Functions.c owns the FMI state machine and the logging; this file owns the values.
+ * ModelData maps value references to the runtime and sanitises bad input; ModelInstance adds
+ * what both FMI versions share: the state machine, debug logging and the FMU state. The FMU
+ * state is one plain struct (ModelState), so get/set/serialize are copies. fmi2Functions.c and
+ * fmi3Functions.c only translate FMI types and callbacks to these functions.
  */
 #ifndef IMU_MODEL_H
 #define IMU_MODEL_H
+
+#include <stddef.h>
 
 #include "ImuCommon.h"
 #include "ImuLayout.h"
 #include "ImuPipeline.h"
 #include "config.h"
 
-/** Result of a model call; on ModelError a static message says what went wrong. */
+/** Result of a model call; same numbering as fmi2Status and fmi3Status. */
 typedef enum {
-    ModelOk,
-    ModelError
+    ModelOk = 0,
+    ModelWarning = 1,
+    ModelDiscard = 2,
+    ModelError = 3
 } ModelStatus;
+
+/** Log categories, in the order of LogCategories in modelDescription.xml. */
+typedef enum {
+    LogEvents,
+    LogBadInput,
+    LogStatusWarning,
+    LogStatusError,
+    MODEL_LOG_CATEGORY_COUNT
+} ModelLogCategory;
+
+/** Phases of the co-simulation state machine (one bit each; FMI 3 Step Mode = FMI 2 stepComplete). */
+typedef enum {
+    PhaseInstantiated = 1 << 0,
+    PhaseInitialization = 1 << 1,
+    PhaseStepMode = 1 << 2,
+    PhaseTerminated = 1 << 3,
+    PhaseError = 1 << 4
+} ModelPhase;
+
+#define MODEL_ANY_PHASE (PhaseInstantiated | PhaseInitialization | PhaseStepMode | PhaseTerminated | PhaseError)
+#define MODEL_SET_PHASES (PhaseInstantiated | PhaseInitialization | PhaseStepMode)
+
+/** Kinds of bad input (one bit each); an episode of a kind lasts while its bit stays set. */
+typedef enum {
+    ModelIssueGyr = 1 << 0,     /* gyroscope not finite or beyond MODEL_GYR_LIMIT */
+    ModelIssueAcc = 1 << 1,     /* accelerometer not finite or beyond MODEL_ACC_LIMIT */
+    ModelIssueMag = 1 << 2,     /* magnetometer not finite or an axis saturated */
+    ModelIssueMagZero = 1 << 3, /* magnetometer reads (almost) no field */
+    ModelIssueTemp = 1 << 4,    /* temperature not finite or outside the valid range */
+    ModelIssueOrder = 1 << 5,   /* sample time does not increase */
+    ModelIssueGap = 1 << 6,     /* sample time jumps by more than MODEL_MAX_GAP */
+    ModelIssueStep = 1 << 7,    /* step size not finite and > 0: the step is discarded */
+    ModelIssueOutput = 1 << 8   /* an output was not finite although the inputs were valid */
+} ModelIssue;
+
+#define MODEL_ISSUE_COUNT 9
 
 /** Every value of the model and the pipeline that produces the outputs. */
 typedef struct {
-    double inputs[IMU_INPUT_COUNT];     /* raw sample: rad/s, m/s^2, uT, degC */
-    double outputs[IMU_OUTPUT_COUNT];   /* estimate for the last consumed sample */
+    double inputs[IMU_INPUT_COUNT];     /* raw sample as set: rad/s, m/s^2, uT, degC */
+    double outputs[IMU_OUTPUT_COUNT];   /* estimate for the last consumed sample, always finite */
     double settings[IMU_SETTING_COUNT]; /* parameters in user units (ImuLayout.h order) */
+    double lastValidTemp;               /* degC, last valid temperature (NaN before the first) */
+    double lastSampleTime;              /* s, latest sample time consumed */
+    double timeShift;                   /* s, sum of the gap excess cut from the pipeline's time */
+    int hasSample;                      /* 1 once a sample was consumed */
+    int issues;                         /* ModelIssue bits of the last step */
     int initialised;                    /* 1 once settings are applied: parameters are locked */
     ImuPipeline pipeline;
 } ModelData;
 
-/** @brief The GUID of the modelDescription.xml this binary was built for. */
+#define MODEL_GUID_SIZE 48
+
+/** What identifies an FMU state of this binary (the start of every serialized state). */
+typedef struct {
+    unsigned int magic;          /* MODEL_STATE_MAGIC */
+    unsigned int size;           /* sizeof(ModelState) */
+    char guid[MODEL_GUID_SIZE];  /* the binary's GUID: a state only fits the build that made it */
+} ModelStateHeader;
+
+/** The FMU state: everything that evolves, so get/set/serialize are copies. */
+typedef struct {
+    ModelStateHeader header;
+    int phase;                   /* ModelPhase */
+    double time;                 /* s, current communication point */
+    ModelData model;
+} ModelState;
+
+/** Logger of the importer, adapted by the wrapper; status is a ModelStatus. */
+typedef void (*ModelLogCallback)(void *environment, ModelStatus status, const char *category, const char *message);
+
+/** The FMI-independent part of one FMU instance. */
+typedef struct {
+    ModelLogCallback log;                  /* NULL: log nothing */
+    void *environment;                     /* the wrapper's instance, passed back to log */
+    int loggingOn;                         /* debug logging switched on */
+    int categoryOn[MODEL_LOG_CATEGORY_COUNT];
+    ModelState state;
+} ModelInstance;
+
+/** @brief The GUID (FMI 3: instantiation token) of the modelDescription.xml this binary was built for. */
 IMU_HIDDEN const char *ModelGuid(void);
-/** @brief Set every variable to its start value (the state right after instantiation). */
-IMU_HIDDEN void ModelSetStartValues(ModelData *m);
-/** @brief Read the Real variable vr into *value. */
-IMU_HIDDEN ModelStatus ModelGetReal(const ModelData *m, unsigned int vr, double *value, const char **message);
-/** @brief Write value into the Real variable vr (inputs always, parameters before initialisation). */
-IMU_HIDDEN ModelStatus ModelSetReal(ModelData *m, unsigned int vr, double value, const char **message);
+/** @brief Name of log category c as declared in modelDescription.xml. */
+IMU_HIDDEN const char *ModelLogCategoryName(ModelLogCategory c);
+/** @brief Set up mi right after instantiation: start values, phase Instantiated, time 0 s. */
+IMU_HIDDEN void ModelInstanceInitialise(ModelInstance *mi, ModelLogCallback log, void *environment, int loggingOn);
+/** @brief Log a printf-style message: problems (status >= Warning) always, others when their category is on. */
+IMU_HIDDEN void ModelLog(const ModelInstance *mi, ModelStatus status, ModelLogCategory category, const char *format, ...)
+#if defined(__GNUC__) || defined(__clang__)
+    __attribute__((format(printf, 4, 5)))
+#endif
+    ;
+/** @brief 1 if mi is not NULL and function may be called in its phase; else logs and returns 0. */
+IMU_HIDDEN int ModelAllowed(const ModelInstance *mi, const char *function, int phases);
+/** @brief Log an error "function: message" and return ModelError. */
+IMU_HIDDEN ModelStatus ModelFail(const ModelInstance *mi, const char *function, const char *message);
+/** @brief Switch debug logging; categories by name (none = all). Warning for an unknown name. */
+IMU_HIDDEN ModelStatus ModelSetDebugLogging(ModelInstance *mi, int loggingOn, size_t n, const char *const categories[]);
+/** @brief Back to the state right after instantiation (FMI Reset). */
+IMU_HIDDEN void ModelReset(ModelInstance *mi);
+/** @brief Enter initialisation at startTime [s]; stopTime [s] is checked when defined. */
+IMU_HIDDEN ModelStatus ModelEnterInitialization(ModelInstance *mi, const char *function, double startTime,
+                                                int stopTimeDefined, double stopTime);
+/** @brief Check the parameters, initialise the pipeline and enter Step Mode (Error naming a bad parameter). */
+IMU_HIDDEN ModelStatus ModelExitInitialization(ModelInstance *mi, const char *function);
+/** @brief Terminate the simulation. */
+IMU_HIDDEN ModelStatus ModelTerminate(ModelInstance *mi, const char *function);
+/** @brief Read the Real (Float64) variable vr into *value. */
+IMU_HIDDEN ModelStatus ModelGetReal(const ModelInstance *mi, const char *function, unsigned int vr, double *value);
+/** @brief Write the Real variable vr: inputs in any phase before termination, parameters before initialisation. */
+IMU_HIDDEN ModelStatus ModelSetReal(ModelInstance *mi, const char *function, unsigned int vr, double value);
 /** @brief Read the Boolean variable vr into *value (0 or 1). */
-IMU_HIDDEN ModelStatus ModelGetBoolean(const ModelData *m, unsigned int vr, int *value, const char **message);
-/** @brief Write the Boolean variable vr (a parameter: only before initialisation). */
-IMU_HIDDEN ModelStatus ModelSetBoolean(ModelData *m, unsigned int vr, int value, const char **message);
-/** @brief Check the settings, unpack the trained coefficients and initialise the pipeline. */
-IMU_HIDDEN ModelStatus ModelInitialise(ModelData *m, const char **message);
+IMU_HIDDEN ModelStatus ModelGetBoolean(const ModelInstance *mi, const char *function, unsigned int vr, int *value);
+/** @brief Write the Boolean parameter vr (before initialisation). */
+IMU_HIDDEN ModelStatus ModelSetBoolean(ModelInstance *mi, const char *function, unsigned int vr, int value);
+/** @brief Read the Integer (Int32) variable vr into *value. */
+IMU_HIDDEN ModelStatus ModelGetInteger(const ModelInstance *mi, const char *function, unsigned int vr, int *value);
+/** @brief Write the Integer parameter vr (before initialisation). */
+IMU_HIDDEN ModelStatus ModelSetInteger(ModelInstance *mi, const char *function, unsigned int vr, int value);
 /**
- * @brief Consume the sample whose inputs are set: outputs become its estimate.
- * @param time time of the sample [s] (the communication point the step starts at).
+ * @brief Consume the sample whose inputs are set; the outputs become its estimate.
+ * @param t time of the sample [s] (the communication point the step starts at).
+ * @param h communication step size [s]: time to the next sample.
+ * @return Ok; Warning while any input is bad (one log message per episode); Discard (nothing
+ *         consumed) for a step size that is not finite and > 0.
  */
-IMU_HIDDEN void ModelDoStep(ModelData *m, double time);
+IMU_HIDDEN ModelStatus ModelDoStep(ModelInstance *mi, const char *function, double t, double h);
+/** @brief Replace mi's state by *state after checking that it is a state of this binary. */
+IMU_HIDDEN ModelStatus ModelSetState(ModelInstance *mi, const char *function, const ModelState *state);
+/** @brief Check that size bytes are a serialized state of this binary. */
+IMU_HIDDEN ModelStatus ModelCheckSerialized(const ModelInstance *mi, const char *function, const void *bytes, size_t size);
 
 #endif

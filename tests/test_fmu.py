@@ -13,9 +13,9 @@ from fmpy.validation import validate_fmu as fmpy_validate_fmu
 from fmu.compiler import SOURCE_DIR, compile_binary
 from fmu.cosim import FmuError, initialised_fmu, run_fmu, step_samples, step_sizes
 from fmu.header import coefficient_header, read_header_arrays
-from fmu.model_description import model_description_xml
+from fmu.model_description import LOG_CATEGORIES, model_description_xml
 from fmu.packer import build_fmu
-from fmu.validator import FMI2_CS_FUNCTIONS, exported_symbols, validate_fmu
+from fmu.validator import FMI2_CS_FUNCTIONS, exported_symbols, fmutool_problems, validate_fmu
 from fmu.variables import VARIABLES, by_name, inputs, outputs, parameters
 from training.errors import BuildError, ModelError
 from training.layout import (INPUTS, MAX_DEGREE, N_COEFFICIENTS, OUTPUTS, SETTINGS, TRIAD_BLOCK,
@@ -69,27 +69,20 @@ def synthetic_recording(n: int = 600) -> tuple[np.ndarray, np.ndarray]:
 
 
 @pytest.fixture(scope="module")
-def identity_fmu(tmp_path_factory) -> Path:
-    """An FMU built from identity coefficients and default settings."""
-    return build_fmu(np.array(identity_coefficients()), settings_defaults(),
-                     tmp_path_factory.mktemp("identity") / "ImuFusion.fmu")
-
-
-@pytest.fixture(scope="module")
 def trained_fmu(tmp_path_factory) -> Path:
     """An FMU built from non-identity coefficients and non-default settings."""
     return build_fmu(trained_coefficients(), TRAINED_SETTINGS,
                      tmp_path_factory.mktemp("trained") / "ImuFusion.fmu", provenance="test coefficients")
 
 
-def test_fmpy_validation_finds_no_problems(identity_fmu):
-    assert fmpy_validate_fmu(str(identity_fmu)) == []
-    assert validate_fmu(identity_fmu) == []
+def test_fmpy_validation_finds_no_problems(trained_fmu):
+    assert fmpy_validate_fmu(str(trained_fmu)) == []
+    assert validate_fmu(trained_fmu) == []
 
 
-def test_binary_exports_exactly_the_fmi2_cosimulation_functions(identity_fmu):
+def test_binary_exports_exactly_the_fmi2_cosimulation_functions(trained_fmu):
     assert len(FMI2_CS_FUNCTIONS) == 34
-    assert exported_symbols(identity_fmu) == FMI2_CS_FUNCTIONS
+    assert exported_symbols(trained_fmu) == FMI2_CS_FUNCTIONS
 
 
 def test_variable_table_matches_layout_and_config_enum():
@@ -109,25 +102,39 @@ def test_model_description_follows_table_and_settings(trained_fmu):
     assert md.coSimulation.canHandleVariableCommunicationStepSize
     assert md.coSimulation.canGetAndSetFMUstate and md.coSimulation.canSerializeFMUstate
     got = {v.name: (v.valueReference, v.causality, v.type, v.unit) for v in md.modelVariables}
-    assert got == {v.name: (v.value_reference, v.causality, v.type, v.unit) for v in VARIABLES}
+    # A number without a unit in the table is declared dimensionless ("1"); Booleans have none.
+    assert got == {v.name: (v.value_reference, v.causality, v.type,
+                            v.unit or (None if v.type == "Boolean" else "1")) for v in VARIABLES}
     starts = {v.name: v.start for v in md.modelVariables if v.causality == "parameter"}
-    assert {k: float(v == "true") if k == "enable_thermal" else float(v) for k, v in starts.items()} \
-        == TRAINED_SETTINGS
+    booleans = {v.name for v in VARIABLES if v.type == "Boolean"}
+    assert {k: float(v == "true") if k in booleans else float(v) for k, v in starts.items()} \
+        == {**dict(SETTINGS), **TRAINED_SETTINGS}
     sources = md.buildConfigurations[0].sourceFileSets[0].sourceFiles
-    expected = sorted(p.name for p in SOURCE_DIR.glob("*.c") if p.name not in ("ImuBatch.c", "fmi3Functions.c"))
+    expected = sorted(p.name for p in SOURCE_DIR.glob("*.c")
+                      if not p.name.startswith("ImuBatch") and p.name != "fmi3Functions.c")
     assert sorted(sources) == expected
 
 
-def test_identity_fmu_passes_raw_signals_through(identity_fmu):
+def test_fmu_without_thermal_model_passes_raw_signals_through(trained_fmu):
     t, raw = synthetic_recording(200)
-    out = run_fmu(identity_fmu, t, raw)
+    out = run_fmu(trained_fmu, t, raw, parameters={"enable_thermal": False})
     np.testing.assert_allclose(out[:, :9], raw[:, :9], rtol=0, atol=1e-12)
+
+
+def held_temperature(raw: np.ndarray) -> np.ndarray:
+    """raw with each NaN temperature replaced by the last valid one (what the FMU feeds the runtime)."""
+    held = raw.copy()
+    for k in range(1, len(held)):
+        if np.isnan(held[k, -1]):
+            held[k, -1] = held[k - 1, -1]
+    return held
 
 
 def test_fmu_equals_batch_runtime_on_variable_steps(trained_fmu):
     t, raw = synthetic_recording()
     fmu_out = run_fmu(trained_fmu, t, raw)
-    batch_out = run_batch(trained_coefficients(), settings_array(TRAINED_SETTINGS), t, raw)
+    # The FMU holds the last valid temperature through the NaN stretch (bad input, Warning).
+    batch_out = run_batch(trained_coefficients(), settings_array(TRAINED_SETTINGS), t, held_temperature(raw))
     assert fmu_out.shape == (t.size, len(OUTPUTS))
     np.testing.assert_allclose(fmu_out, batch_out, rtol=0, atol=GOLDEN_TOLERANCE, equal_nan=True)
     np.testing.assert_allclose(fmu_out[:, OUTPUTS.index("heading")],
@@ -135,26 +142,27 @@ def test_fmu_equals_batch_runtime_on_variable_steps(trained_fmu):
                                rtol=0, atol=1e-12)
 
 
-def test_parameters_are_set_by_name(identity_fmu):
+def test_parameters_are_set_by_name(trained_fmu):
     t, raw = synthetic_recording(50)
     params = {"declination": -0.1, "enable_thermal": False}
-    fmu_out = run_fmu(identity_fmu, t, raw, parameters=params)
-    batch_out = run_batch(identity_coefficients(), settings_array(params), t, raw)
+    fmu_out = run_fmu(trained_fmu, t, raw, parameters=params)
+    batch_out = run_batch(trained_coefficients(), settings_array({**TRAINED_SETTINGS, **params}), t,
+                          held_temperature(raw))
     np.testing.assert_allclose(fmu_out, batch_out, rtol=0, atol=GOLDEN_TOLERANCE, equal_nan=True)
     with pytest.raises(FmuError, match="not a parameter"):
-        run_fmu(identity_fmu, t, raw, parameters={"gyr_x": 1.0})
+        run_fmu(trained_fmu, t, raw, parameters={"gyr_x": 1.0})
 
 
-def test_invalid_field_norm_fails_initialisation_naming_it(identity_fmu):
+def test_invalid_field_norm_fails_initialisation_naming_it(trained_fmu):
     t, raw = synthetic_recording(5)
     with pytest.raises(FmuError, match="fmi2ExitInitializationMode") as info:
-        run_fmu(identity_fmu, t, raw, parameters={"field_norm": -1.0})
+        run_fmu(trained_fmu, t, raw, parameters={"field_norm": -1.0})
     assert "field_norm" in str(info.value)
 
 
-def test_parameters_cannot_be_set_after_initialisation(identity_fmu):
+def test_parameters_cannot_be_set_after_initialisation(trained_fmu):
     with pytest.raises(FmuError, match="parameters are fixed"):
-        with initialised_fmu(identity_fmu) as fmu:
+        with initialised_fmu(trained_fmu) as fmu:
             fmu.setReal([by_name("field_norm").value_reference], [40.0])
 
 
@@ -234,9 +242,9 @@ def test_reset_returns_to_the_instantiated_state(trained_fmu):
     np.testing.assert_array_equal(first, second)
 
 
-def test_instantiate_rejects_a_foreign_guid(identity_fmu, tmp_path):
-    md = read_model_description(str(identity_fmu))
-    fmu = FMU2Slave(guid="{not-this-fmu}", unzipDirectory=extract(str(identity_fmu), tmp_path),
+def test_instantiate_rejects_a_foreign_guid(trained_fmu, tmp_path):
+    md = read_model_description(str(trained_fmu))
+    fmu = FMU2Slave(guid="{not-this-fmu}", unzipDirectory=extract(str(trained_fmu), tmp_path),
                     modelIdentifier=md.coSimulation.modelIdentifier)
     with pytest.raises(Exception, match="Failed to instantiate"):
         fmu.instantiate()
@@ -254,3 +262,26 @@ def test_start_values_in_binary_match_model_description(trained_fmu, tmp_path):
     fmu.freeInstance()
     assert got == [float(v.start) for v in reals]
     assert thermal == [1]
+
+
+def test_fmutool_check_finds_no_problems(trained_fmu):
+    assert fmutool_problems(trained_fmu) == []
+
+
+def test_log_categories_match_the_binary():
+    names = re.search(r"logCategoryNames\[MODEL_LOG_CATEGORY_COUNT\] = \{(.*?)\};",
+                      (SOURCE_DIR / "model.c").read_text(), re.S).group(1)
+    assert re.findall(r'"(\w+)"', names) == [name for name, _ in LOG_CATEGORIES]
+
+
+def test_every_variable_has_a_description_and_numbers_a_unit(trained_fmu):
+    md = read_model_description(str(trained_fmu))
+    assert md.defaultExperiment.stepSize and md.defaultExperiment.stopTime
+    units = {u.name: u for u in md.unitDefinitions}
+    for v in md.modelVariables:
+        assert v.description, v.name
+        if v.type != "Boolean":
+            assert v.unit in units, v.name
+    assert {d.name for d in units["rad"].displayUnits} == {"deg"}
+    assert {d.name for d in units["rad/s"].displayUnits} == {"deg/s"}
+    assert all(by_name(n).display_unit == "deg" for n in ("roll", "pitch", "yaw", "heading"))

@@ -193,6 +193,25 @@ def test_temperature_profile_hits_breakpoints_and_warms_up(tmp_path):
     assert np.allclose(warm.temp, 20.0 + 3.0 * (1.0 - np.exp(-warm.t / 10.0)), atol=1e-12)
 
 
+def test_segment_power_on_warms_up_then_decays(tmp_path):
+    powered = '\n[[segment]]\ntype = "hold"\nduration_s = 20.0\nwarmup_rise_c = 4.0\nwarmup_tau_s = 5.0\n'
+    scenario = load_scenario(write(tmp_path, scenario_text(hold(10.0) + powered + hold(30.0),
+                                                           temp_c=20.0)))
+    t = np.linspace(0.0, 59.9, 600)
+    temp, rate = scenario.temperature_profile().evaluate(t)
+    heat_end = 4.0 * (1.0 - np.exp(-20.0 / 5.0))
+    expected = np.where(t < 10.0, 0.0, np.where(t < 30.0, 4.0 * (1.0 - np.exp(-(t - 10.0) / 5.0)),
+                                                heat_end * np.exp(-(t - 30.0) / 5.0)))
+    assert np.allclose(temp, 20.0 + expected, atol=1e-12)
+    # the returned rate is the derivative of the returned temperature: central differences of
+    # step 0.1 s err by <= h^2/6 max|T'''| = 0.01 * 0.8 / 25 / 6 ~ 5e-5 degC/s away from the kinks
+    smooth = (np.abs(t - 10.0) > 0.15) & (np.abs(t - 30.0) > 0.15)
+    smooth[[0, -1]] = False
+    assert np.allclose(np.gradient(temp, t)[smooth], rate[smooth], atol=1e-4)
+    assert abs(scenario.temperature_profile().evaluate(np.array([30.0 - 1e-9]))[0][0]
+               - scenario.temperature_profile().evaluate(np.array([30.0]))[0][0]) < 1e-8
+
+
 # ----------------------------------------------------------------------------- sensor errors
 
 def test_error_free_sensor_reproduces_truth_up_to_quantisation(tmp_path):
@@ -256,6 +275,38 @@ def test_temperature_rate_bias_of_the_gyroscope(tmp_path):
     assert np.max(np.abs(error[~ramp])) < EXACT_RAD_S
     expected = np.array([0.001, -0.0005, 0.002]) * 60.0 * DPS
     assert np.max(np.abs(error[ramp] - expected)) < EXACT_RAD_S
+
+
+def test_temperature_rate_bias_of_the_accelerometer_and_magnetometer(tmp_path):
+    errors = {"acc": "temp_rate_ms2_per_c_per_min = [0.004, -0.003, 0.005]",
+              "mag": "temp_rate_ut_per_c_per_min = [0.02, 0.0, -0.01]"}
+    data = run(tmp_path, hold(5.0) + hold(20.0, 45.0), errors)   # 20 °C in 20 s = 60 °C/min
+    ramp = data.t >= 5.0
+    for triad, per_c_per_min in (("acc", [0.004, -0.003, 0.005]), ("mag", [0.02, 0.0, -0.01])):
+        error = getattr(data, triad) - getattr(data, f"ref_{triad}")
+        assert np.max(np.abs(error[~ramp])) < EXACT_RAD_S, triad
+        assert np.max(np.abs(error[ramp] - np.array(per_c_per_min) * 60.0)) < EXACT_RAD_S, triad
+
+
+def test_bias_drift_is_linear_in_the_time_since_the_first_sample(tmp_path):
+    per_min = {"gyr": [0.6, -0.3, 0.1], "acc": [0.01, 0.02, -0.03], "mag": [0.4, -0.3, 0.25]}
+    units = {"gyr": ("dps", DPS), "acc": ("ms2", 1.0), "mag": ("ut", 1.0)}
+    errors = {k: f"bias_drift_{units[k][0]}_per_min = {v}" for k, v in per_min.items()}
+    data = run(tmp_path, hold(30.0), errors)
+    elapsed = np.arange(len(data.t)) / 100.0   # s since the first sample at 100 Hz
+    for triad, drift in per_min.items():
+        error = getattr(data, triad) - getattr(data, f"ref_{triad}")
+        expected = elapsed[:, None] * np.array(drift) * units[triad][1] / 60.0
+        assert np.max(np.abs(error - expected)) < EXACT_RAD_S, triad
+
+
+def test_gyro_g_sensitivity_is_a_bias_per_true_specific_force(tmp_path):
+    k = [[0.020, 0.004, -0.003], [0.003, -0.018, 0.005], [-0.004, 0.002, 0.022]]   # (°/s)/(m/s²)
+    data = run(tmp_path, HANDHELD, {"gyr": f"g_sensitivity_dps_per_ms2 = {k}"})
+    assert np.ptp(data.ref_acc, axis=0).min() > 5.0   # the motion tilts the unit: force varies per axis
+    expected = data.ref_acc @ (np.array(k) * DPS).T
+    assert np.max(np.abs(data.gyr - data.ref_gyr - expected)) < EXACT_RAD_S
+    assert np.max(np.abs(data.acc - data.ref_acc)) < EXACT_RAD_S   # the accelerometer is unaffected
 
 
 #: Relative accuracy of a standard deviation estimated from N = 6000 samples: 1/√(2N) ≈ 0.9 %;

@@ -16,7 +16,8 @@ from pathlib import Path
 import numpy as np
 
 from .errors import ModelError
-from .layout import LAYOUT_VERSION, MAX_DEGREE, TRIAD_ORDER, settings_defaults
+from .layout import (MAX_DEGREE, STAGE_BLOCKS, TERM_SIGNALS, TERM_TARGETS, TERMS_MAX, TRIAD_ORDER,
+                     pack_coefficients, settings_defaults, terms_block)
 from .thermal import ThermalModel
 
 FORMAT = "imufusion-model"
@@ -50,6 +51,11 @@ class ModelArtefact:
     thermal: triad ('gyr', 'acc', 'mag') -> ThermalModel. fit_stats: triad -> dict of fit
     statistics (JSON scalars). training_data: [{'name', 'samples'}]. settings: setting name ->
     recommended FMU parameter value (training.layout.SETTINGS units). notes: warnings.
+    blocks: flat coefficient blocks of the neural stages by name ('elm', 'psobp'; layouts in
+    sources/ImuElm.h, sources/ImuPsoBp.h); an absent stage is disabled.
+    terms: additive correction terms added by `imufmu diagnose`, each {'name', 'target', 'a', 'b',
+    'coefficient'} with target/a/b names from training.layout.TERM_TARGETS / TERM_SIGNALS (b may be
+    None); the runtime subtracts coefficient·a·b from the target component (sources/ImuTerms.h).
     """
 
     seed: int
@@ -58,6 +64,8 @@ class ModelArtefact:
     training_data: list[dict] = field(default_factory=list)
     fit_stats: dict[str, dict] = field(default_factory=dict)
     notes: list[str] = field(default_factory=list)
+    terms: list[dict] = field(default_factory=list)
+    blocks: dict[str, list[float]] = field(default_factory=dict)
     units: dict[str, str] = field(default_factory=lambda: dict(UNITS))
     libraries: dict[str, str] = field(default_factory=library_versions)
     created: str = field(default_factory=utc_now)
@@ -73,7 +81,8 @@ class ModelArtefact:
                 "training_data": list(self.training_data),
                 "thermal": {k: _thermal_to_json(self.thermal[k]) for k in TRIAD_ORDER},
                 "fit_stats": dict(self.fit_stats), "settings": dict(self.settings),
-                "notes": list(self.notes)}
+                "notes": list(self.notes), "terms": [dict(t) for t in self.terms],
+                "blocks": {k: list(v) for k, v in self.blocks.items()}}
 
     def to_json(self) -> str:
         """JSON text; NaN/inf are rejected (ValueError) rather than written non-standard."""
@@ -197,17 +206,45 @@ def load_artefact(path) -> ModelArtefact:
     return ModelArtefact(
         seed=doc["seed"], thermal=thermal, settings=_settings_from_json(doc["settings"], path),
         training_data=doc["training_data"], fit_stats=doc["fit_stats"], notes=doc["notes"],
+        terms=_terms_from_json(doc.get("terms", []), path),
+        blocks=_blocks_from_json(doc.get("blocks", {}), path),
         units=doc["units"], libraries=doc["libraries"], created=doc["created"],
         format=doc["format"], format_version=doc["format_version"], model_type=doc["model_type"])
 
 
+def _terms_from_json(terms, path) -> list[dict]:
+    """Validated correction terms (ModelError naming the file and the bad term)."""
+    if not isinstance(terms, list) or len(terms) > TERMS_MAX:
+        _fail(path, f"'terms' must be a list of at most {TERMS_MAX} terms")
+    for k, term in enumerate(terms):
+        ok = (isinstance(term, dict) and term.get("target") in TERM_TARGETS
+              and term.get("a") in TERM_SIGNALS and (term.get("b") is None or term.get("b") in TERM_SIGNALS)
+              and isinstance(term.get("coefficient"), (int, float)) and np.isfinite(term["coefficient"]))
+        if not ok:
+            _fail(path, f"terms[{k}] must have target in {TERM_TARGETS}, a and b (or null) in "
+                        f"TERM_SIGNALS and a finite coefficient")
+    return [dict(t) for t in terms]
+
+
+def _blocks_from_json(blocks, path) -> dict[str, list[float]]:
+    """Validated stage blocks: known names, the layout's length, finite numbers."""
+    if not isinstance(blocks, dict):
+        _fail(path, "'blocks' must be an object of stage name -> list of numbers")
+    for name, values in blocks.items():
+        if name not in STAGE_BLOCKS:
+            _fail(path, f"blocks: unknown stage '{name}' (known: {', '.join(STAGE_BLOCKS)})")
+        if (not isinstance(values, list) or len(values) != STAGE_BLOCKS[name]
+                or not all(isinstance(v, (int, float)) and np.isfinite(v) for v in values)):
+            _fail(path, f"blocks.{name} must be {STAGE_BLOCKS[name]} finite numbers")
+    return {k: [float(v) for v in vals] for k, vals in blocks.items()}
+
+
 def coefficients_array(artefact: ModelArtefact) -> np.ndarray:
     """The flat coefficient array of training.layout, (N_COEFFICIENTS,) float64:
-    [LAYOUT_VERSION, gyr block, acc block, mag block]."""
-    values = [float(LAYOUT_VERSION)]
-    for triad in TRIAD_ORDER:
-        values += artefact.thermal[triad].to_block()
-    return np.array(values, dtype=np.float64)
+    [LAYOUT_VERSION, gyr, acc, mag thermal blocks, terms block]."""
+    terms = terms_block([(t["target"], t["a"], t.get("b"), t["coefficient"]) for t in artefact.terms])
+    blocks = [artefact.thermal[triad].to_block() for triad in TRIAD_ORDER]
+    return np.array(pack_coefficients(blocks, terms, **artefact.blocks), dtype=np.float64)
 
 
 def settings_dict(artefact: ModelArtefact) -> dict[str, float]:

@@ -57,8 +57,8 @@ def cmd_build_fmu(args) -> None:
     from .artefact import coefficients_array, load_artefact, settings_dict
     artefact = load_artefact(_existing_file(args.model, "model artefact"))
     path = build_fmu(coefficients_array(artefact), settings_dict(artefact), args.out,
-                     provenance=f"model {args.model}")
-    print(f"wrote {path}")
+                     provenance=f"model {args.model}", fmi_version=args.fmi)
+    print(f"wrote {path} (FMI {args.fmi}.0 co-simulation)")
 
 
 def cmd_validate(args) -> None:
@@ -82,6 +82,37 @@ def cmd_run(args) -> None:
     params = recording_parameters(data) | dict(args.param or [])
     out = run_fmu(fmu_path, data.t, data.inputs(), parameters=params, progress=True)
     print(f"wrote {write_outputs_csv(args.out, data.t, out)} ({len(data)} samples)")
+
+
+def cmd_compare_thermal(args) -> None:
+    """imufmu compare-thermal DATA... --out DIR [--runs N] [--seed N]."""
+    from .compare_thermal import compare_thermal
+    paths = [_existing_file(p, "data file") for p in args.data]
+    compare_thermal(paths, Path(args.out), runs=args.runs, seed=args.seed)
+    print(f"wrote {Path(args.out) / 'report.md'}")
+
+
+def cmd_diagnose(args) -> None:
+    """imufmu diagnose DATA... --model DIR/model.json --out REPORT_DIR."""
+    from .diagnose import diagnose
+    paths = [_existing_file(p, "data file") for p in args.data]
+    result = diagnose(paths, _existing_file(args.model, "model artefact"), Path(args.out), seed=args.seed)
+    selected = result.get("selected")
+    what = "nothing significant left" if not selected else \
+        f"selected {selected['name']} on {selected['target']}"
+    print(f"{what}; {result['metric']}: {result['before']:.4g} -> {result['after']:.4g} "
+          f"({result['improvement_pct']:.1f} %)")
+    print(f"wrote {Path(args.out) / 'diagnosis.json'}, report.md and model.json")
+
+
+def cmd_bench(args) -> None:
+    """imufmu bench broad [--trials ...] --out DIR | imufmu bench speed --out DIR."""
+    from .bench import bench_broad, bench_speed
+    if args.what == "broad":
+        bench_broad(args.trials, Path(args.out))
+    else:
+        bench_speed(Path(args.out))
+    print(f"wrote results to {args.out}")
 
 
 def cmd_pipeline(args) -> None:
@@ -116,6 +147,7 @@ def build_parser() -> argparse.ArgumentParser:
     s = sub.add_parser("build-fmu", help="write the trained model into the FMU sources and build it")
     s.add_argument("--model", required=True, help="model.json from 'imufmu train'")
     s.add_argument("--out", required=True, help="FMU file to write")
+    s.add_argument("--fmi", type=int, choices=(2, 3), default=2, help="FMI version (default 2)")
     s.set_defaults(func=cmd_build_fmu)
     s = sub.add_parser("validate", help="validate an FMU (model description, exports, smoke run)")
     s.add_argument("fmu")
@@ -127,6 +159,23 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--param", type=_param, action="append", metavar="NAME=VALUE",
                    help="FMU parameter (repeatable); declination and field_norm default to the sidecar")
     s.set_defaults(func=cmd_run)
+    s = sub.add_parser("compare-thermal", help="compare gyro temperature models on static recordings")
+    s.add_argument("data", nargs="+", help="imu-csv/1 recordings of a static sensor")
+    s.add_argument("--out", required=True, help="report folder")
+    s.add_argument("--runs", type=int, default=50, help="Monte-Carlo repetitions (default 50)")
+    s.add_argument("--seed", type=int, default=0)
+    s.set_defaults(func=cmd_compare_thermal)
+    s = sub.add_parser("diagnose", help="find the effect the model lacks, add it, report before/after")
+    s.add_argument("data", nargs="+", help="imu-csv/1 recordings with a reference")
+    s.add_argument("--model", required=True, help="model.json from 'imufmu train'")
+    s.add_argument("--out", required=True, help="report folder (diagnosis.json, report.md, model.json)")
+    s.add_argument("--seed", type=int, default=0)
+    s.set_defaults(func=cmd_diagnose)
+    s = sub.add_parser("bench", help="benchmarks: BROAD attitude accuracy or runtime speed")
+    s.add_argument("what", choices=("broad", "speed"))
+    s.add_argument("--trials", nargs="*", default=None, help="BROAD trial prefixes (default: all)")
+    s.add_argument("--out", required=True, help="output folder")
+    s.set_defaults(func=cmd_bench)
     s = sub.add_parser("pipeline", help="the main job on the bundled scenarios")
     s.add_argument("--out", default="out", help="output folder (default: out)")
     s.add_argument("--seed", type=int, default=0)

@@ -7,7 +7,7 @@ through `ImuBatchLayout()`.
 """
 from __future__ import annotations
 
-LAYOUT_VERSION = 1
+LAYOUT_VERSION = 2
 
 #: Runtime inputs per sample, in order (units: rad/s, m/s², µT, °C).
 INPUTS = ("gyr_x", "gyr_y", "gyr_z", "acc_x", "acc_y", "acc_z",
@@ -33,6 +33,14 @@ SETTINGS = (
     ("mse_time_constant", 1.0),       # s, averaging time of the innovation mean-square errors
     ("angle_noise", 0.0175),          # rad, floor of the acc/mag angle error standard deviation
     ("enable_thermal", 1.0),          # 1 = apply the gain/bias temperature model
+    ("attitude_mode", 0.0),           # 0 = adaptive-gain Euler fusion, 1 = quaternion filter
+    ("field_dip", 1.0471975511965976),  # rad, local earth-field dip (positive down), 60°
+    ("tau_acc", 3.0),                 # s, time constant of the quaternion filter's inclination correction
+    ("tau_mag", 9.0),                 # s, time constant of the quaternion filter's heading correction
+    ("rest_gyro_threshold", 0.0),     # rad/s, rest detection for the gyro bias (0 = no bias estimation)
+    ("rest_acc_threshold", 0.5),      # m/s², rest detection: specific-force deviation threshold
+    ("mag_reject_time", 60.0),        # s, longest rejection of a disturbed field (0 = no rejection)
+    ("enable_elm", 0.0),              # 1 = apply the ELM nonlinear field model (when trained)
 )
 
 TRIAD_ORDER = ("gyr", "acc", "mag")
@@ -40,8 +48,27 @@ MAX_DEGREE = 3
 #: One triad block: enabled, t0 [°C], ts [°C], degree, A (3x3 row-major),
 #: g[axis][k-1] for k = 1..MAX_DEGREE, b[axis][k] for k = 0..MAX_DEGREE.
 TRIAD_BLOCK = 4 + 9 + 3 * MAX_DEGREE + 3 * (MAX_DEGREE + 1)
-#: Whole coefficient array: [LAYOUT_VERSION, gyr block, acc block, mag block].
-N_COEFFICIENTS = 1 + len(TRIAD_ORDER) * TRIAD_BLOCK
+#: Signals that diagnosed correction terms may use (sources/ImuTerms.h ImuTermSignal, same order):
+#: compensated triads, temperature [°C], its low-passed rate [°C/s], time since the first sample [s]
+#: and the time derivatives of the compensated triads.
+TERM_SIGNALS = (
+    "gyr_x", "gyr_y", "gyr_z", "acc_x", "acc_y", "acc_z", "mag_x", "mag_y", "mag_z",
+    "temp", "temp_rate", "time",
+    "d_gyr_x", "d_gyr_y", "d_gyr_z", "d_acc_x", "d_acc_y", "d_acc_z", "d_mag_x", "d_mag_y", "d_mag_z",
+)
+#: Components a term may correct (index = target in the terms block).
+TERM_TARGETS = TERM_SIGNALS[:9]
+TERMS_MAX = 16
+#: Terms block: [count, then TERMS_MAX x (target, signal a, signal b or -1, coefficient)].
+TERMS_BLOCK = 1 + 4 * TERMS_MAX
+#: Blocks of the neural stages (sources/ImuElm.h IMU_ELM_BLOCK; all zeros = disabled), in order.
+STAGE_BLOCKS = {"elm": 3 + 4 * 3 + 64 * (3 + 1 + 3)}
+#: Offsets of the blocks in the coefficient array (sources/ImuLayout.h).
+OFFSET_THERMAL = 1
+OFFSET_TERMS = OFFSET_THERMAL + len(TRIAD_ORDER) * TRIAD_BLOCK
+OFFSET_ELM = OFFSET_TERMS + TERMS_BLOCK
+#: Whole coefficient array: [LAYOUT_VERSION, gyr, acc, mag thermal blocks, terms block, elm block].
+N_COEFFICIENTS = OFFSET_ELM + STAGE_BLOCKS["elm"]
 
 
 def settings_defaults() -> dict[str, float]:
@@ -65,6 +92,37 @@ def identity_block() -> list[float]:
     return [1.0, 25.0, 1.0, 0.0] + a + [0.0] * (3 * MAX_DEGREE) + [0.0] * (3 * (MAX_DEGREE + 1))
 
 
+def terms_block(terms: list[tuple[str, str, str | None, float]]) -> list[float]:
+    """Terms block from (target, signal a, signal b or None, coefficient) tuples, by name."""
+    if len(terms) > TERMS_MAX:
+        raise ValueError(f"{len(terms)} correction terms, at most {TERMS_MAX} fit in the runtime")
+    block = [float(len(terms))]
+    for target, a, b, coefficient in terms:
+        block += [float(TERM_TARGETS.index(target)), float(TERM_SIGNALS.index(a)),
+                  -1.0 if b is None else float(TERM_SIGNALS.index(b)), float(coefficient)]
+    return block + [0.0] * (TERMS_BLOCK - len(block))
+
+
+def pack_coefficients(thermal_blocks: list[list[float]], terms: list[float] | None = None,
+                      **stages: list[float]) -> list[float]:
+    """The whole coefficient array from the gyr, acc, mag thermal blocks, a terms block and the
+    neural stage blocks by name (STAGE_BLOCKS; an absent stage is disabled: all zeros)."""
+    if len(thermal_blocks) != len(TRIAD_ORDER) or any(len(b) != TRIAD_BLOCK for b in thermal_blocks):
+        raise ValueError(f"expected {len(TRIAD_ORDER)} thermal blocks of {TRIAD_BLOCK} values")
+    terms = terms_block([]) if terms is None else list(terms)
+    if len(terms) != TERMS_BLOCK:
+        raise ValueError(f"terms block has {len(terms)} values, expected {TERMS_BLOCK}")
+    values = [float(LAYOUT_VERSION)] + [float(v) for b in thermal_blocks for v in b] + terms
+    for name in stages.keys() - STAGE_BLOCKS.keys():
+        raise ValueError(f"unknown stage block '{name}' (known: {', '.join(STAGE_BLOCKS)})")
+    for name, size in STAGE_BLOCKS.items():
+        block = [float(v) for v in stages.get(name, [0.0] * size)]
+        if len(block) != size:
+            raise ValueError(f"{name} block has {len(block)} values, expected {size}")
+        values += block
+    return values
+
+
 def identity_coefficients() -> list[float]:
     """The whole coefficient array of an untrained model (every stage is the identity)."""
-    return [float(LAYOUT_VERSION)] + identity_block() * len(TRIAD_ORDER)
+    return pack_coefficients([identity_block()] * len(TRIAD_ORDER))

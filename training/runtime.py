@@ -101,6 +101,8 @@ def _load(path: str) -> ctypes.CDLL:
     lib.ImuBatchCheckSettings.restype = ctypes.c_int
     lib.ImuBatchLayout.argtypes = [ip] * 5
     lib.ImuBatchLayout.restype = None
+    lib.ImuBatchTermSignals.argtypes = [sz, dp, dp, dp, dp]
+    lib.ImuBatchTermSignals.restype = None
     return lib
 
 
@@ -143,7 +145,7 @@ def _error(lib: ctypes.CDLL, code: int, settings: np.ndarray) -> ValueError:
 def run_batch(coefficients, settings, t, inputs) -> np.ndarray:
     """Run the C pipeline over a recording.
 
-    coefficients: (103,) flat coefficient array (training.layout); settings: (7,) flat settings
+    coefficients: (N_COEFFICIENTS,) flat coefficient array (training.layout); settings: flat settings
     array (training.layout.settings_array()); t: (N,) times [s]; inputs: (N, 10) raw
     gyr [rad/s], acc [m/s²], mag [µT], temp [°C]. Returns (N, 20) outputs in the order of
     training.layout.OUTPUTS. Raises ValueError on bad shapes or when the runtime rejects the
@@ -159,4 +161,19 @@ def run_batch(coefficients, settings, t, inputs) -> np.ndarray:
                            _pointer(tt), _pointer(x), _pointer(out))
     if code != 0:
         raise _error(lib, code, s)
+    return out
+
+
+def term_signals(t, components, temperature) -> np.ndarray:
+    """Correction-term signals of a series as the C pipeline forms them (sources/ImuTerms.h).
+
+    t: (N,) s; components: (N, 9) compensated gyr [rad/s], acc [m/s²], mag [µT]; temperature:
+    (N,) °C. Returns (N, len(training.layout.TERM_SIGNALS)); NaN where a signal is not computable.
+    """
+    lib = load_runtime()
+    tt = _as_array("t", t, (-1,))
+    x = _as_array("components", components, (tt.shape[0], 9))
+    temp = _as_array("temperature", temperature, (tt.shape[0],))
+    out = np.empty((tt.shape[0], len(layout.TERM_SIGNALS)), dtype=np.float64)
+    lib.ImuBatchTermSignals(tt.shape[0], _pointer(tt), _pointer(x), _pointer(temp), _pointer(out))
     return out

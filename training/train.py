@@ -13,6 +13,17 @@ from .errors import ModelError
 from .layout import TRIAD_ORDER, settings_defaults
 from .thermal import GainBiasFitter, ThermalFit, ThermalModel, apply_thermal
 
+#: The ELM stage is switched on only when it lowers the held-out field error RMS of the
+#: calibration data by at least this fraction: a smaller gain is within what a different random
+#: split moves, and an ELM that does not clearly help is not worth its risk on other data.
+ELM_MIN_GAIN = 0.10
+#: Rows of the calibration data the ELM sees (every n-th sample): neighbouring samples at 100 Hz
+#: carry the same field direction, so thinning loses nothing but training time.
+ELM_STRIDE = 8
+#: The chain's ELM: a node cap and a back-tuning budget that train in seconds on the default
+#: calibration set (docs/elm.md has the study with larger budgets).
+ELM_FITTER = dict(max_hidden=16, tune_steps=60, tune_batch=2048)
+
 UNITS = {"gyr": "rad/s", "acc": "m/s²", "mag": "µT"}
 #: A sample counts as static for the gyro bias residual when the true rate is below this
 #: [rad/s] (0.3 °/s: far above the reference noise of a rate table, far below any motion).
@@ -151,6 +162,45 @@ def recommended_settings(datasets: list[ImuData], thermal: dict[str, ThermalMode
     return settings
 
 
+def _compensated(d: ImuData, thermal: dict[str, ThermalModel]) -> ImuData:
+    """A copy of d whose raw triads are replaced by the thermally compensated ones."""
+    c = d.slice(slice(None))
+    c.gyr, c.acc, c.mag = (apply_thermal(thermal[k], getattr(d, k), d.temp) for k in ("gyr", "acc", "mag"))
+    return c
+
+
+def _elm_stage(datasets: list[ImuData], thermal: dict[str, ThermalModel], seed: int,
+               notes: list[str]) -> tuple[dict[str, list[float]], bool, dict]:
+    """Fit the field-form ELM on the thermally compensated field against ref_mag.
+
+    Returns ({'elm': block} or {}, enabled, stats). Enabled only when the ELM lowers the
+    held-out (10 %) field error RMS by ELM_MIN_GAIN; otherwise the block is kept but off.
+    """
+    from . import elm
+    usable = [d for d in datasets if d.ref_mag is not None and d.ref_q is not None and d.has("mag")]
+    if not usable or not thermal["mag"].enabled:
+        notes.append("elm: no magnetometer reference (ref_mag, ref_q) or no fitted magnetometer; "
+                     "ELM stage off")
+        return {}, False, {}
+    prep = elm.CompassPrep(stride=ELM_STRIDE)
+    sets = [elm.prepare_compass(_compensated(d, thermal), None, prep, seed) for d in usable]
+    field = np.concatenate([s.field for s in sets])
+    ref = np.concatenate([s.reference for s in sets])
+    train = np.concatenate([s.train + o for s, o in zip(sets, np.cumsum([0] + [len(s.field) for s in sets]))])
+    test = np.setdiff1d(np.arange(len(field)), train)
+    model = elm.ElmFitter(**ELM_FITTER).fit(field[train], ref[train], seed)
+    before = float(np.sqrt(np.mean((field[test] - ref[test]) ** 2)))
+    after = float(np.sqrt(np.mean((elm.elm_apply(model, field[test]) - ref[test]) ** 2)))
+    enabled = after <= (1.0 - ELM_MIN_GAIN) * before
+    if not enabled:
+        notes.append(f"elm: held-out field error {before:.3g} -> {after:.3g} µT is not a "
+                     f"{ELM_MIN_GAIN:.0%} gain; ELM stage off")
+    stats = {"unit": "µT", "hidden": model.hidden, "rows_train": int(len(train)),
+             "rows_test": int(len(test)), "rms_before": before, "rms_after": after,
+             "enabled": enabled, "train_time_s": model.train_time_s}
+    return {"elm": [float(v) for v in elm.to_block(model)]}, enabled, stats
+
+
 def train(datasets: list[ImuData], seed: int = 0, degree: int = 2,
           progress: bool = True) -> ModelArtefact:
     """Fit the gain/bias temperature model of every triad and return the model artefact.
@@ -175,7 +225,11 @@ def train(datasets: list[ImuData], seed: int = 0, degree: int = 2,
             fit = GainBiasFitter(degree=degree).fit(raw, ref, temp, seed, UNITS[triad])
             thermal[triad], stats[triad] = fit.model, _fit_stats(fit)
             notes += _fit_notes(triad, fit, degree)
+        blocks, elm_on, stats["elm"] = _elm_stage(datasets, thermal, seed, notes)
+    if not stats["elm"]:
+        del stats["elm"]
     settings = recommended_settings(datasets, thermal, notes)
+    settings["enable_elm"] = float(elm_on)
     return ModelArtefact(seed=seed, thermal=thermal, settings=settings, fit_stats=stats,
                          training_data=[{"name": d.name, "samples": len(d)} for d in datasets],
-                         notes=notes)
+                         notes=notes, blocks=blocks)

@@ -7,7 +7,8 @@ Layout:
     [earth_field]  norm_ut, dip_deg, declination_deg
     [start]        attitude_deg = [yaw, pitch, roll], temp_c, warmup_rise_c, warmup_tau_s
     [[segment]]    type = hold | positions | rotations | handheld | figure8, per-type keys,
-                   temp_end_c (optional: ramp linearly to this temperature over the segment)
+                   temp_end_c (optional: ramp linearly to this temperature over the segment),
+                   warmup_rise_c, warmup_tau_s (optional: power-on self-heating at its start)
 """
 from __future__ import annotations
 
@@ -61,12 +62,15 @@ class Scenario:
 
     def temperature_profile(self) -> TemperatureProfile:
         """Breakpoints at the segment boundaries; a segment without temp_end_c holds."""
-        times, temps = [0.0], [self.start_temp_c]
+        times, temps, power_ons = [0.0], [self.start_temp_c], []
         for segment in self.segments:
+            if segment.warmup_rise_c != 0.0:
+                power_ons.append((times[-1], times[-1] + segment.duration_s,
+                                  segment.warmup_rise_c, segment.warmup_tau_s))
             times.append(times[-1] + segment.duration_s)
             temps.append(temps[-1] if segment.temp_end_c is None else segment.temp_end_c)
         return TemperatureProfile(np.array(times), np.array(temps), self.warmup_rise_c,
-                                  self.warmup_tau_s)
+                                  self.warmup_tau_s, tuple(power_ons))
 
 
 def load_scenario(path: str | Path) -> Scenario:
@@ -138,11 +142,13 @@ def _sensor_from_table(t: TomlTable) -> SensorModel:
 
 def _triad(t: TomlTable, triad: str) -> TriadErrors:
     """Generic triad errors; key names carry the unit (dps, ms2, ut). Errors default to 0,
-    lsb and range are required. Only the gyroscope has a temperature-rate term."""
+    lsb and range are required. temp_rate_{u}_per_c_per_min: bias per temperature rate;
+    bias_drift_{u}_per_min: bias drift with time; g_sensitivity_dps_per_ms2 (3, 3): gyroscope only."""
     u, si = TRIAD_UNITS[triad]
     zero = [0.0, 0.0, 0.0]
-    temp_rate = (t.array("temp_rate_dps_per_c_per_min", (3,), default=zero) * si * 60.0
-                 if triad == "gyr" else np.zeros(3))       # per (°C/min) -> per (°C/s)
+    temp_rate = t.array(f"temp_rate_{u}_per_c_per_min", (3,), default=zero) * si * 60.0  # -> per (°C/s)
+    g_sensitivity = (t.array("g_sensitivity_dps_per_ms2", (3, 3), default=np.zeros((3, 3)).tolist()) * si
+                     if triad == "gyr" else np.zeros((3, 3)))
     errors = TriadErrors(
         bias=t.array(f"bias_{u}", (3,), default=zero) * si,
         bias_t1=t.array(f"bias_t1_{u}_per_c", (3,), default=zero) * si,
@@ -155,7 +161,9 @@ def _triad(t: TomlTable, triad: str) -> TriadErrors:
         noise_density=t.number(f"noise_density_{u}_per_sqrt_hz", default=0.0, low=0.0) * si,
         bias_walk=t.number(f"bias_walk_{u}_per_sqrt_s", default=0.0, low=0.0) * si,
         lsb=t.number(f"lsb_{u}", positive=True) * si,
-        full_scale=t.number(f"range_{u}", positive=True) * si)
+        full_scale=t.number(f"range_{u}", positive=True) * si,
+        g_sensitivity=g_sensitivity,
+        drift=t.array(f"bias_drift_{u}_per_min", (3,), default=zero) * si / 60.0)
     return errors
 
 
@@ -181,7 +189,10 @@ def _mag_distortion(t: TomlTable) -> MagDistortion:
 def _segment(t: TomlTable) -> Segment:
     """One [[segment]] table, dispatched on its `type`."""
     kind = t.string("type", choices=tuple(SEGMENT_READERS))
-    common = {"temp_end_c": t.optional_number("temp_end_c"), "label": f"{t.path}: [{t.where}]"}
+    common = {"temp_end_c": t.optional_number("temp_end_c"),
+              "warmup_rise_c": t.number("warmup_rise_c", default=0.0, low=-50.0, high=50.0),
+              "warmup_tau_s": t.number("warmup_tau_s", default=DEFAULT_WARMUP_TAU_S, positive=True),
+              "label": f"{t.path}: [{t.where}]"}
     segment = SEGMENT_READERS[kind](t, common)
     t.close()
     return segment

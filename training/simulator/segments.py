@@ -2,6 +2,8 @@
 
 Each segment knows its duration before it is built (the temperature profile needs it) and may
 ramp the temperature linearly to `temp_end_c` over its duration (None: hold the temperature).
+A segment with `warmup_rise_c` != 0 powers the unit on at its start: self-heating by
+warmup_rise_c (1 − exp(−t/warmup_tau_s)) over the segment, decaying after it.
 """
 from __future__ import annotations
 
@@ -22,9 +24,12 @@ AXIS_VECTORS = {"x": np.array([1.0, 0.0, 0.0]), "y": np.array([0.0, 1.0, 0.0]),
 
 @dataclass(frozen=True, kw_only=True)
 class Segment(ABC):
-    """Common part: final temperature [°C] (None: unchanged) and a label for messages."""
+    """Common part: final temperature [°C] (None: unchanged), power-on warm-up rise [°C] and
+    time constant [s] (rise 0: no power-on at this segment) and a label for messages."""
 
     temp_end_c: float | None = None
+    warmup_rise_c: float = 0.0
+    warmup_tau_s: float = 60.0
     label: str = "segment"
 
     @property

@@ -11,7 +11,10 @@ Per triad (units of the triad: rad/s, m/s² or µT; ΔT = T − 25 °C):
                                                rotation of that frame, so only the symmetric part
                                                is an error.
     b(T) = b0 + b1 ΔT + b2 ΔT²                 bias and its temperature drift
-    k_rate · dT/dt                             bias from the temperature rate (gyroscope only)
+    k_rate · dT/dt                             bias from the temperature rate
+    K_g · f                                    gyroscope only: g-sensitivity, bias ∝ specific force
+                                               f [m/s²], K_g (3, 3) [(rad/s)/(m/s²)]
+    d · t                                      bias drifting linearly with the time since power-on
     w(t)                                       bias random walk, w(0) = 0, increments σ_w √Δt N(0,1)
     n                                          white noise, σ = density · √rate_hz
 
@@ -23,7 +26,7 @@ so a field of m_ref along axis j adds c_ij to axis i; then the generic triad err
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -38,7 +41,8 @@ class TriadErrors:
     Vectors are (3,) per axis: bias [u], bias_t1 [u/°C], bias_t2 [u/°C²], scale [1],
     scale_t1 [1/°C], scale_t2 [1/°C²], temp_rate [u/(°C/s)]. misalignment (3, 3) [rad]
     symmetric with zero diagonal. Scalars: noise_density [u/√Hz], bias_walk [u/√s], lsb [u],
-    full_scale [u] (saturation at ±full_scale).
+    full_scale [u] (saturation at ±full_scale). g_sensitivity (3, 3) [u/(m/s²)]: bias per specific
+    force (row = axis). drift (3,) [u/s]: bias drift per second since the first sample.
     """
 
     bias: np.ndarray
@@ -53,16 +57,22 @@ class TriadErrors:
     bias_walk: float
     lsb: float
     full_scale: float
+    g_sensitivity: np.ndarray = field(default_factory=lambda: np.zeros((3, 3)))
+    drift: np.ndarray = field(default_factory=lambda: np.zeros(3))
 
     def apply(self, truth: np.ndarray, temp: np.ndarray, temp_rate: np.ndarray, rate_hz: float,
-              rng: np.random.Generator) -> np.ndarray:
+              rng: np.random.Generator, specific_force: np.ndarray | None = None) -> np.ndarray:
         """Measured triad (N, 3) from the true one (N, 3), temperature (N,) [°C] and its rate
-        (N,) [°C/s] at `rate_hz` [Hz]."""
+        (N,) [°C/s] at `rate_hz` [Hz]; `specific_force` (N, 3) [m/s²] drives g_sensitivity
+        (None: no g-sensitivity bias)."""
         dt_c = (temp - REFERENCE_TEMP_C)[:, None]
         gain = 1.0 + self.scale + self.scale_t1 * dt_c + self.scale_t2 * dt_c ** 2
         bias = self.bias + self.bias_t1 * dt_c + self.bias_t2 * dt_c ** 2
         coupled = truth @ (np.eye(3) + self.misalignment).T
         x = gain * coupled + bias + self.temp_rate * temp_rate[:, None]
+        x = x + self.drift * (np.arange(truth.shape[0]) / rate_hz)[:, None]
+        if specific_force is not None:
+            x = x + specific_force @ self.g_sensitivity.T
         x = x + self._random_walk(truth.shape[0], rate_hz, rng) + self._white(truth.shape, rate_hz, rng)
         return self.digitise(x)
 
@@ -113,7 +123,7 @@ class SensorModel:
         """Raw gyr [rad/s], acc [m/s²], mag [µT] (N, 3 each) from the truth; each triad draws
         from its own stream spawned from `seed`."""
         rng_gyr, rng_acc, rng_mag = (np.random.default_rng(s) for s in seed.spawn(3))
-        gyr = self.gyr.apply(ref_gyr, temp, temp_rate, rate_hz, rng_gyr)
+        gyr = self.gyr.apply(ref_gyr, temp, temp_rate, rate_hz, rng_gyr, specific_force=ref_acc)
         acc = self.acc.apply(ref_acc, temp, temp_rate, rate_hz, rng_acc)
         mag = self.mag.apply(self.mag_distortion.apply(ref_mag), temp, temp_rate, rate_hz, rng_mag)
         return gyr, acc, mag

@@ -1,0 +1,156 @@
+/**
+ * @file ImuMagPf.h
+ * @brief Online hard- and soft-iron estimation by particle filter (docs/magpf.md).
+ *
+ * State x = [h_p (3) uT, b11 b12 b13 b22 b23 b33 (1)], a random walk per filter update.
+ * Observation y = |h_m|^2 - |h_0|^2 = h(x) + noise with h(x) = 2 h_p.h_m - |h_p|^2
+ * - d^T (B + B^T + B^T B) d, d = h_m - h_p; noise mean 3 sigma^2, variance 4 |h_0|^2 sigma^2 + 6 sigma^4.
+ * Each update: store the sample in a buffer of past samples binned over the sphere of directions,
+ * predict, weigh (log domain) against the whole buffer, N_eff; below 2N/3 double-threshold
+ * splitting with roughened copies whose weights come from a small back-propagation network
+ * (diversity check by the Hill number), then systematic resampling if N_eff is still below 2N/3.
+ * A change test on the innovation of the estimate re-widens the cloud and flushes the buffer.
+ * Compensation h_c = (I + B)(h_m - h_p) with the weighted-mean estimate. All memory is inside
+ * ImuMagPf; the network and splitting are in ImuMagPfNet.c.
+ */
+#ifndef IMU_MAG_PF_H
+#define IMU_MAG_PF_H
+
+#include <stdint.h>
+#include "ImuCommon.h"
+#include "ImuRng.h"
+
+#define IMU_MAG_PF_MAX_PARTICLES 512 /* compile-time maximum particle count */
+#define IMU_MAG_PF_STATE_SIZE 9      /* hard iron (3) + soft iron (6) */
+#define IMU_MAG_PF_MAX_HIDDEN 8      /* maximum hidden units of the restoration network */
+#define IMU_MAG_PF_MAX_TRAINING 64   /* high-weight particles used to train the network */
+#define IMU_MAG_PF_RNG_STREAM 54U    /* PCG32 stream selector of the filter */
+#define IMU_MAG_PF_MAX_BIN_SIDE 4    /* largest sphereBins (cells per cube-face side) */
+#define IMU_MAG_PF_MAX_BINS (6 * IMU_MAG_PF_MAX_BIN_SIDE * IMU_MAG_PF_MAX_BIN_SIDE) /* 96 */
+
+/** User settings (units in the comments). */
+typedef struct {
+    int particleCount;             /* 1, N in 2..IMU_MAG_PF_MAX_PARTICLES */
+    double highThreshold;          /* 1, omega1 relative to 1/N, in (1, 100] */
+    double lowThreshold;           /* 1, omega2 relative to 1/N, in (0, 1) */
+    double measurementNoise;       /* uT, sigma of the field noise per axis, > 0 */
+    double processNoiseHard;       /* uT per filter update, random-walk sigma of h_p, >= 0 */
+    double processNoiseSoft;       /* 1 per filter update, random-walk sigma of b_ij, >= 0 */
+    double priorSpreadHard;        /* uT, prior sigma of h_p around priorHardIron, >= 0 */
+    double priorSpreadSoft;        /* 1, prior sigma of b_ij around priorSoftIron, >= 0 */
+    double priorHardIron[3];       /* uT, prior mean of h_p */
+    double priorSoftIron[6];       /* 1, prior mean of b11 b12 b13 b22 b23 b33 */
+    double roughening;             /* 1, K: jitter sigma = K N^(-1/9) x cloud sigma, in [0, 10] */
+    double innovationTimeConstant; /* filter updates of the innovation average; 0: no adaptation */
+    double maxInflation;           /* 1, largest process-noise inflation factor, >= 1 */
+    int decimation;                /* filter every k-th valid sample, 1..1000 */
+    double minRotation;            /* deg, skip samples within this angle of the last used one, [0, 90] */
+    int hiddenUnits;               /* tansig units of the network, 1..IMU_MAG_PF_MAX_HIDDEN */
+    int trainingEpochs;            /* gradient-descent epochs per training, 1..200 */
+    double learningRate;           /* 1, gradient-descent step on normalised data, (0, 10] */
+    int maxTries;                  /* diversity-restoration tries, 1..20 */
+    int enableSplitting;           /* 1: steps 5-6; 0: plain SIR (baseline) */
+    int enableMove;                /* 1: Metropolis acceptance of the roughening after resampling (resample-move) */
+    int sphereBins;                /* cells per cube-face side of the sample buffer (6 k^2 bins), 0..4; 0: current sample only */
+    double changeThreshold;        /* 1, averaged normalised innovation declaring a change; 0: off, else [2, 1e6] */
+    double changeSpreadHard;       /* uT, sigma of h_p drawn around the estimate after a change, >= 0 */
+    double changeSpreadSoft;       /* 1, sigma of b_ij drawn around the estimate after a change, >= 0 */
+    uint64_t seed;                 /* PCG32 initial state */
+    double fieldNorm;              /* uT, |h_0| of the undisturbed field, > 0 */
+} ImuMagPfSettings;
+
+/** Values derived once from the settings. */
+typedef struct {
+    double observationMean;        /* uT^2, 3 sigma^2 */
+    double halfInverseVariance;    /* 1/uT^4, 1 / (2 (4 |h_0|^2 sigma^2 + 6 sigma^4)) */
+    double fieldNormSquared;       /* uT^2 */
+    double highWeight;             /* 1, omega1 / N */
+    double lowWeight;              /* 1, omega2 / N */
+    double rougheningScale;        /* 1, K N^(-1/9) */
+    double processNoise[IMU_MAG_PF_STATE_SIZE]; /* state units per update */
+    double innovationRate;         /* 1, 1 / innovationTimeConstant (0: off) */
+    double minRotationCosine;      /* 1, cos(minRotation) */
+} ImuMagPfCoefficients;
+
+/** Restoration network: 9 inputs, hiddenUnits tansig units, one linear output (normalised data). */
+typedef struct {
+    double w1[IMU_MAG_PF_MAX_HIDDEN][IMU_MAG_PF_STATE_SIZE];
+    double b1[IMU_MAG_PF_MAX_HIDDEN];
+    double w2[IMU_MAG_PF_MAX_HIDDEN];
+    double b2;
+    double inputMean[IMU_MAG_PF_STATE_SIZE];
+    double inputScale[IMU_MAG_PF_STATE_SIZE];
+    double outputMean;
+    double outputScale;
+} ImuMagPfNetwork;
+
+/** Scratch arrays of one update (part of the state so that nothing is allocated). */
+typedef struct {
+    double logLikelihood[IMU_MAG_PF_MAX_PARTICLES];      /* 1, log p(buffer | x_i) */
+    double logWeight[IMU_MAG_PF_MAX_PARTICLES];          /* 1 */
+    double copy[IMU_MAG_PF_MAX_PARTICLES][IMU_MAG_PF_STATE_SIZE];
+    int high[IMU_MAG_PF_MAX_PARTICLES];
+    int low[IMU_MAG_PF_MAX_PARTICLES];
+    int parent[IMU_MAG_PF_MAX_PARTICLES];
+    double hidden[IMU_MAG_PF_MAX_TRAINING][IMU_MAG_PF_MAX_HIDDEN];
+    double error[IMU_MAG_PF_MAX_TRAINING];
+    ImuMagPfNetwork network;
+} ImuMagPfWork;
+
+/** The filter: settings, coefficients and state in one plain struct (a copy is a saved state). */
+typedef struct {
+    ImuMagPfSettings settings;
+    ImuMagPfCoefficients coefficients;
+    ImuRng rng;
+    double particle[IMU_MAG_PF_MAX_PARTICLES][IMU_MAG_PF_STATE_SIZE];
+    double weight[IMU_MAG_PF_MAX_PARTICLES];
+    double estimate[IMU_MAG_PF_STATE_SIZE];
+    double effectiveSampleSize;    /* 1, 1 / sum w^2 after the last update */
+    double innovationAverage;      /* 1, averaged normalised innovation squared of the estimate */
+    double inflation;              /* 1, current process-noise factor */
+    int sampleCounter;             /* valid samples since the last filter update */
+    double lastUsed[3];            /* uT, raw sample of the last filter update (0: none yet) */
+    double bin[IMU_MAG_PF_MAX_BINS][3];  /* uT, newest raw sample per direction bin */
+    int binUsed[IMU_MAG_PF_MAX_BINS];    /* 1 if the bin holds a sample */
+    int binList[IMU_MAG_PF_MAX_BINS];    /* indices of the filled bins in order of first filling */
+    int binCount;                  /* number of filled bins */
+    int updatesSinceChange;        /* filter updates since the reset or the last declared change */
+    int changeArmed;               /* 1 once the innovation average fell below changeThreshold */
+    int changeCount;               /* changes of environment declared since the reset */
+    ImuMagPfWork work;
+} ImuMagPf;
+
+/** @brief Default settings (docs/magpf.md: prior = a trained calibration) for a field norm [uT]. */
+IMU_HIDDEN void ImuMagPfSettingsDefault(ImuMagPfSettings *settings, double fieldNorm);
+/** @brief 0 if the settings are valid, else -1 with *message naming the setting and its range. */
+IMU_HIDDEN int ImuMagPfSettingsCheck(const ImuMagPfSettings *settings, const char **message);
+/** @brief Check settings, derive coefficients and reset; 0, or -1 (filter untouched) if invalid. */
+IMU_HIDDEN int ImuMagPfInitialise(ImuMagPf *pf, const ImuMagPfSettings *settings);
+/** @brief Reseed the generator and draw the prior particles (weights 1/N). */
+IMU_HIDDEN void ImuMagPfReset(ImuMagPf *pf);
+/** @brief Feed one raw field sample [uT]; 1 if the filter updated, 0 if skipped or decimated. */
+IMU_HIDDEN int ImuMagPfUpdate(ImuMagPf *pf, const double mag[3]);
+/** @brief h_c = (I + B)(mag - h_p) [uT] with the current estimate. */
+IMU_HIDDEN void ImuMagPfCompensate(const ImuMagPf *pf, const double mag[3], double out[3]);
+/** @brief Hard-iron estimate h_p [uT]. */
+IMU_HIDDEN void ImuMagPfGetHardIron(const ImuMagPf *pf, double hardIron[3]);
+/** @brief Soft-iron estimate [1] as b11 b12 b13 b22 b23 b33. */
+IMU_HIDDEN void ImuMagPfGetSoftIron(const ImuMagPf *pf, double softIron[6]);
+/** @brief Soft-iron estimate as a row-major symmetric 3x3 matrix B [1]. */
+IMU_HIDDEN void ImuMagPfGetSoftIronMatrix(const ImuMagPf *pf, double matrix[9]);
+/** @brief Effective sample size 1 / sum w^2 after the last update [particles]. */
+IMU_HIDDEN double ImuMagPfGetEffectiveSampleSize(const ImuMagPf *pf);
+/** @brief Number of changes of environment declared since the reset. */
+IMU_HIDDEN int ImuMagPfGetChangeCount(const ImuMagPf *pf);
+/** @brief Observation function h(x) [uT^2] of one state x (hard [uT], soft [1]) at field mag [uT]. */
+IMU_HIDDEN double ImuMagPfObservation(const double x[IMU_MAG_PF_STATE_SIZE], const double mag[3]);
+
+/* Internal, shared by ImuMagPf.c and ImuMagPfNet.c. */
+/** @brief Mean (into *mean) and standard deviation (returned) of n values read with a stride. */
+IMU_HIDDEN double ImuMagPfMoments(const double *values, int n, int stride, double *mean);
+/** @brief Roughening sigma per state component: K N^(-1/9) x (unweighted) cloud standard deviation. */
+IMU_HIDDEN void ImuMagPfCloudSigma(const ImuMagPf *pf, double sigma[IMU_MAG_PF_STATE_SIZE]);
+/** @brief Steps 5-6: splitting with network-based diversity restoration (alpha: tempering exponent). */
+IMU_HIDDEN void ImuMagPfSplit(ImuMagPf *pf, double alpha);
+
+#endif
