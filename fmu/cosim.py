@@ -145,7 +145,7 @@ def _set_parameters(fmu: FMU2Slave | FMU3Slave, parameters: dict) -> None:
 
 def step_samples(fmu: FMU2Slave | FMU3Slave, t: np.ndarray, inputs: np.ndarray, h: np.ndarray,
                  progress: bool = False, statuses: list[int] | None = None) -> np.ndarray:
-    """Per sample k: set inputs[k], doStep(t[k], h[k]), get the outputs; returns (N, 20).
+    """Per sample k: set inputs[k], doStep(t[k], h[k]), get the outputs; returns (N, len(OUTPUTS)).
 
     fmu: an initialised FMU (see `initialised_fmu`); t, h: (N,) [s]; inputs: (N, 10). The doStep
     status of each sample (OK, WARNING or DISCARD) is appended to `statuses` when given.
@@ -219,7 +219,7 @@ def run_fmu(fmu_path: str | Path, t: np.ndarray, inputs: np.ndarray, parameters:
     t: (N,) sample times [s], strictly increasing (steps may vary); inputs: (N, 10) raw samples in
     training.layout.INPUTS order (rad/s, m/s², µT, °C; NaN allowed); parameters: start values by
     name. Each sample is set, then doStep(t_k, t_{k+1} - t_k) consumes it (the last step repeats
-    the previous step size). Returns (N, 20) outputs in training.layout.OUTPUTS order; row k is the
+    the previous step size). Returns (N, len(OUTPUTS)) outputs in training.layout.OUTPUTS order; row k is the
     estimate for sample k. Raises FmuError carrying the FMU's log when an FMI call fails.
     """
     t, inputs = _check_arrays(t, inputs)

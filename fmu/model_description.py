@@ -75,7 +75,7 @@ def _common_attributes(variable: Variable) -> list[str]:
 def _unit_attributes(variable: Variable, start) -> list[str]:
     """unit, displayUnit and start attributes (those that apply)."""
     attributes = []
-    if variable.type != "Boolean":  # a number without a unit in the table is dimensionless
+    if variable.type == "Real":  # a Real without a unit in the table is dimensionless; integers carry none
         attributes.append(f"unit={quoteattr(variable.unit or '1')}")
     if variable.display_unit is not None:
         attributes.append(f"displayUnit={quoteattr(variable.display_unit)}")

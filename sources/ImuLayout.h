@@ -30,6 +30,9 @@ typedef enum {
     ImuOutHeading,                                /* rad, yaw + declination */
     ImuOutQw, ImuOutQx, ImuOutQy, ImuOutQz,       /* body -> magnetic NED */
     ImuOutGainRoll, ImuOutGainPitch, ImuOutGainYaw, /* 1 */
+    ImuOutHardIronX, ImuOutHardIronY, ImuOutHardIronZ, /* uT, particle-filter hard iron */
+    ImuOutSoftIronXx, ImuOutSoftIronYy, ImuOutSoftIronZz, /* 1, particle-filter soft-iron diagonal */
+    ImuOutPfNeff,                                 /* 1, effective sample size (0 when off) */
     IMU_OUTPUT_COUNT
 } ImuOutput;
 
@@ -50,6 +53,18 @@ typedef enum {
     ImuSetRestAccThreshold,  /* m/s^2 */
     ImuSetMagRejectTime,     /* s */
     ImuSetEnableElm,         /* 0 or 1 */
+    ImuSetEnablePf,          /* 0 or 1 */
+    ImuSetPfParticles,       /* 1 */
+    ImuSetPfMeasurementNoise, /* uT */
+    ImuSetPfProcessNoiseHard, /* uT per update */
+    ImuSetPfProcessNoiseSoft, /* 1 per update */
+    ImuSetPfPriorSpreadHard, /* uT */
+    ImuSetPfPriorSpreadSoft, /* 1 */
+    ImuSetPfDecimation,      /* samples */
+    ImuSetPfSeed,            /* 1 */
+    ImuSetPfThresholdHigh,   /* 1/N */
+    ImuSetPfThresholdLow,    /* 1/N */
+    ImuSetPfSphereBins,      /* cells per cube-face side */
     IMU_SETTING_COUNT
 } ImuSetting;
 

@@ -58,17 +58,17 @@ void ImuMagPfSettingsDefault(ImuMagPfSettings *settings, double fieldNorm)
 static const char *ImuMagPfCheckCounts(const ImuMagPfSettings *s)
 {
     if (s->particleCount < 2 || s->particleCount > IMU_MAG_PF_MAX_PARTICLES) {
-        return "particleCount must be in 2.." IMU_MAG_PF_STRING(IMU_MAG_PF_MAX_PARTICLES)
+        return "pf_particles (particleCount) must be in 2.." IMU_MAG_PF_STRING(IMU_MAG_PF_MAX_PARTICLES)
                " (IMU_MAG_PF_MAX_PARTICLES)";
     }
     if (!(s->highThreshold > 1.0 && s->highThreshold <= 100.0)) {
-        return "highThreshold (omega1, relative to 1/N) must be in (1, 100]";
+        return "pf_threshold_high (highThreshold, omega1, relative to 1/N) must be in (1, 100]";
     }
     if (!(s->lowThreshold > 0.0 && s->lowThreshold < 1.0)) {
-        return "lowThreshold (omega2, relative to 1/N) must be in (0, 1)";
+        return "pf_threshold_low (lowThreshold, omega2, relative to 1/N) must be in (0, 1)";
     }
     if (s->decimation < 1 || s->decimation > 1000) {
-        return "decimation must be in 1..1000";
+        return "pf_decimation (decimation) must be in 1..1000";
     }
     if (s->hiddenUnits < 1 || s->hiddenUnits > IMU_MAG_PF_MAX_HIDDEN) {
         return "hiddenUnits must be in 1.." IMU_MAG_PF_STRING(IMU_MAG_PF_MAX_HIDDEN);
@@ -86,7 +86,7 @@ static const char *ImuMagPfCheckCounts(const ImuMagPfSettings *s)
         return "enableMove must be 0 or 1";
     }
     if (s->sphereBins < 0 || s->sphereBins > IMU_MAG_PF_MAX_BIN_SIDE) {
-        return "sphereBins must be in 0.." IMU_MAG_PF_STRING(IMU_MAG_PF_MAX_BIN_SIDE) " (IMU_MAG_PF_MAX_BIN_SIDE)";
+        return "pf_sphere_bins (sphereBins) must be in 0.." IMU_MAG_PF_STRING(IMU_MAG_PF_MAX_BIN_SIDE) " (IMU_MAG_PF_MAX_BIN_SIDE)";
     }
     return NULL;
 }
@@ -95,19 +95,19 @@ static const char *ImuMagPfCheckCounts(const ImuMagPfSettings *s)
 static const char *ImuMagPfCheckValues(const ImuMagPfSettings *s)
 {
     if (!(s->measurementNoise > 0.0 && s->measurementNoise <= 100.0)) {
-        return "measurementNoise must be in (0, 100] uT";
+        return "pf_measurement_noise (measurementNoise) must be in (0, 100] uT";
     }
     if (!(s->processNoiseHard >= 0.0 && s->processNoiseHard <= 100.0)) {
-        return "processNoiseHard must be in [0, 100] uT per update";
+        return "pf_process_noise_hard (processNoiseHard) must be in [0, 100] uT per update";
     }
     if (!(s->processNoiseSoft >= 0.0 && s->processNoiseSoft <= 1.0)) {
-        return "processNoiseSoft must be in [0, 1] per update";
+        return "pf_process_noise_soft (processNoiseSoft) must be in [0, 1] per update";
     }
     if (!(s->priorSpreadHard >= 0.0 && s->priorSpreadHard <= 1e4)) {
-        return "priorSpreadHard must be in [0, 1e4] uT";
+        return "pf_prior_spread_hard (priorSpreadHard) must be in [0, 1e4] uT";
     }
     if (!(s->priorSpreadSoft >= 0.0 && s->priorSpreadSoft <= 1.0)) {
-        return "priorSpreadSoft must be in [0, 1]";
+        return "pf_prior_spread_soft (priorSpreadSoft) must be in [0, 1]";
     }
     if (!ImuAllFinite(s->priorHardIron, 3) || !ImuAllFinite(s->priorSoftIron, 6)) {
         return "priorHardIron and priorSoftIron must be finite";

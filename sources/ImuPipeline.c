@@ -31,6 +31,29 @@ static int ImuPipelineFlag(double value)
     return value == 0.0 ? 0 : (value == 1.0 ? 1 : -1);
 }
 
+/** @brief Integer value of a setting; -1 (rejected by the checks) when it is not a whole number in [0, 2^31). */
+static int ImuPipelineInteger(double value)
+{
+    return (isfinite(value) && value == floor(value) && value >= 0.0 && value < 2147483648.0) ? (int)value : -1;
+}
+
+/** @brief Particle-filter settings: its defaults for the field norm, then the FMU parameters. */
+static void ImuPipelinePfSettings(ImuMagPfSettings *pf, const double *a)
+{
+    ImuMagPfSettingsDefault(pf, a[ImuSetFieldNorm]);
+    pf->particleCount = ImuPipelineInteger(a[ImuSetPfParticles]);
+    pf->measurementNoise = a[ImuSetPfMeasurementNoise];
+    pf->processNoiseHard = a[ImuSetPfProcessNoiseHard];
+    pf->processNoiseSoft = a[ImuSetPfProcessNoiseSoft];
+    pf->priorSpreadHard = a[ImuSetPfPriorSpreadHard];
+    pf->priorSpreadSoft = a[ImuSetPfPriorSpreadSoft];
+    pf->decimation = ImuPipelineInteger(a[ImuSetPfDecimation]);
+    pf->seed = (uint64_t)(ImuPipelineInteger(a[ImuSetPfSeed]) < 0 ? 0 : ImuPipelineInteger(a[ImuSetPfSeed]));
+    pf->highThreshold = a[ImuSetPfThresholdHigh];
+    pf->lowThreshold = a[ImuSetPfThresholdLow];
+    pf->sphereBins = ImuPipelineInteger(a[ImuSetPfSphereBins]);
+}
+
 /** @brief Unpack a flat settings array (enable_thermal other than 0/1 becomes -1); 0 or -1 on bad size. */
 int ImuPipelineSettingsFromArray(ImuPipelineSettings *s, const double *a, size_t n)
 {
@@ -54,6 +77,9 @@ int ImuPipelineSettingsFromArray(ImuPipelineSettings *s, const double *a, size_t
     s->restAccThreshold = a[ImuSetRestAccThreshold];
     s->magRejectTime = a[ImuSetMagRejectTime];
     s->enableElm = ImuPipelineFlag(a[ImuSetEnableElm]);
+    s->enablePf = ImuPipelineFlag(a[ImuSetEnablePf]);
+    s->pfSeed = ImuPipelineInteger(a[ImuSetPfSeed]);
+    ImuPipelinePfSettings(&s->pf, a);
     return 0;
 }
 
@@ -104,6 +130,12 @@ int ImuPipelineSettingsCheck(const ImuPipelineSettings *s, const char **message)
         problem = "enable_thermal must be 0 or 1";
     } else if (s->enableElm != 0 && s->enableElm != 1) {
         problem = "enable_elm must be 0 or 1";
+    } else if (s->enablePf != 0 && s->enablePf != 1) {
+        problem = "enable_pf must be 0 or 1";
+    } else if (s->pfSeed < 0) {
+        problem = "pf_seed must be a whole number in [0, 2147483647]";
+    } else if (ImuMagPfSettingsCheck(&s->pf, &problem) != 0) {
+        /* problem names the particle-filter setting and its range */
     } else {
         problem = ImuPipelineCheckAttitude(s);
     }
@@ -132,6 +164,9 @@ void ImuPipelineInitialise(ImuPipeline *p, const ImuPipelineSettings *s, const I
     a.restAccThreshold = s->restAccThreshold;
     a.magRejectTime = s->magRejectTime;
     ImuAttitudeInitialise(&p->attitude, &a);
+    if (s->enablePf) {
+        ImuMagPfInitialise(&p->pf, &s->pf);
+    }
     ImuPipelineReset(p);
 }
 
@@ -140,6 +175,9 @@ void ImuPipelineReset(ImuPipeline *p)
 {
     ImuAttitudeReset(&p->attitude);
     ImuTermsReset(&p->terms);
+    if (p->settings.enablePf) {
+        ImuMagPfReset(&p->pf);
+    }
     p->lastTime = 0.0;
     p->hasLastTime = 0;
 }
@@ -187,6 +225,27 @@ static void ImuPipelineTerms(ImuPipeline *p, double t, double temperature, doubl
     ImuTermsApply(&p->coefficients.terms, signals, &out[ImuOutRateX]);
 }
 
+/** @brief Online hard/soft-iron filter on the compensated field out[field] and its diagnostic outputs. */
+static void ImuPipelineMagPf(ImuPipeline *p, double out[IMU_OUTPUT_COUNT])
+{
+    double soft[6];
+    int i;
+    if (!p->settings.enablePf) {
+        for (i = ImuOutHardIronX; i <= ImuOutPfNeff; i++) {
+            out[i] = 0.0;
+        }
+        return;
+    }
+    ImuMagPfUpdate(&p->pf, &out[ImuOutFieldX]);
+    ImuMagPfCompensate(&p->pf, &out[ImuOutFieldX], &out[ImuOutFieldX]);
+    ImuMagPfGetHardIron(&p->pf, &out[ImuOutHardIronX]);
+    ImuMagPfGetSoftIron(&p->pf, soft);
+    out[ImuOutSoftIronXx] = soft[0];
+    out[ImuOutSoftIronYy] = soft[3];
+    out[ImuOutSoftIronZz] = soft[5];
+    out[ImuOutPfNeff] = ImuMagPfGetEffectiveSampleSize(&p->pf);
+}
+
 /** @brief Process one sample at time t [s]: raw inputs in (ImuLayout.h units) -> outputs out. */
 void ImuPipelineUpdate(ImuPipeline *p, double t, const double in[IMU_INPUT_COUNT],
                        double out[IMU_OUTPUT_COUNT])
@@ -195,6 +254,7 @@ void ImuPipelineUpdate(ImuPipeline *p, double t, const double in[IMU_INPUT_COUNT
     const double dt = ImuPipelineStep(p, t);
     ImuPipelineThermal(p, in, temperature, out);
     ImuPipelineTerms(p, t, temperature, out);
+    ImuPipelineMagPf(p, out);
     if (p->settings.enableElm) {
         ImuElmApply(&p->coefficients.elm, &out[ImuOutFieldX], &out[ImuOutFieldX]);
     }

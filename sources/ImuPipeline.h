@@ -15,6 +15,7 @@
 #include "ImuAttitude.h"
 #include "ImuTerms.h"
 #include "ImuElm.h"
+#include "ImuMagPf.h"
 
 /** Trained coefficients of every stage (unpacked from the flat coefficient array). */
 typedef struct {
@@ -40,6 +41,9 @@ typedef struct {
     double restAccThreshold; /* m/s^2 */
     double magRejectTime;    /* s, 0 = no rejection */
     int enableElm;           /* 0 or 1: apply the ELM nonlinear field model */
+    int enablePf;            /* 0 or 1: online hard/soft-iron particle filter */
+    int pfSeed;              /* particle-filter seed, -1 marks an invalid value for the check */
+    ImuMagPfSettings pf;     /* particle-filter settings (defaults + the FMU parameters) */
 } ImuPipelineSettings;
 
 /** Whole pipeline: settings, coefficients and evolving state in one plain struct (copyable). */
@@ -48,6 +52,7 @@ typedef struct {
     ImuCoefficients coefficients;
     ImuAttitude attitude;
     ImuTermsState terms;
+    ImuMagPf pf;       /* used when settings.enablePf */
     double lastTime;   /* s, time of the previous sample */
     int hasLastTime;   /* 0 before the first sample */
 } ImuPipeline;

@@ -45,28 +45,47 @@ typedef enum {
     vr_gain_roll = 27,
     vr_gain_pitch = 28,
     vr_gain_yaw = 29,
+    vr_hard_iron_x = 30,
+    vr_hard_iron_y = 31,
+    vr_hard_iron_z = 32,
+    vr_soft_iron_xx = 33,
+    vr_soft_iron_yy = 34,
+    vr_soft_iron_zz = 35,
+    vr_pf_neff = 36,
     /* parameters: settings (ImuSetting order) */
-    vr_declination = 30,
-    vr_field_norm = 31,
-    vr_gyro_noise = 32,
-    vr_gyro_bias_residual = 33,
-    vr_mse_time_constant = 34,
-    vr_angle_noise = 35,
-    vr_enable_thermal = 36,
-    vr_attitude_mode = 37,
-    vr_field_dip = 38,
-    vr_tau_acc = 39,
-    vr_tau_mag = 40,
-    vr_rest_gyro_threshold = 41,
-    vr_rest_acc_threshold = 42,
-    vr_mag_reject_time = 43,
-    vr_enable_elm = 44
+    vr_declination = 37,
+    vr_field_norm = 38,
+    vr_gyro_noise = 39,
+    vr_gyro_bias_residual = 40,
+    vr_mse_time_constant = 41,
+    vr_angle_noise = 42,
+    vr_enable_thermal = 43,
+    vr_attitude_mode = 44,
+    vr_field_dip = 45,
+    vr_tau_acc = 46,
+    vr_tau_mag = 47,
+    vr_rest_gyro_threshold = 48,
+    vr_rest_acc_threshold = 49,
+    vr_mag_reject_time = 50,
+    vr_enable_elm = 51,
+    vr_enable_pf = 52,
+    vr_pf_particles = 53,
+    vr_pf_measurement_noise = 54,
+    vr_pf_process_noise_hard = 55,
+    vr_pf_process_noise_soft = 56,
+    vr_pf_prior_spread_hard = 57,
+    vr_pf_prior_spread_soft = 58,
+    vr_pf_decimation = 59,
+    vr_pf_seed = 60,
+    vr_pf_threshold_high = 61,
+    vr_pf_threshold_low = 62,
+    vr_pf_sphere_bins = 63
 } ValueReference;
 
 /** Parameters of type Boolean; every other variable is Real (FMI 3: Float64) unless VR_IS_INTEGER. */
-#define VR_IS_BOOLEAN(vr) ((vr) == vr_enable_thermal || (vr) == vr_enable_elm)
+#define VR_IS_BOOLEAN(vr) ((vr) == vr_enable_thermal || (vr) == vr_enable_elm || (vr) == vr_enable_pf)
 /** Parameters of type Integer (FMI 3: Int32), stored as whole numbers in the settings array. */
-#define VR_IS_INTEGER(vr) ((void)(vr), 0)
+#define VR_IS_INTEGER(vr) ((vr) == vr_pf_particles || (vr) == vr_pf_decimation || (vr) == vr_pf_seed || (vr) == vr_pf_sphere_bins)
 
 /** FMI 3 only: the independent variable "time" [s], outside the variable table's range. */
 #define VR_TIME 1000000u
@@ -74,6 +93,6 @@ typedef enum {
 #define VR_FIRST_INPUT vr_gyr_x
 #define VR_FIRST_OUTPUT vr_rate_x
 #define VR_FIRST_SETTING vr_declination
-#define VR_COUNT (vr_enable_elm + 1)
+#define VR_COUNT (vr_pf_sphere_bins + 1)
 
 #endif

@@ -102,9 +102,9 @@ def test_model_description_follows_table_and_settings(trained_fmu):
     assert md.coSimulation.canHandleVariableCommunicationStepSize
     assert md.coSimulation.canGetAndSetFMUstate and md.coSimulation.canSerializeFMUstate
     got = {v.name: (v.valueReference, v.causality, v.type, v.unit) for v in md.modelVariables}
-    # A number without a unit in the table is declared dimensionless ("1"); Booleans have none.
+    # A Real without a unit in the table is declared dimensionless ("1"); Booleans and Integers have none.
     assert got == {v.name: (v.value_reference, v.causality, v.type,
-                            v.unit or (None if v.type == "Boolean" else "1")) for v in VARIABLES}
+                            (v.unit or "1") if v.type == "Real" else None) for v in VARIABLES}
     starts = {v.name: v.start for v in md.modelVariables if v.causality == "parameter"}
     booleans = {v.name for v in VARIABLES if v.type == "Boolean"}
     assert {k: float(v == "true") if k in booleans else float(v) for k, v in starts.items()} \
@@ -274,13 +274,13 @@ def test_log_categories_match_the_binary():
     assert re.findall(r'"(\w+)"', names) == [name for name, _ in LOG_CATEGORIES]
 
 
-def test_every_variable_has_a_description_and_numbers_a_unit(trained_fmu):
+def test_every_variable_has_a_description_and_reals_a_unit(trained_fmu):
     md = read_model_description(str(trained_fmu))
     assert md.defaultExperiment.stepSize and md.defaultExperiment.stopTime
     units = {u.name: u for u in md.unitDefinitions}
     for v in md.modelVariables:
         assert v.description, v.name
-        if v.type != "Boolean":
+        if v.type == "Real":  # FMI 2 allows a unit on Real variables only
             assert v.unit in units, v.name
     assert {d.name for d in units["rad"].displayUnits} == {"deg"}
     assert {d.name for d in units["rad/s"].displayUnits} == {"deg/s"}

@@ -172,7 +172,8 @@ def test_c_glue_suite_under_address_and_undefined_behaviour_sanitizers(header_di
 def test_cosimulation_under_valgrind_has_no_errors_or_leaks(fmu_path, tmp_path):
     valgrind, cc = _tool("valgrind"), _tool("gcc")
     driver = tmp_path / "cosim_driver"
-    _compile([cc, *STRICT, "-g", f"-I{FMI_HEADERS}", str(C_TESTS / "cosim_driver.c"), "-o", str(driver), "-ldl", "-lm"])
+    _compile([cc, *STRICT, "-g", f"-I{FMI_HEADERS}", f"-I{SOURCE_DIR}", str(C_TESTS / "cosim_driver.c"),
+              "-o", str(driver), "-ldl", "-lm"])
     member = binary_path(Path(), "ImuFusion", 3).as_posix()
     with zipfile.ZipFile(fmu_path) as zf:
         library = zf.extract(member, tmp_path)

@@ -22,6 +22,9 @@ OUTPUTS = (
     "heading",                             # yaw + declination, true heading [rad]
     "q_w", "q_x", "q_y", "q_z",            # attitude quaternion body -> magnetic NED
     "gain_roll", "gain_pitch", "gain_yaw",  # adaptive fusion gains [1]
+    "hard_iron_x", "hard_iron_y", "hard_iron_z",    # particle-filter hard iron [µT] (0 when off)
+    "soft_iron_xx", "soft_iron_yy", "soft_iron_zz",  # particle-filter soft-iron diagonal [1]
+    "pf_neff",                             # particle-filter effective sample size [1] (0 when off)
 )
 
 #: Settings (FMU parameters), in order, with default values.
@@ -41,6 +44,18 @@ SETTINGS = (
     ("rest_acc_threshold", 0.5),      # m/s², rest detection: specific-force deviation threshold
     ("mag_reject_time", 60.0),        # s, longest rejection of a disturbed field (0 = no rejection)
     ("enable_elm", 0.0),              # 1 = apply the ELM nonlinear field model (when trained)
+    ("enable_pf", 0.0),               # 1 = online hard/soft-iron particle filter (docs/magpf.md)
+    ("pf_particles", 128.0),          # particle count, 2..512
+    ("pf_measurement_noise", 0.3),    # µT, field noise per axis the filter assumes
+    ("pf_process_noise_hard", 0.01),  # µT per filter update, random walk of the hard iron
+    ("pf_process_noise_soft", 2e-4),  # 1 per filter update, random walk of the soft iron
+    ("pf_prior_spread_hard", 3.0),    # µT, prior spread around the trained calibration
+    ("pf_prior_spread_soft", 0.02),   # 1, prior spread of the soft-iron entries
+    ("pf_decimation", 16.0),          # filter every n-th valid sample (compensate every sample)
+    ("pf_seed", 1.0),                 # PCG32 seed of the filter
+    ("pf_threshold_high", 2.0),       # ω1 relative to 1/N (double-threshold splitting)
+    ("pf_threshold_low", 0.5),        # ω2 relative to 1/N
+    ("pf_sphere_bins", 2.0),          # cells per cube-face side of the direction buffer (0 = off)
 )
 
 TRIAD_ORDER = ("gyr", "acc", "mag")

@@ -147,7 +147,7 @@ def run_batch(coefficients, settings, t, inputs) -> np.ndarray:
 
     coefficients: (N_COEFFICIENTS,) flat coefficient array (training.layout); settings: flat settings
     array (training.layout.settings_array()); t: (N,) times [s]; inputs: (N, 10) raw
-    gyr [rad/s], acc [m/s²], mag [µT], temp [°C]. Returns (N, 20) outputs in the order of
+    gyr [rad/s], acc [m/s²], mag [µT], temp [°C]. Returns (N, len(OUTPUTS)) outputs in the order of
     training.layout.OUTPUTS. Raises ValueError on bad shapes or when the runtime rejects the
     coefficients or settings.
     """

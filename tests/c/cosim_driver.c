@@ -12,6 +12,7 @@
 #include <stdlib.h>
 
 #include "fmi3FunctionTypes.h"
+#include "config.h"
 
 #define STEPS 500
 
@@ -104,7 +105,7 @@ static int simulate(const Api *api, const char *token, int withState) {
 
 /** @brief An instance whose initialisation fails on a bad parameter (field_norm = -1 uT); 0 if it does. */
 static int failInitialisation(const Api *api, const char *token) {
-    const fmi3ValueReference fieldNorm = 31;
+    const fmi3ValueReference fieldNorm = vr_field_norm;
     const double bad = -1.0;
     int failures = 0;
     fmi3Instance s = api->instantiate("bad", token, "", fmi3False, fmi3False, fmi3False, fmi3False, NULL, 0, NULL,
