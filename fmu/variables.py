@@ -141,6 +141,9 @@ VARIABLES: tuple[Variable, ...] = (
                _DEFAULTS["pf_threshold_low"]),
     _parameter("pf_sphere_bins", 63, None, "Cells per cube-face side of the buffer of field directions (0 = current sample only)",
                int(_DEFAULTS["pf_sphere_bins"]), type_="Integer"),
+    _parameter("enable_psobp", 64, None, "Apply the PSO-BP network (temperature and its rate) to the gyro bias "
+               "that the gain/bias polynomial leaves (when the artefact carries one)",
+               bool(_DEFAULTS["enable_psobp"]), type_="Boolean"),
 )
 
 

@@ -9,6 +9,7 @@
 
 #include "ImuTerms.h"
 #include "ImuElm.h"
+#include "ImuPsoBp.h"
 
 #define IMU_LAYOUT_VERSION 2
 
@@ -65,16 +66,18 @@ typedef enum {
     ImuSetPfThresholdHigh,   /* 1/N */
     ImuSetPfThresholdLow,    /* 1/N */
     ImuSetPfSphereBins,      /* cells per cube-face side */
+    ImuSetEnablePsoBp,       /* 0 or 1 */
     IMU_SETTING_COUNT
 } ImuSetting;
 
 #define IMU_THERMAL_MAX_DEGREE 3
 /** One triad block: enabled, t0, ts, degree, A[9], g[3][MAX], b[3][MAX+1]. */
 #define IMU_THERMAL_BLOCK (4 + 9 + 3 * IMU_THERMAL_MAX_DEGREE + 3 * (IMU_THERMAL_MAX_DEGREE + 1))
-/** Offsets of the blocks in the coefficient array: [version, gyr, acc, mag thermal blocks, terms]. */
+/** Offsets of the blocks in the coefficient array: [version, gyr, acc, mag thermal blocks, terms, elm, psobp]. */
 #define IMU_OFFSET_THERMAL 1
 #define IMU_OFFSET_TERMS (IMU_OFFSET_THERMAL + 3 * IMU_THERMAL_BLOCK)
 #define IMU_OFFSET_ELM (IMU_OFFSET_TERMS + IMU_TERMS_BLOCK)
-#define IMU_COEFFICIENT_COUNT (IMU_OFFSET_ELM + IMU_ELM_BLOCK)
+#define IMU_OFFSET_PSOBP (IMU_OFFSET_ELM + IMU_ELM_BLOCK)
+#define IMU_COEFFICIENT_COUNT (IMU_OFFSET_PSOBP + IMU_PSOBP_BLOCK)
 
 #endif

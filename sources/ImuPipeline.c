@@ -19,7 +19,8 @@ int ImuCoefficientsFromArray(ImuCoefficients *c, const double *a, size_t n)
         }
     }
     if (ImuTermsFromBlock(&c->terms, a + IMU_OFFSET_TERMS) != 0
-        || ImuElmFromBlock(&c->elm, a + IMU_OFFSET_ELM) != 0) {
+        || ImuElmFromBlock(&c->elm, a + IMU_OFFSET_ELM) != 0
+        || ImuPsoBpFromBlock(&c->psobp, a + IMU_OFFSET_PSOBP, IMU_PSOBP_BLOCK) != 0) {
         return -2;
     }
     return 0;
@@ -79,6 +80,7 @@ int ImuPipelineSettingsFromArray(ImuPipelineSettings *s, const double *a, size_t
     s->enableElm = ImuPipelineFlag(a[ImuSetEnableElm]);
     s->enablePf = ImuPipelineFlag(a[ImuSetEnablePf]);
     s->pfSeed = ImuPipelineInteger(a[ImuSetPfSeed]);
+    s->enablePsoBp = ImuPipelineFlag(a[ImuSetEnablePsoBp]);
     ImuPipelinePfSettings(&s->pf, a);
     return 0;
 }
@@ -132,6 +134,8 @@ int ImuPipelineSettingsCheck(const ImuPipelineSettings *s, const char **message)
         problem = "enable_elm must be 0 or 1";
     } else if (s->enablePf != 0 && s->enablePf != 1) {
         problem = "enable_pf must be 0 or 1";
+    } else if (s->enablePsoBp != 0 && s->enablePsoBp != 1) {
+        problem = "enable_psobp must be 0 or 1";
     } else if (s->pfSeed < 0) {
         problem = "pf_seed must be a whole number in [0, 2147483647]";
     } else if (ImuMagPfSettingsCheck(&s->pf, &problem) != 0) {
@@ -175,6 +179,7 @@ void ImuPipelineReset(ImuPipeline *p)
 {
     ImuAttitudeReset(&p->attitude);
     ImuTermsReset(&p->terms);
+    ImuPsoBpInitialise(&p->psobp, &p->coefficients.psobp);
     if (p->settings.enablePf) {
         ImuMagPfReset(&p->pf);
     }
@@ -253,6 +258,10 @@ void ImuPipelineUpdate(ImuPipeline *p, double t, const double in[IMU_INPUT_COUNT
     const double temperature = in[ImuInTemp];
     const double dt = ImuPipelineStep(p, t);
     ImuPipelineThermal(p, in, temperature, out);
+    ImuPsoBpUpdate(&p->psobp, t, temperature);
+    if (p->settings.enablePsoBp) {
+        ImuPsoBpCorrect(&p->coefficients.psobp, &p->psobp, &out[ImuOutRateX]);
+    }
     ImuPipelineTerms(p, t, temperature, out);
     ImuPipelineMagPf(p, out);
     if (p->settings.enableElm) {

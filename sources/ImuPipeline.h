@@ -16,12 +16,14 @@
 #include "ImuTerms.h"
 #include "ImuElm.h"
 #include "ImuMagPf.h"
+#include "ImuPsoBp.h"
 
 /** Trained coefficients of every stage (unpacked from the flat coefficient array). */
 typedef struct {
     ImuThermalCoefficients thermal[3]; /* gyr, acc, mag */
     ImuTermsCoefficients terms;        /* additive terms found by `imufmu diagnose` */
     ImuElm elm;                        /* nonlinear field model (field form) */
+    ImuPsoBpCoefficients psobp;        /* gyro bias network on temperature and its rate */
 } ImuCoefficients;
 
 /** User settings in user units (the FMU parameters). */
@@ -43,6 +45,7 @@ typedef struct {
     int enableElm;           /* 0 or 1: apply the ELM nonlinear field model */
     int enablePf;            /* 0 or 1: online hard/soft-iron particle filter */
     int pfSeed;              /* particle-filter seed, -1 marks an invalid value for the check */
+    int enablePsoBp;         /* 0 or 1: PSO-BP gyro bias network (mode of its block) */
     ImuMagPfSettings pf;     /* particle-filter settings (defaults + the FMU parameters) */
 } ImuPipelineSettings;
 
@@ -53,6 +56,7 @@ typedef struct {
     ImuAttitude attitude;
     ImuTermsState terms;
     ImuMagPf pf;       /* used when settings.enablePf */
+    ImuPsoBpState psobp; /* causal temperature-rate estimate of the PSO-BP model */
     double lastTime;   /* s, time of the previous sample */
     int hasLastTime;   /* 0 before the first sample */
 } ImuPipeline;

@@ -88,8 +88,9 @@ def cmd_compare_thermal(args) -> None:
     """imufmu compare-thermal DATA... --out DIR [--runs N] [--seed N]."""
     from .compare_thermal import compare_thermal
     paths = [_existing_file(p, "data file") for p in args.data]
-    compare_thermal(paths, Path(args.out), runs=args.runs, seed=args.seed)
-    print(f"wrote {Path(args.out) / 'report.md'}")
+    compare_thermal(paths, Path(args.out), runs=args.runs, seed=args.seed,
+                    train_fraction=args.train_fraction)
+    print(f"wrote {Path(args.out) / 'compare_thermal.md'}")
 
 
 def cmd_diagnose(args) -> None:
@@ -163,6 +164,9 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("data", nargs="+", help="imu-csv/1 recordings of a static sensor")
     s.add_argument("--out", required=True, help="report folder")
     s.add_argument("--runs", type=int, default=50, help="Monte-Carlo repetitions (default 50)")
+    s.add_argument("--train-fraction", type=float, default=0.6,
+                   help="leading share of each recording (by time) used for training (default 0.6; "
+                        "2/3 = the first four plateaus of scenarios/thermal_plateaus.toml)")
     s.add_argument("--seed", type=int, default=0)
     s.set_defaults(func=cmd_compare_thermal)
     s = sub.add_parser("diagnose", help="find the effect the model lacks, add it, report before/after")

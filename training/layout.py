@@ -56,6 +56,7 @@ SETTINGS = (
     ("pf_threshold_high", 2.0),       # ω1 relative to 1/N (double-threshold splitting)
     ("pf_threshold_low", 0.5),        # ω2 relative to 1/N
     ("pf_sphere_bins", 2.0),          # cells per cube-face side of the direction buffer (0 = off)
+    ("enable_psobp", 0.0),            # 1 = PSO-BP network on the gyro bias left by the polynomial
 )
 
 TRIAD_ORDER = ("gyr", "acc", "mag")
@@ -77,13 +78,15 @@ TERMS_MAX = 16
 #: Terms block: [count, then TERMS_MAX x (target, signal a, signal b or -1, coefficient)].
 TERMS_BLOCK = 1 + 4 * TERMS_MAX
 #: Blocks of the neural stages (sources/ImuElm.h IMU_ELM_BLOCK; all zeros = disabled), in order.
-STAGE_BLOCKS = {"elm": 3 + 4 * 3 + 64 * (3 + 1 + 3)}
+STAGE_BLOCKS = {"elm": 3 + 4 * 3 + 64 * (3 + 1 + 3),   # sources/ImuElm.h IMU_ELM_BLOCK
+                "psobp": 7 + 3 * (4 * 16 + 1)}         # sources/ImuPsoBp.h IMU_PSOBP_BLOCK
 #: Offsets of the blocks in the coefficient array (sources/ImuLayout.h).
 OFFSET_THERMAL = 1
 OFFSET_TERMS = OFFSET_THERMAL + len(TRIAD_ORDER) * TRIAD_BLOCK
 OFFSET_ELM = OFFSET_TERMS + TERMS_BLOCK
-#: Whole coefficient array: [LAYOUT_VERSION, gyr, acc, mag thermal blocks, terms block, elm block].
-N_COEFFICIENTS = OFFSET_ELM + STAGE_BLOCKS["elm"]
+OFFSET_PSOBP = OFFSET_ELM + STAGE_BLOCKS["elm"]
+#: Whole coefficient array: [LAYOUT_VERSION, gyr, acc, mag thermal blocks, terms, elm, psobp blocks].
+N_COEFFICIENTS = OFFSET_PSOBP + STAGE_BLOCKS["psobp"]
 
 
 def settings_defaults() -> dict[str, float]:

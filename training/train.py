@@ -201,6 +201,36 @@ def _elm_stage(datasets: list[ImuData], thermal: dict[str, ThermalModel], seed: 
     return {"elm": [float(v) for v in elm.to_block(model)]}, enabled, stats
 
 
+def _psobp_stage(datasets: list[ImuData], thermal: dict[str, ThermalModel], seed: int,
+                 notes: list[str]) -> tuple[dict[str, list[float]], bool, dict]:
+    """Fit the residual PSO-BP gyro bias network on the longest recording with a gyro reference
+    and temperature (networks see one continuous series: the temperature rate needs it).
+
+    Returns ({'psobp': block} or {}, enabled, stats); enabled by psobp.residual_psobp_wins, which
+    fits on the first two thirds and switches the network on only for a held-out gain.
+    """
+    from . import psobp
+    usable = [d for d in datasets if d.ref_gyr is not None and d.has("gyr") and np.isfinite(d.temp).any()]
+    if not usable or not thermal["gyr"].enabled:
+        notes.append("psobp: no gyro reference with temperature or no fitted gyro; PSO-BP stage off")
+        return {}, False, {}
+    d = max(usable, key=len)
+    gyr = apply_thermal(thermal["gyr"], d.gyr, d.temp)
+    try:
+        decision = psobp.residual_psobp_wins(d.t, gyr, d.ref_gyr, d.temp, seed)
+        fit = psobp.fit_gyro_residual_psobp(d.t, gyr, d.ref_gyr, d.temp, seed)
+    except ValueError as e:  # too few static windows with temperature to fit a network
+        notes.append(f"psobp: {e}; PSO-BP stage off")
+        return {}, False, {}
+    if not decision.enable:
+        notes.append(f"psobp: held-out residual bias {decision.rms_polynomial:.3g} -> "
+                     f"{decision.rms_hybrid:.3g} rad/s is not a {psobp.ENABLE_MIN_GAIN:.0%} gain; stage off")
+    stats = {"unit": "rad/s", "recording": d.name, "held_out_windows": decision.windows,
+             "rms_polynomial": decision.rms_polynomial, "rms_hybrid": decision.rms_hybrid,
+             "enabled": bool(decision.enable)}
+    return {"psobp": [float(v) for v in fit.model.to_block()]}, bool(decision.enable), stats
+
+
 def train(datasets: list[ImuData], seed: int = 0, degree: int = 2,
           progress: bool = True) -> ModelArtefact:
     """Fit the gain/bias temperature model of every triad and return the model artefact.
@@ -226,10 +256,12 @@ def train(datasets: list[ImuData], seed: int = 0, degree: int = 2,
             thermal[triad], stats[triad] = fit.model, _fit_stats(fit)
             notes += _fit_notes(triad, fit, degree)
         blocks, elm_on, stats["elm"] = _elm_stage(datasets, thermal, seed, notes)
-    if not stats["elm"]:
-        del stats["elm"]
+        psobp_block, psobp_on, stats["psobp"] = _psobp_stage(datasets, thermal, seed, notes)
+    blocks.update(psobp_block)
+    stats = {k: v for k, v in stats.items() if v}
     settings = recommended_settings(datasets, thermal, notes)
     settings["enable_elm"] = float(elm_on)
+    settings["enable_psobp"] = float(psobp_on)
     return ModelArtefact(seed=seed, thermal=thermal, settings=settings, fit_stats=stats,
                          training_data=[{"name": d.name, "samples": len(d)} for d in datasets],
                          notes=notes, blocks=blocks)
