@@ -5,7 +5,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .evaluate import attitude_errors
+from .evaluate import tilt_heading_errors
 from .layout import OUTPUTS
 
 #: Rows of the summary table: metric key, label with unit.
@@ -44,23 +44,27 @@ def _plot_scenario(s, path: Path) -> Path:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     t = s.data.t - s.data.t[0]
-    fig, axes = plt.subplots(2, 1, figsize=(10, 6.5), sharex=True)
-    err = np.rad2deg(attitude_errors(s.out, s.data))
-    err_raw = np.rad2deg(attitude_errors(s.out_raw, s.data))
-    for i, name in enumerate(("roll", "pitch", "yaw")):
-        axes[0].plot(t, err_raw[:, i], lw=0.6, alpha=0.5, label=f"{name} raw sensors")
-        axes[0].plot(t, err[:, i], lw=0.9, label=f"{name} ImuFusion")
-    axes[0].set_ylabel("attitude error [°]")
-    axes[0].legend(ncol=3, fontsize=7)
+    fig, axes = plt.subplots(3, 1, figsize=(10, 8.5), sharex=True)
+    # Inclination and heading errors are defined at every attitude (roll and yaw are not at
+    # pitch ±90°, which rotation scenarios pass through).
+    err = np.rad2deg(tilt_heading_errors(s.out, s.data))
+    err_raw = np.rad2deg(tilt_heading_errors(s.out_raw, s.data))
+    for i, name in enumerate(("inclination", "heading")):
+        axes[0].plot(t, err_raw[:, i], lw=0.6, label=name)
+        axes[1].plot(t, err[:, i], lw=0.8, label=name)
+    axes[0].set_ylabel("attitude error [°]\nraw sensors")
+    axes[1].set_ylabel("attitude error [°]\nImuFusion FMU")
+    for ax in axes[:2]:
+        ax.legend(ncol=3, fontsize=7)
     cols = [OUTPUTS.index(c) for c in ("rate_x", "rate_y", "rate_z")]
     rate_err = np.rad2deg(s.out[:, cols] - s.data.ref_gyr)
     raw_err = np.rad2deg(s.data.gyr - s.data.ref_gyr)
     for i, ax in enumerate("xyz"):
-        axes[1].plot(t, raw_err[:, i], lw=0.5, alpha=0.5, label=f"{ax} raw")
-        axes[1].plot(t, rate_err[:, i], lw=0.5, label=f"{ax} corrected")
-    axes[1].set_ylabel("rate error [°/s]")
-    axes[1].set_xlabel("time [s]")
-    axes[1].legend(ncol=3, fontsize=7)
+        axes[2].plot(t, raw_err[:, i], lw=0.5, alpha=0.5, label=f"{ax} raw")
+        axes[2].plot(t, rate_err[:, i], lw=0.5, label=f"{ax} corrected")
+    axes[2].set_ylabel("rate error [°/s]")
+    axes[2].set_xlabel("time [s]")
+    axes[2].legend(ncol=3, fontsize=7)
     fig.suptitle(f"{s.name}: errors against simulator truth")
     fig.tight_layout()
     fig.savefig(path, dpi=110)
