@@ -11,7 +11,8 @@ from .artefact import ModelArtefact
 from .dataset import ImuData
 from .errors import ModelError
 from .layout import TRIAD_ORDER, settings_defaults
-from .thermal import GainBiasFitter, ThermalFit, ThermalModel, apply_thermal
+from .thermal import (GainBiasFitter, ThermalFit, ThermalModel, apply_thermal, normalised_temperature,
+                      temperature_normalisation)
 
 #: The ELM stage is switched on only when it lowers the held-out field error RMS of the
 #: calibration data by at least this fraction: a smaller gain is within what a different random
@@ -25,6 +26,13 @@ ELM_STRIDE = 8
 ELM_FITTER = dict(max_hidden=16, tune_steps=60, tune_batch=2048)
 
 UNITS = {"gyr": "rad/s", "acc": "m/s²", "mag": "µT"}
+#: The gains A·G(T) are identifiable only when the reference moves along every axis. This is the
+#: least RMS excitation [triad unit] along the weakest direction of the reference (smallest
+#: singular value / √N): 0.01 rad/s ≈ 0.6 °/s, 0.1 m/s², 1 µT — well above reference noise, far
+#: below any calibration motion. Below it (a static gyro log, one accelerometer position) a fit of
+#: A·G would be degenerate — A = 0 reproduces a zero reference exactly — so only the bias B(T) is
+#: fitted, by linear least squares, with A = I and G = 1.
+MIN_EXCITATION = {"gyr": 0.01, "acc": 0.1, "mag": 1.0}
 #: A sample counts as static for the gyro bias residual when the true rate is below this
 #: [rad/s] (0.3 °/s: far above the reference noise of a rate table, far below any motion).
 STATIC_RATE = 0.005
@@ -72,6 +80,25 @@ def _skip_reason(datasets: list[ImuData], triad: str, raw: np.ndarray, ref: np.n
     if rows < _n_parameters(degree):
         return f"{triad}: only {rows} usable rows for {_n_parameters(degree)} coefficients"
     return None
+
+
+def _weakest_excitation(ref: np.ndarray) -> float:
+    """RMS of the reference along its least-excited direction [triad unit] (finite rows)."""
+    r = ref[np.all(np.isfinite(ref), axis=1)]
+    return float(np.linalg.svd(r, compute_uv=False)[-1] / np.sqrt(len(r))) if len(r) >= 3 else 0.0
+
+
+def fit_bias_only(raw: np.ndarray, ref: np.ndarray, temp: np.ndarray, degree: int) -> ThermalModel:
+    """Bias polynomial B(T) per axis by least squares on raw − ref (A = I, G = 1); (N, 3) arrays in
+    the triad unit, temp (N,) °C. Degree 0 when no temperature is finite."""
+    ok = np.all(np.isfinite(raw), axis=1) & np.all(np.isfinite(ref), axis=1)
+    norm = temperature_normalisation(temp[ok])
+    t0, ts = norm if norm else (25.0, 1.0)
+    p = degree if norm else 0
+    tn = normalised_temperature(temp[ok], t0, ts)
+    design = np.column_stack([tn ** k for k in range(p + 1)])
+    b = np.linalg.lstsq(design, raw[ok] - ref[ok], rcond=None)[0].T
+    return ThermalModel(True, t0, ts, p, np.eye(3), np.zeros((3, p)), b)
 
 
 def _fit_notes(triad: str, fit: ThermalFit, degree: int) -> list[str]:
@@ -251,6 +278,14 @@ def train(datasets: list[ImuData], seed: int = 0, degree: int = 2,
             if reason:
                 notes.append(f"{reason}; thermal model disabled")
                 thermal[triad] = ThermalModel.identity(enabled=False)
+                continue
+            excitation = _weakest_excitation(ref)
+            if excitation < MIN_EXCITATION[triad]:
+                thermal[triad] = fit_bias_only(raw, ref, temp, degree)
+                stats[triad] = {"unit": UNITS[triad], "bias_only": True, "weakest_excitation": excitation}
+                notes.append(f"{triad}: the reference hardly moves (weakest direction {excitation:.3g} "
+                             f"{UNITS[triad]} RMS < {MIN_EXCITATION[triad]}): gains not identifiable, "
+                             "fitted the bias B(T) only (A = I, G = 1)")
                 continue
             fit = GainBiasFitter(degree=degree).fit(raw, ref, temp, seed, UNITS[triad])
             thermal[triad], stats[triad] = fit.model, _fit_stats(fit)
