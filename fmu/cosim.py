@@ -213,17 +213,21 @@ def initialised_fmu(fmu_path: str | Path, start_time: float = 0.0, parameters: d
 
 
 def run_fmu(fmu_path: str | Path, t: np.ndarray, inputs: np.ndarray, parameters: dict | None = None,
-            progress: bool = False) -> np.ndarray:
+            progress: bool = False, log: list[str] | None = None) -> np.ndarray:
     """Run the FMU (FMI 2 or 3) over a recording and return its outputs.
 
     t: (N,) sample times [s], strictly increasing (steps may vary); inputs: (N, 10) raw samples in
     training.layout.INPUTS order (rad/s, m/s², µT, °C; NaN allowed); parameters: start values by
     name. Each sample is set, then doStep(t_k, t_{k+1} - t_k) consumes it (the last step repeats
     the previous step size). Returns (N, len(OUTPUTS)) outputs in training.layout.OUTPUTS order; row k is the
-    estimate for sample k. Raises FmuError carrying the FMU's log when an FMI call fails.
+    estimate for sample k. Raises FmuError carrying the FMU's log when an FMI call fails. When `log`
+    is a list, the FMU's log messages ('[STATUS] category: message') are appended to it.
     """
     t, inputs = _check_arrays(t, inputs)
     experiment = read_model_description(str(fmu_path)).defaultExperiment
     h = step_sizes(t, experiment.stepSize if experiment is not None and experiment.stepSize else 1.0)
     with initialised_fmu(fmu_path, float(t[0]), parameters) as fmu:
-        return step_samples(fmu, t, inputs, h, progress)
+        out = step_samples(fmu, t, inputs, h, progress)
+        if log is not None:
+            log.extend(fmu.log_messages)
+        return out

@@ -80,7 +80,10 @@ def cmd_run(args) -> None:
     fmu_path = _existing_file(args.fmu, "FMU")
     data = read_imu_csv(_existing_file(args.data, "data file"))
     params = recording_parameters(data) | dict(args.param or [])
-    out = run_fmu(fmu_path, data.t, data.inputs(), parameters=params, progress=True)
+    log: list[str] = []
+    out = run_fmu(fmu_path, data.t, data.inputs(), parameters=params, progress=True, log=log)
+    for message in log:
+        print(f"FMU: {message}")
     print(f"wrote {write_outputs_csv(args.out, data.t, out)} ({len(data)} samples)")
 
 
