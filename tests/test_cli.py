@@ -107,3 +107,20 @@ def test_console_script_reports_error_and_status(tmp_path):
                        capture_output=True, text=True)
     assert r.returncode == 1
     assert r.stderr.strip().count("\n") == 0 and "no.fmu" in r.stderr
+
+
+def test_diagnose_missing_model(tmp_path, capsys):
+    p = _csv(tmp_path, "rec.csv", [_row(0.0), _row(0.01)])
+    _fails(capsys, ["diagnose", str(p), "--model", str(tmp_path / "none.json"), "--out", str(tmp_path / "d")],
+           "none.json", "not found")
+
+
+def test_compare_thermal_missing_data(tmp_path, capsys):
+    _fails(capsys, ["compare-thermal", str(tmp_path / "gone.csv.gz"), "--out", str(tmp_path / "c")],
+           "gone.csv.gz", "not found")
+
+
+def test_build_fmu_rejects_unknown_fmi_version():
+    with pytest.raises(SystemExit) as e:
+        main(["build-fmu", "--model", "m.json", "--out", "x.fmu", "--fmi", "4"])
+    assert e.value.code == 2
