@@ -3,6 +3,7 @@
  * @brief Batch entry points of the runtime shared library (the pipeline lives on the stack).
  */
 #include "ImuBatch.h"
+#include "ImuGuard.h"
 #include "ImuPipeline.h"
 
 /** @brief Unpack and check coefficients [layout ImuLayout.h]; ImuBatchOk or a negative code. */
@@ -45,12 +46,14 @@ int ImuBatchCheckSettings(const double *settings, size_t nSettings, const char *
     return result;
 }
 
-/** @brief Run the pipeline over nSamples samples (times t [s], inputs/outputs row-major). */
+/** @brief Run the guarded pipeline (ImuGuard.h, as in the FMU) over nSamples samples (times t [s],
+ *         inputs/outputs row-major). */
 int ImuBatchRun(const double *coefficients, size_t nCoefficients, const double *settings,
                 size_t nSettings, size_t nSamples, const double *t, const double *inputs,
                 double *outputs)
 {
     ImuPipeline pipeline;
+    ImuGuard guard;
     ImuCoefficients c;
     ImuPipelineSettings s;
     const char *message;
@@ -66,8 +69,13 @@ int ImuBatchRun(const double *coefficients, size_t nCoefficients, const double *
         return result;
     }
     ImuPipelineInitialise(&pipeline, &s, &c);
+    ImuGuardReset(&guard, settings[ImuSetDeclination]);
     for (k = 0; k < nSamples; k++) {
-        ImuPipelineUpdate(&pipeline, t[k], inputs + k * IMU_INPUT_COUNT, outputs + k * IMU_OUTPUT_COUNT);
+        double in[IMU_INPUT_COUNT], tPipeline;
+        double *out = outputs + k * IMU_OUTPUT_COUNT;
+        (void)ImuGuardInputs(&guard, settings[ImuSetFieldNorm], t[k], inputs + k * IMU_INPUT_COUNT, in, &tPipeline);
+        ImuPipelineUpdate(&pipeline, tPipeline, in, out);
+        (void)ImuGuardOutputs(&guard, out);
     }
     return ImuBatchOk;
 }

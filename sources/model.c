@@ -19,16 +19,6 @@ typedef char ModelCheckSettings[(VR_COUNT - VR_FIRST_SETTING == IMU_SETTING_COUN
 #define MODEL_STATE_MAGIC 0x494D5546u /* "IMUF" */
 #define MODEL_LOG_BUFFER_SIZE 640
 
-/* Plausibility limits of the raw inputs: beyond them a sensor is saturated, broken or the input
- * is not in the documented unit. The magnetometer limits scale with the field_norm parameter. */
-#define MODEL_GYR_LIMIT 100.0      /* rad/s: beyond any MEMS gyro's full scale (about 70 rad/s) */
-#define MODEL_ACC_LIMIT 2000.0     /* m/s^2: about 200 g */
-#define MODEL_MAG_SATURATION 20.0  /* x field_norm: an axis at or beyond it is saturated */
-#define MODEL_MAG_MINIMUM 0.02     /* x field_norm: a smaller field magnitude means no field */
-#define MODEL_TEMP_MIN (-60.0)     /* degC, lower end of the valid temperature range */
-#define MODEL_TEMP_MAX 125.0       /* degC, upper end of the valid temperature range */
-#define MODEL_MAX_GAP 1.0e6        /* s: larger jumps of the sample time are integrated as this */
-
 static const char *const logCategoryNames[MODEL_LOG_CATEGORY_COUNT] = {
     "logEvents", "logBadInput", "logStatusWarning", "logStatusError"
 };
@@ -40,8 +30,6 @@ static const char *const issueNames[MODEL_ISSUE_COUNT] = {
 };
 
 typedef char ModelCheckIssues[(1 << (MODEL_ISSUE_COUNT - 1)) == ModelIssueOutput ? 1 : -1];
-/* sanitiseInputs relies on the triad issue bits being 1 << triad (gyr, acc, mag). */
-typedef char ModelCheckTriadBits[(ModelIssueGyr == 1 && ModelIssueAcc == 2 && ModelIssueMag == 4) ? 1 : -1];
 
 const char *ModelGuid(void) {
     return IMU_MODEL_GUID;
@@ -55,12 +43,7 @@ const char *ModelLogCategoryName(ModelLogCategory c) {
 
 /** @brief Outputs before the first sample: level, north-facing, zero signals, heading = declination [rad]. */
 static void setInitialOutputs(ModelData *m) {
-    int i;
-    for (i = 0; i < IMU_OUTPUT_COUNT; i++) {
-        m->outputs[i] = 0.0;
-    }
-    m->outputs[ImuOutQw] = 1.0;
-    m->outputs[ImuOutHeading] = m->settings[ImuSetDeclination];
+    ImuGuardInitialOutputs(m->settings[ImuSetDeclination], m->outputs);
 }
 
 /** @brief Every variable at its start value (the state right after instantiation). */
@@ -74,7 +57,7 @@ static void setStartValues(ModelData *m) {
     memset(m, 0, sizeof *m);
     memcpy(m->inputs, startInputs, sizeof startInputs);
     memcpy(m->settings, IMU_SETTING_DEFAULTS, sizeof m->settings);
-    m->lastValidTemp = NAN;
+    ImuGuardReset(&m->guard, m->settings[ImuSetDeclination]);
     setInitialOutputs(m);
 }
 
@@ -274,6 +257,7 @@ ModelStatus ModelExitInitialization(ModelInstance *mi, const char *function) {
     } else if (ImuPipelineSettingsCheck(&settings, &message) == 0) {
         ImuPipelineInitialise(&m->pipeline, &settings, &coefficients);
         m->initialised = 1;
+        ImuGuardReset(&m->guard, m->settings[ImuSetDeclination]);
         setInitialOutputs(m);
         mi->state.phase = PhaseStepMode;
         ModelLog(mi, ModelOk, LogEvents, "%s: initialised at t = %g s", function, mi->state.time);
@@ -294,69 +278,6 @@ ModelStatus ModelTerminate(ModelInstance *mi, const char *function) {
 
 /* ---- bad input ------------------------------------------------------------------------------- */
 
-/** @brief 1 if every one of the n values is finite and |value| < limit. */
-static int withinLimit(const double *x, int n, double limit) {
-    int i;
-    for (i = 0; i < n; i++) {
-        if (!(fabs(x[i]) < limit)) { /* also false for NaN */
-            return 0;
-        }
-    }
-    return 1;
-}
-
-/** @brief Copy the raw inputs to in, replacing bad triads by NaN (skipped by the pipeline) and a
- *         bad temperature by the last valid one; return the ModelIssue bits found. */
-static int sanitiseInputs(ModelData *m, double in[IMU_INPUT_COUNT]) {
-    const double *raw = m->inputs;
-    const double fieldNorm = m->settings[ImuSetFieldNorm];
-    const double *mag = &raw[ImuInMagX];
-    int issues = 0, i;
-    memcpy(in, raw, sizeof m->inputs);
-    if (!withinLimit(&raw[ImuInGyrX], 3, MODEL_GYR_LIMIT)) {
-        issues |= ModelIssueGyr;
-    }
-    if (!withinLimit(&raw[ImuInAccX], 3, MODEL_ACC_LIMIT)) {
-        issues |= ModelIssueAcc;
-    }
-    if (!withinLimit(mag, 3, MODEL_MAG_SATURATION * fieldNorm)) {
-        issues |= ModelIssueMag;
-    } else if (!(sqrt(mag[0] * mag[0] + mag[1] * mag[1] + mag[2] * mag[2]) >= MODEL_MAG_MINIMUM * fieldNorm)) {
-        issues |= ModelIssueMagZero;
-    }
-    for (i = 0; i < 3; i++) {
-        if (issues & (1 << i)) {
-            in[ImuInGyrX + 3 * i] = in[ImuInGyrX + 3 * i + 1] = in[ImuInGyrX + 3 * i + 2] = NAN;
-        }
-    }
-    if (issues & ModelIssueMagZero) {
-        in[ImuInMagX] = in[ImuInMagY] = in[ImuInMagZ] = NAN;
-    }
-    if (raw[ImuInTemp] >= MODEL_TEMP_MIN && raw[ImuInTemp] <= MODEL_TEMP_MAX) {
-        m->lastValidTemp = raw[ImuInTemp];
-    } else {
-        issues |= ModelIssueTemp;
-        in[ImuInTemp] = m->lastValidTemp;
-    }
-    return issues;
-}
-
-/** @brief Time [s] of the sample at t [s] for the pipeline: jumps beyond MODEL_MAX_GAP are cut to
- *         it; sets the ModelIssueOrder / ModelIssueGap bits in *issues. */
-static double pipelineTime(ModelData *m, double t, int *issues) {
-    if (m->hasSample && !(t > m->lastSampleTime)) {
-        *issues |= ModelIssueOrder;
-        return t - m->timeShift;
-    }
-    if (m->hasSample && t - m->lastSampleTime > MODEL_MAX_GAP) {
-        *issues |= ModelIssueGap;
-        m->timeShift += (t - m->lastSampleTime) - MODEL_MAX_GAP;
-    }
-    m->lastSampleTime = t;
-    m->hasSample = 1;
-    return t - m->timeShift;
-}
-
 /** @brief The warning that opens an episode of issue bit `issue` (the sample is in mi). */
 static void logIssue(const ModelInstance *mi, const char *function, int issue, double t, double h) {
     const double *x = mi->state.model.inputs;
@@ -366,31 +287,31 @@ static void logIssue(const ModelInstance *mi, const char *function, int issue, d
     switch (issue) {
     case ModelIssueGyr:
         ModelLog(mi, ModelWarning, LogBadInput, "%s: t = %g s: bad gyroscope input [%g, %g, %g] rad/s (not finite or beyond +-%g rad/s): %s",
-                 function, t, x[ImuInGyrX], x[ImuInGyrY], x[ImuInGyrZ], MODEL_GYR_LIMIT, hold);
+                 function, t, x[ImuInGyrX], x[ImuInGyrY], x[ImuInGyrZ], IMU_GUARD_GYR_LIMIT, hold);
         break;
     case ModelIssueAcc:
         ModelLog(mi, ModelWarning, LogBadInput, "%s: t = %g s: bad accelerometer input [%g, %g, %g] m/s2 (not finite or beyond +-%g m/s2): %s",
-                 function, t, x[ImuInAccX], x[ImuInAccY], x[ImuInAccZ], MODEL_ACC_LIMIT, hold);
+                 function, t, x[ImuInAccX], x[ImuInAccY], x[ImuInAccZ], IMU_GUARD_ACC_LIMIT, hold);
         break;
     case ModelIssueMag:
         ModelLog(mi, ModelWarning, LogBadInput, "%s: t = %g s: bad magnetometer input [%g, %g, %g] uT (not finite, or an axis saturated at +-%g uT = %g x field_norm): %s",
-                 function, t, x[ImuInMagX], x[ImuInMagY], x[ImuInMagZ], MODEL_MAG_SATURATION * fieldNorm, MODEL_MAG_SATURATION, hold);
+                 function, t, x[ImuInMagX], x[ImuInMagY], x[ImuInMagZ], IMU_GUARD_MAG_SATURATION * fieldNorm, IMU_GUARD_MAG_SATURATION, hold);
         break;
     case ModelIssueMagZero:
         ModelLog(mi, ModelWarning, LogBadInput, "%s: t = %g s: magnetometer reads no field [%g, %g, %g] uT (magnitude below %g uT = %g x field_norm): %s",
-                 function, t, x[ImuInMagX], x[ImuInMagY], x[ImuInMagZ], MODEL_MAG_MINIMUM * fieldNorm, MODEL_MAG_MINIMUM, hold);
+                 function, t, x[ImuInMagX], x[ImuInMagY], x[ImuInMagZ], IMU_GUARD_MAG_MINIMUM * fieldNorm, IMU_GUARD_MAG_MINIMUM, hold);
         break;
     case ModelIssueTemp:
         ModelLog(mi, ModelWarning, LogBadInput, "%s: t = %g s: bad temperature %g degC (not finite or outside [%g, %g] degC): the last valid temperature %g degC is used until it recovers",
-                 function, t, x[ImuInTemp], MODEL_TEMP_MIN, MODEL_TEMP_MAX, m->lastValidTemp);
+                 function, t, x[ImuInTemp], IMU_GUARD_TEMP_MIN, IMU_GUARD_TEMP_MAX, m->guard.lastValidTemp);
         break;
     case ModelIssueOrder:
         ModelLog(mi, ModelWarning, LogBadInput, "%s: sample time t = %.17g s does not increase (last sample at %.17g s): the sample is fused without propagating the attitude",
-                 function, t, m->lastSampleTime);
+                 function, t, m->guard.lastSampleTime);
         break;
     case ModelIssueGap:
         ModelLog(mi, ModelWarning, LogBadInput, "%s: t = %g s: the sample time jumped by more than %g s: the gap is integrated as %g s",
-                 function, t, MODEL_MAX_GAP, MODEL_MAX_GAP);
+                 function, t, IMU_GUARD_MAX_GAP, IMU_GUARD_MAX_GAP);
         break;
     case ModelIssueStep:
         ModelLog(mi, ModelWarning, LogBadInput, "%s: t = %g s: communicationStepSize = %g s must be finite and > 0 (and t and t + h finite): the step is discarded, outputs hold their last values",
@@ -422,21 +343,18 @@ static ModelStatus updateIssues(ModelInstance *mi, const char *function, int iss
 
 ModelStatus ModelDoStep(ModelInstance *mi, const char *function, double t, double h) {
     ModelData *m = &mi->state.model;
-    double in[IMU_INPUT_COUNT], out[IMU_OUTPUT_COUNT];
-    int issues, j;
+    double in[IMU_INPUT_COUNT], out[IMU_OUTPUT_COUNT], tPipeline;
+    int issues;
     if (!isfinite(t) || !isfinite(h) || !(h > 0.0) || !isfinite(t + h)) {
         updateIssues(mi, function, m->issues | ModelIssueStep, t, h);
         return ModelDiscard;
     }
-    issues = sanitiseInputs(m, in);
-    ImuPipelineUpdate(&m->pipeline, pipelineTime(m, t, &issues), in, out);
-    for (j = 0; j < IMU_OUTPUT_COUNT; j++) {
-        if (isfinite(out[j])) {
-            m->outputs[j] = out[j];
-        } else if (issues == 0) {
-            issues |= ModelIssueOutput;
-        }
+    issues = ImuGuardInputs(&m->guard, m->settings[ImuSetFieldNorm], t, m->inputs, in, &tPipeline);
+    ImuPipelineUpdate(&m->pipeline, tPipeline, in, out);
+    if (ImuGuardOutputs(&m->guard, out) && issues == 0) {
+        issues |= ModelIssueOutput;
     }
+    memcpy(m->outputs, out, sizeof m->outputs);
     mi->state.time = t + h;
     return updateIssues(mi, function, issues, t, h);
 }

@@ -2,8 +2,8 @@
  * @file model.h
  * @brief FMI-free core of the ImuFusion FMU, shared by the FMI 2.0 and FMI 3.0 wrappers.
  *
- * ModelData maps value references to the runtime and sanitises bad input; ModelInstance adds
- * what both FMI versions share: the state machine, debug logging and the FMU state. The FMU
+ * ModelData maps value references to the runtime; bad input is sanitised by the guard the
+ * batch library shares (ImuGuard.h). ModelInstance adds what both FMI versions share: the state machine, debug logging and the FMU state. The FMU
  * state is one plain struct (ModelState), so get/set/serialize are copies. fmi2Functions.c and
  * fmi3Functions.c only translate FMI types and callbacks to these functions.
  */
@@ -13,6 +13,7 @@
 #include <stddef.h>
 
 #include "ImuCommon.h"
+#include "ImuGuard.h"
 #include "ImuLayout.h"
 #include "ImuPipeline.h"
 #include "config.h"
@@ -46,15 +47,16 @@ typedef enum {
 #define MODEL_ANY_PHASE (PhaseInstantiated | PhaseInitialization | PhaseStepMode | PhaseTerminated | PhaseError)
 #define MODEL_SET_PHASES (PhaseInstantiated | PhaseInitialization | PhaseStepMode)
 
-/** Kinds of bad input (one bit each); an episode of a kind lasts while its bit stays set. */
+/** Kinds of bad input (one bit each); an episode of a kind lasts while its bit stays set. The
+ *  input and time kinds are those of the shared guard (ImuGuard.h). */
 typedef enum {
-    ModelIssueGyr = 1 << 0,     /* gyroscope not finite or beyond MODEL_GYR_LIMIT */
-    ModelIssueAcc = 1 << 1,     /* accelerometer not finite or beyond MODEL_ACC_LIMIT */
-    ModelIssueMag = 1 << 2,     /* magnetometer not finite or an axis saturated */
-    ModelIssueMagZero = 1 << 3, /* magnetometer reads (almost) no field */
-    ModelIssueTemp = 1 << 4,    /* temperature not finite or outside the valid range */
-    ModelIssueOrder = 1 << 5,   /* sample time does not increase */
-    ModelIssueGap = 1 << 6,     /* sample time jumps by more than MODEL_MAX_GAP */
+    ModelIssueGyr = ImuGuardIssueGyr,         /* gyroscope not finite or beyond IMU_GUARD_GYR_LIMIT */
+    ModelIssueAcc = ImuGuardIssueAcc,         /* accelerometer not finite or beyond IMU_GUARD_ACC_LIMIT */
+    ModelIssueMag = ImuGuardIssueMag,         /* magnetometer not finite or an axis saturated */
+    ModelIssueMagZero = ImuGuardIssueMagZero, /* magnetometer reads (almost) no field */
+    ModelIssueTemp = ImuGuardIssueTemp,       /* temperature not finite or outside the valid range */
+    ModelIssueOrder = ImuGuardIssueOrder,     /* sample time does not increase */
+    ModelIssueGap = ImuGuardIssueGap,         /* sample time jumps by more than IMU_GUARD_MAX_GAP */
     ModelIssueStep = 1 << 7,    /* step size not finite and > 0: the step is discarded */
     ModelIssueOutput = 1 << 8   /* an output was not finite although the inputs were valid */
 } ModelIssue;
@@ -66,12 +68,9 @@ typedef struct {
     double inputs[IMU_INPUT_COUNT];     /* raw sample as set: rad/s, m/s^2, uT, degC */
     double outputs[IMU_OUTPUT_COUNT];   /* estimate for the last consumed sample, always finite */
     double settings[IMU_SETTING_COUNT]; /* parameters in user units (ImuLayout.h order) */
-    double lastValidTemp;               /* degC, last valid temperature (NaN before the first) */
-    double lastSampleTime;              /* s, latest sample time consumed */
-    double timeShift;                   /* s, sum of the gap excess cut from the pipeline's time */
-    int hasSample;                      /* 1 once a sample was consumed */
     int issues;                         /* ModelIssue bits of the last step */
     int initialised;                    /* 1 once settings are applied: parameters are locked */
+    ImuGuard guard;                     /* input/time/output guard, shared with ImuBatch.c */
     ImuPipeline pipeline;
 } ModelData;
 

@@ -121,20 +121,13 @@ def test_fmu_without_thermal_model_passes_raw_signals_through(trained_fmu):
     np.testing.assert_allclose(out[:, :9], raw[:, :9], rtol=0, atol=1e-12)
 
 
-def held_temperature(raw: np.ndarray) -> np.ndarray:
-    """raw with each NaN temperature replaced by the last valid one (what the FMU feeds the runtime)."""
-    held = raw.copy()
-    for k in range(1, len(held)):
-        if np.isnan(held[k, -1]):
-            held[k, -1] = held[k - 1, -1]
-    return held
-
-
 def test_fmu_equals_batch_runtime_on_variable_steps(trained_fmu):
     t, raw = synthetic_recording()
     fmu_out = run_fmu(trained_fmu, t, raw)
-    # The FMU holds the last valid temperature through the NaN stretch (bad input, Warning).
-    batch_out = run_batch(trained_coefficients(), settings_array(TRAINED_SETTINGS), t, held_temperature(raw))
+    # Both run the same guard (sources/ImuGuard.c): the batch gets the RAW recording, NaN stretch
+    # of the temperature included, and holds the last valid temperature through it as the FMU does.
+    assert np.isnan(raw[:, -1]).any()
+    batch_out = run_batch(trained_coefficients(), settings_array(TRAINED_SETTINGS), t, raw)
     assert fmu_out.shape == (t.size, len(OUTPUTS))
     np.testing.assert_allclose(fmu_out, batch_out, rtol=0, atol=GOLDEN_TOLERANCE, equal_nan=True)
     np.testing.assert_allclose(fmu_out[:, OUTPUTS.index("heading")],
@@ -142,12 +135,25 @@ def test_fmu_equals_batch_runtime_on_variable_steps(trained_fmu):
                                rtol=0, atol=1e-12)
 
 
+def test_fmu_equals_batch_runtime_on_bad_input(trained_fmu):
+    # The batch library runs the FMU's input/time/output guard (sources/ImuGuard.c), so the two
+    # agree on any input and the batch outputs stay finite.
+    t, raw = synthetic_recording()
+    raw[30, 0], raw[31, 1], raw[32:35, 2] = np.nan, np.inf, 1e300         # bad gyroscope samples
+    raw[50:70, 6:9] = 0.0                                                 # all-zero field stretch
+    raw[90:100, 9], raw[100:105, 9], raw[400, 9] = 400.0, -100.0, np.inf  # temperature out of range
+    raw[120, 3:6] = -np.inf                                               # bad accelerometer sample
+    fmu_out = run_fmu(trained_fmu, t, raw)
+    batch_out = run_batch(trained_coefficients(), settings_array(TRAINED_SETTINGS), t, raw)
+    assert np.all(np.isfinite(batch_out))
+    np.testing.assert_allclose(fmu_out, batch_out, rtol=0, atol=GOLDEN_TOLERANCE)
+
+
 def test_parameters_are_set_by_name(trained_fmu):
     t, raw = synthetic_recording(50)
     params = {"declination": -0.1, "enable_thermal": False}
     fmu_out = run_fmu(trained_fmu, t, raw, parameters=params)
-    batch_out = run_batch(trained_coefficients(), settings_array({**TRAINED_SETTINGS, **params}), t,
-                          held_temperature(raw))
+    batch_out = run_batch(trained_coefficients(), settings_array({**TRAINED_SETTINGS, **params}), t, raw)
     np.testing.assert_allclose(fmu_out, batch_out, rtol=0, atol=GOLDEN_TOLERANCE, equal_nan=True)
     with pytest.raises(FmuError, match="not a parameter"):
         run_fmu(trained_fmu, t, raw, parameters={"gyr_x": 1.0})

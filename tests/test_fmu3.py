@@ -19,7 +19,7 @@ from fmu.model_description import FMI3_TYPES, LOG_CATEGORIES, TIME_VALUE_REFEREN
 from fmu.packer import build_fmu
 from fmu.validator import FMI3_FUNCTIONS, exported_symbols, validate_fmu
 from fmu.variables import VARIABLES
-from test_fmu import GOLDEN_TOLERANCE, TRAINED_SETTINGS, held_temperature, synthetic_recording, trained_coefficients
+from test_fmu import GOLDEN_TOLERANCE, TRAINED_SETTINGS, synthetic_recording, trained_coefficients
 from training.layout import settings_array
 from training.runtime import run_batch
 
@@ -73,7 +73,7 @@ def test_model_description_follows_the_table(fmu3):
 def test_fmu_equals_batch_runtime(fmu3, recording):
     t, raw, _ = recording
     fmu_out = run_fmu(fmu3, t, raw)
-    batch_out = run_batch(trained_coefficients(), settings_array(TRAINED_SETTINGS), t, held_temperature(raw))
+    batch_out = run_batch(trained_coefficients(), settings_array(TRAINED_SETTINGS), t, raw)
     np.testing.assert_allclose(fmu_out, batch_out, rtol=0, atol=GOLDEN_TOLERANCE)
     assert np.all(np.isfinite(fmu_out))
 
