@@ -49,7 +49,7 @@ static void ImuPipelinePfSettings(ImuMagPfSettings *pf, const double *a)
     pf->priorSpreadHard = a[ImuSetPfPriorSpreadHard];
     pf->priorSpreadSoft = a[ImuSetPfPriorSpreadSoft];
     pf->decimation = ImuPipelineInteger(a[ImuSetPfDecimation]);
-    pf->seed = (uint64_t)(ImuPipelineInteger(a[ImuSetPfSeed]) < 0 ? 0 : ImuPipelineInteger(a[ImuSetPfSeed]));
+    pf->seed = ImuPipelineInteger(a[ImuSetPfSeed]) < 0 ? 0U : (uint64_t)ImuPipelineInteger(a[ImuSetPfSeed]);
     pf->highThreshold = a[ImuSetPfThresholdHigh];
     pf->lowThreshold = a[ImuSetPfThresholdLow];
     pf->sphereBins = ImuPipelineInteger(a[ImuSetPfSphereBins]);
@@ -58,19 +58,17 @@ static void ImuPipelinePfSettings(ImuMagPfSettings *pf, const double *a)
 /** @brief Unpack a flat settings array (enable_thermal other than 0/1 becomes -1); 0 or -1 on bad size. */
 int ImuPipelineSettingsFromArray(ImuPipelineSettings *s, const double *a, size_t n)
 {
-    double enable;
     if (a == NULL || n != IMU_SETTING_COUNT) {
         return -1;
     }
-    enable = a[ImuSetEnableThermal];
     s->declination = a[ImuSetDeclination];
     s->fieldNorm = a[ImuSetFieldNorm];
     s->gyroNoise = a[ImuSetGyroNoise];
     s->gyroBiasResidual = a[ImuSetGyroBiasResidual];
     s->mseTimeConstant = a[ImuSetMseTimeConstant];
     s->angleNoise = a[ImuSetAngleNoise];
-    s->enableThermal = enable == 0.0 ? 0 : (enable == 1.0 ? 1 : -1);
-    s->attitudeMode = a[ImuSetAttitudeMode] == 0.0 ? 0 : (a[ImuSetAttitudeMode] == 1.0 ? 1 : -1);
+    s->enableThermal = ImuPipelineFlag(a[ImuSetEnableThermal]);
+    s->attitudeMode = ImuPipelineFlag(a[ImuSetAttitudeMode]);
     s->fieldDip = a[ImuSetFieldDip];
     s->tauAcc = a[ImuSetTauAcc];
     s->tauMag = a[ImuSetTauMag];
