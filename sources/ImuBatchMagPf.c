@@ -17,7 +17,7 @@
 #include <stddef.h>
 #include "ImuMagPf.h"
 
-#define IMU_BATCH_MAG_PF_SETTINGS 34
+#define IMU_BATCH_MAG_PF_SETTINGS 35
 #define IMU_BATCH_MAG_PF_OUTPUTS 14
 #define IMU_BATCH_MAG_PF_MAX_SEED 9007199254740992.0 /* 2^53: seeds are exact integers as double */
 
@@ -38,15 +38,16 @@ static int ImuBatchMagPfUnpack(ImuMagPfSettings *s, const double *a, size_t n, c
 {
     int j;
     if (a == NULL || n != IMU_BATCH_MAG_PF_SETTINGS) {
-        *message = "settings array is NULL or not of length 34";
+        *message = "settings array is NULL or not of length 35";
         return -1;
     }
     if (!ImuBatchMagPfIsInteger(a[0], 0.0, 1e6) || !ImuBatchMagPfIsInteger(a[20], 0.0, 1e6) ||
         !ImuBatchMagPfIsInteger(a[21], 0.0, 1e6) || !ImuBatchMagPfIsInteger(a[22], 0.0, 1e6) ||
         !ImuBatchMagPfIsInteger(a[24], 0.0, 1e6) || !ImuBatchMagPfIsInteger(a[25], 0.0, 1e6) ||
-        !ImuBatchMagPfIsInteger(a[29], 0.0, 1e6) || !ImuBatchMagPfIsInteger(a[33], 0.0, 1e6)) {
+        !ImuBatchMagPfIsInteger(a[29], 0.0, 1e6) || !ImuBatchMagPfIsInteger(a[33], 0.0, 1e6) ||
+        !ImuBatchMagPfIsInteger(a[34], 0.0, 1e6)) {
         *message = "particleCount, decimation, hiddenUnits, trainingEpochs, maxTries, enableSplitting, "
-                   "sphereBins and enableMove must be non-negative integers";
+                   "sphereBins, enableMove and raoBlackwell must be non-negative integers";
         return -1;
     }
     if (!ImuBatchMagPfIsInteger(a[26], 0.0, IMU_BATCH_MAG_PF_MAX_SEED)) {
@@ -84,6 +85,7 @@ static int ImuBatchMagPfUnpack(ImuMagPfSettings *s, const double *a, size_t n, c
     s->changeSpreadHard = a[31];
     s->changeSpreadSoft = a[32];
     s->enableMove = (int)a[33];
+    s->raoBlackwell = (int)a[34];
     return 0;
 }
 

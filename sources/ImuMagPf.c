@@ -36,10 +36,10 @@ void ImuMagPfSettingsDefault(ImuMagPfSettings *settings, double fieldNorm)
         settings->priorSoftIron[j] = 0.0;
     }
     settings->roughening = 0.2;
-    settings->innovationTimeConstant = 50.0;
+    settings->innovationTimeConstant = 5.0;
     settings->maxInflation = 20.0;
     settings->decimation = 16;
-    settings->minRotation = 0.0;
+    settings->minRotation = 0.5;
     settings->hiddenUnits = 5;
     settings->trainingEpochs = 20;
     settings->learningRate = 0.1;
@@ -47,9 +47,10 @@ void ImuMagPfSettingsDefault(ImuMagPfSettings *settings, double fieldNorm)
     settings->enableSplitting = 1;
     settings->enableMove = 1;
     settings->sphereBins = 2;
-    settings->changeThreshold = 100.0;
-    settings->changeSpreadHard = 10.0;
-    settings->changeSpreadSoft = 0.0;
+    settings->changeThreshold = 25.0;
+    settings->changeSpreadHard = 30.0;
+    settings->changeSpreadSoft = 0.01;
+    settings->raoBlackwell = 1;
     settings->seed = 1U;
     settings->fieldNorm = fieldNorm;
 }
@@ -84,6 +85,9 @@ static const char *ImuMagPfCheckCounts(const ImuMagPfSettings *s)
     }
     if (s->enableMove != 0 && s->enableMove != 1) {
         return "enableMove must be 0 or 1";
+    }
+    if (s->raoBlackwell != 0 && s->raoBlackwell != 1) {
+        return "pf_rao_blackwell (raoBlackwell) must be 0 or 1";
     }
     if (s->sphereBins < 0 || s->sphereBins > IMU_MAG_PF_MAX_BIN_SIDE) {
         return "pf_sphere_bins (sphereBins) must be in 0.." IMU_MAG_PF_STRING(IMU_MAG_PF_MAX_BIN_SIDE) " (IMU_MAG_PF_MAX_BIN_SIDE)";
@@ -138,6 +142,9 @@ static const char *ImuMagPfCheckValues(const ImuMagPfSettings *s)
     }
     if (!(s->fieldNorm > 0.0 && s->fieldNorm <= 1e4)) {
         return "fieldNorm must be in (0, 1e4] uT";
+    }
+    if (s->raoBlackwell && !(s->priorSpreadHard > 0.0 && s->changeSpreadHard > 0.0)) {
+        return "pf_prior_spread_hard (priorSpreadHard) and changeSpreadHard must be > 0 uT when pf_rao_blackwell is 1";
     }
     return NULL;
 }
@@ -209,16 +216,6 @@ void ImuMagPfReset(ImuMagPf *pf)
     const int n = s->particleCount;
     int i, j;
     ImuRngSeed(&pf->rng, s->seed, IMU_MAG_PF_RNG_STREAM);
-    for (i = 0; i < n; i++) {
-        for (j = 0; j < 3; j++) {
-            pf->particle[i][j] = s->priorHardIron[j] + s->priorSpreadHard * ImuRngNormal(&pf->rng);
-        }
-        for (j = 0; j < 6; j++) {
-            pf->particle[i][3 + j] = s->priorSoftIron[j] + s->priorSpreadSoft * ImuRngNormal(&pf->rng);
-        }
-        pf->weight[i] = 1.0 / (double)n;
-    }
-    ImuMagPfEstimate(pf);
     pf->effectiveSampleSize = (double)n;
     pf->innovationAverage = 1.0;
     pf->inflation = 1.0;
@@ -229,6 +226,20 @@ void ImuMagPfReset(ImuMagPf *pf)
     pf->updatesSinceChange = 0;
     pf->changeArmed = 0;
     pf->changeCount = 0;
+    if (s->raoBlackwell) {
+        ImuMagPfRbReset(pf);
+        return;
+    }
+    for (i = 0; i < n; i++) {
+        for (j = 0; j < 3; j++) {
+            pf->particle[i][j] = s->priorHardIron[j] + s->priorSpreadHard * ImuRngNormal(&pf->rng);
+        }
+        for (j = 0; j < 6; j++) {
+            pf->particle[i][3 + j] = s->priorSoftIron[j] + s->priorSpreadSoft * ImuRngNormal(&pf->rng);
+        }
+        pf->weight[i] = 1.0 / (double)n;
+    }
+    ImuMagPfEstimate(pf);
 }
 
 /** @brief Squared norm of a 3-vector [unit^2]. */
@@ -271,8 +282,7 @@ static int ImuMagPfIsValidSample(const ImuMagPf *pf, const double mag[3])
                pf->coefficients.minRotationCosine * norm * last;
 }
 
-/** @brief Update the averaged normalised innovation of the estimate and the noise inflation. */
-static void ImuMagPfAdapt(ImuMagPf *pf, const double mag[3], double y)
+void ImuMagPfAdapt(ImuMagPf *pf, const double mag[3], double y)
 {
     const ImuMagPfCoefficients *c = &pf->coefficients;
     double e, ratio;
@@ -296,8 +306,7 @@ static void ImuMagPfPredict(ImuMagPf *pf)
     }
 }
 
-/** @brief Normalise w_i = exp(l_i - max l) / sum from the log weights in work.logWeight. */
-static void ImuMagPfNormaliseLog(ImuMagPf *pf)
+void ImuMagPfNormaliseLog(ImuMagPf *pf)
 {
     const int n = pf->settings.particleCount;
     double largest = -HUGE_VAL, sum = 0.0;
@@ -392,22 +401,42 @@ static double ImuMagPfWeigh(ImuMagPf *pf)
     return alpha;
 }
 
-/** @brief Change test: once armed (innovation average below changeThreshold after
- *         innovationTimeConstant updates), an average above it re-draws the particles around the
- *         estimate with changeSpread (weights 1/N) and flushes the buffer. */
+void ImuMagPfDeclareChange(ImuMagPf *pf)
+{
+    pf->innovationAverage = 1.0;
+    pf->inflation = 1.0;
+    pf->updatesSinceChange = 0;
+    pf->changeArmed = 0;
+    pf->changeCount++;
+}
+
+/** Change test: armed once the innovation average is below changeThreshold after
+ *  innovationTimeConstant updates; when armed, an average above it declares a change. */
+int ImuMagPfChangeDeclared(ImuMagPf *pf)
+{
+    const ImuMagPfSettings *s = &pf->settings;
+    pf->updatesSinceChange++;
+    if (s->changeThreshold <= 0.0) {
+        return 0;
+    }
+    if (!pf->changeArmed) {
+        pf->changeArmed = pf->updatesSinceChange >= s->innovationTimeConstant && pf->innovationAverage < s->changeThreshold;
+        return 0;
+    }
+    if (pf->innovationAverage <= s->changeThreshold) {
+        return 0;
+    }
+    ImuMagPfDeclareChange(pf);
+    return 1;
+}
+
+/** @brief After a declared change: re-draw the particles around the estimate with changeSpread
+ *         (weights 1/N) and flush the buffer. */
 static void ImuMagPfDetectChange(ImuMagPf *pf)
 {
     const ImuMagPfSettings *s = &pf->settings;
     int i, j;
-    pf->updatesSinceChange++;
-    if (s->changeThreshold <= 0.0) {
-        return;
-    }
-    if (!pf->changeArmed) {
-        pf->changeArmed = pf->updatesSinceChange >= s->innovationTimeConstant && pf->innovationAverage < s->changeThreshold;
-        return;
-    }
-    if (pf->innovationAverage <= s->changeThreshold) {
+    if (!ImuMagPfChangeDeclared(pf)) {
         return;
     }
     for (i = 0; i < s->particleCount; i++) {
@@ -418,15 +447,9 @@ static void ImuMagPfDetectChange(ImuMagPf *pf)
     }
     memset(pf->binUsed, 0, sizeof(pf->binUsed));
     pf->binCount = 0;
-    pf->innovationAverage = 1.0;
-    pf->inflation = 1.0;
-    pf->updatesSinceChange = 0;
-    pf->changeArmed = 0;
-    pf->changeCount++;
 }
 
-/** @brief Effective sample size 1 / sum w^2 [particles]. */
-static double ImuMagPfEss(const ImuMagPf *pf)
+double ImuMagPfEss(const ImuMagPf *pf)
 {
     double sum = 0.0;
     int i;
@@ -519,7 +542,13 @@ int ImuMagPfUpdate(ImuMagPf *pf, const double mag[3])
 {
     const double threshold = IMU_MAG_PF_RESAMPLE_FRACTION * pf->settings.particleCount;
     double y, alpha;
-    if (!ImuMagPfIsValidSample(pf, mag) || ++pf->sampleCounter < pf->settings.decimation) {
+    if (!ImuMagPfIsValidSample(pf, mag)) {
+        return 0;
+    }
+    if (pf->settings.raoBlackwell) {
+        return ImuMagPfRbUpdate(pf, mag);
+    }
+    if (++pf->sampleCounter < pf->settings.decimation) {
         return 0;
     }
     pf->sampleCounter = 0;

@@ -19,6 +19,7 @@
 #include <stdint.h>
 #include "ImuCommon.h"
 #include "ImuRng.h"
+#include "ImuMagMoments.h"
 
 #define IMU_MAG_PF_MAX_PARTICLES 512 /* compile-time maximum particle count */
 #define IMU_MAG_PF_STATE_SIZE 9      /* hard iron (3) + soft iron (6) */
@@ -55,6 +56,7 @@ typedef struct {
     double changeThreshold;        /* 1, averaged normalised innovation declaring a change; 0: off, else [2, 1e6] */
     double changeSpreadHard;       /* uT, sigma of h_p drawn around the estimate after a change, >= 0 */
     double changeSpreadSoft;       /* 1, sigma of b_ij drawn around the estimate after a change, >= 0 */
+    int raoBlackwell;              /* 1: hard iron sampled, soft iron integrated out (ImuMagPfRb.c); 0: the method's 9-state filter */
     uint64_t seed;                 /* PCG32 initial state */
     double fieldNorm;              /* uT, |h_0| of the undisturbed field, > 0 */
 } ImuMagPfSettings;
@@ -88,6 +90,7 @@ typedef struct {
 typedef struct {
     double logLikelihood[IMU_MAG_PF_MAX_PARTICLES];      /* 1, log p(buffer | x_i) */
     double logWeight[IMU_MAG_PF_MAX_PARTICLES];          /* 1 */
+    double logSpare[IMU_MAG_PF_MAX_PARTICLES];           /* 1, resampling copy of previousLog */
     double copy[IMU_MAG_PF_MAX_PARTICLES][IMU_MAG_PF_STATE_SIZE];
     int high[IMU_MAG_PF_MAX_PARTICLES];
     int low[IMU_MAG_PF_MAX_PARTICLES];
@@ -117,6 +120,11 @@ typedef struct {
     int updatesSinceChange;        /* filter updates since the reset or the last declared change */
     int changeArmed;               /* 1 once the innovation average fell below changeThreshold */
     int changeCount;               /* changes of environment declared since the reset */
+    /* Rao-Blackwellised mode only (particle[i] = [h_p (3) uT, m (6) posterior mean of M given h_p]) */
+    double moments[IMU_MAG_MOMENT_COUNT];         /* power sums of mag - priorHardIron since the reset or change */
+    double previousMoments[IMU_MAG_MOMENT_COUNT]; /* the sums at the previous filter update */
+    double previousLog[IMU_MAG_PF_MAX_PARTICLES]; /* 1, log target of each particle under previousMoments */
+    ImuMagMarginalPrior prior;                    /* priors since the reset or the last change */
     ImuMagPfWork work;
 } ImuMagPf;
 
@@ -152,5 +160,19 @@ IMU_HIDDEN double ImuMagPfMoments(const double *values, int n, int stride, doubl
 IMU_HIDDEN void ImuMagPfCloudSigma(const ImuMagPf *pf, double sigma[IMU_MAG_PF_STATE_SIZE]);
 /** @brief Steps 5-6: splitting with network-based diversity restoration (alpha: tempering exponent). */
 IMU_HIDDEN void ImuMagPfSplit(ImuMagPf *pf, double alpha);
+/** @brief Innovation average and noise inflation from one sample mag [uT] with y = |mag|^2 - |h_0|^2. */
+IMU_HIDDEN void ImuMagPfAdapt(ImuMagPf *pf, const double mag[3], double y);
+/** @brief Count a change of environment and restart the innovation average and the change test. */
+IMU_HIDDEN void ImuMagPfDeclareChange(ImuMagPf *pf);
+/** @brief Change test on the innovation average; 1 (counters reset, change counted) if a change is declared. */
+IMU_HIDDEN int ImuMagPfChangeDeclared(ImuMagPf *pf);
+/** @brief Effective sample size 1 / sum w^2 of the current weights [particles]. */
+IMU_HIDDEN double ImuMagPfEss(const ImuMagPf *pf);
+/** @brief Weights from the log weights in work.logWeight (max-subtracted, normalised). */
+IMU_HIDDEN void ImuMagPfNormaliseLog(ImuMagPf *pf);
+/** @brief Rao-Blackwellised mode: draw the prior particles (ImuMagPfRb.c). */
+IMU_HIDDEN void ImuMagPfRbReset(ImuMagPf *pf);
+/** @brief Rao-Blackwellised mode: one valid sample [uT]; 1 if the particles were updated. */
+IMU_HIDDEN int ImuMagPfRbUpdate(ImuMagPf *pf, const double mag[3]);
 
 #endif

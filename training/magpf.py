@@ -59,7 +59,7 @@ SETTINGS = (
     ("prior_soft_iron_yz", "1", 0.0),
     ("prior_soft_iron_zz", "1", 0.0),
     ("roughening", "1", 0.2),
-    ("innovation_time_constant", "updates", 50.0),
+    ("innovation_time_constant", "updates", 5.0),
     ("max_inflation", "1", 20.0),
     ("decimation", "samples", 16),
     ("hidden_units", "1", 5),
@@ -69,12 +69,13 @@ SETTINGS = (
     ("enable_splitting", "0/1", 1),
     ("seed", "1", 1),
     ("field_norm_ut", "µT", None),
-    ("min_rotation_deg", "deg", 0.0),
+    ("min_rotation_deg", "deg", 0.5),
     ("sphere_bins", "1", 2),
-    ("change_threshold", "1", 100.0),
-    ("change_spread_hard_ut", "µT", 10.0),
-    ("change_spread_soft", "1", 0.0),
+    ("change_threshold", "1", 25.0),
+    ("change_spread_hard_ut", "µT", 30.0),
+    ("change_spread_soft", "1", 0.01),
     ("enable_move", "0/1", 1),
+    ("rao_blackwell", "0/1", 1),
 )
 SETTING_NAMES = tuple(name for name, _, _ in SETTINGS)
 
@@ -96,7 +97,7 @@ def settings(field_norm_ut: float, **overrides) -> dict:
 
 
 def settings_array(s: dict) -> np.ndarray:
-    """(34,) float64 array of a settings dict in the order of SETTINGS."""
+    """(35,) float64 array of a settings dict in the order of SETTINGS."""
     return np.array([float(s[name]) for name in SETTING_NAMES], dtype=np.float64)
 
 

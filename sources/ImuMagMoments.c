@@ -1,0 +1,281 @@
+/**
+ * @file ImuMagMoments.c
+ * @brief Power sums of field samples and the hard-iron likelihood with the soft iron integrated
+ *        out (formulas: ImuMagMoments.h, docs/magpf.md).
+ */
+#include <math.h>
+#include "ImuMagMoments.h"
+
+#define IMU_MAG_MAX_DEGREE 4
+#define IMU_MAG_SQRT_ITERATIONS 12 /* Newton steps of sqrt(I + M); quadratic convergence from I */
+
+/** Exponents and factors of phi(d) = [d1^2, 2 d1 d2, 2 d1 d3, d2^2, 2 d2 d3, d3^2]. */
+static const int ImuMagPhiExponent[IMU_MAG_SOFT_COUNT][3] = {{2, 0, 0}, {1, 1, 0}, {1, 0, 1},
+                                                            {0, 2, 0}, {0, 1, 1}, {0, 0, 2}};
+static const double ImuMagPhiFactor[IMU_MAG_SOFT_COUNT] = {1.0, 2.0, 2.0, 1.0, 2.0, 1.0};
+/** Entries of phi that are squares (d1^2, d2^2, d3^2): |d|^2 = sum of these. */
+static const int ImuMagSquareEntry[3] = {0, 3, 5};
+/** Binomial coefficients C(n, k) for n, k <= 4. */
+static const double ImuMagBinomial[5][5] = {
+    {1, 0, 0, 0, 0}, {1, 1, 0, 0, 0}, {1, 2, 1, 0, 0}, {1, 3, 3, 1, 0}, {1, 4, 6, 4, 1}};
+/** Row and column of the entries m11 m12 m13 m22 m23 m33 in the symmetric 3x3 matrix. */
+static const int ImuMagSoftRow[IMU_MAG_SOFT_COUNT] = {0, 0, 0, 1, 1, 2};
+static const int ImuMagSoftColumn[IMU_MAG_SOFT_COUNT] = {0, 1, 2, 1, 2, 2};
+
+int ImuMagMomentIndex(int a, int b, int c)
+{
+    const int s = a + b + c;
+    return s * (s + 1) * (s + 2) / 6 + (s - a) * (s - a + 1) / 2 + (s - a - b);
+}
+
+/** @brief powers[i][k] = v[i]^k for k = 0..4. */
+static void ImuMagPowers(const double v[3], double powers[3][IMU_MAG_MAX_DEGREE + 1])
+{
+    int i, k;
+    for (i = 0; i < 3; i++) {
+        powers[i][0] = 1.0;
+        for (k = 1; k <= IMU_MAG_MAX_DEGREE; k++) {
+            powers[i][k] = powers[i][k - 1] * v[i];
+        }
+    }
+}
+
+void ImuMagMomentsAdd(double sums[IMU_MAG_MOMENT_COUNT], const double u[3])
+{
+    double powers[3][IMU_MAG_MAX_DEGREE + 1];
+    int a, b, c;
+    ImuMagPowers(u, powers);
+    for (a = 0; a <= IMU_MAG_MAX_DEGREE; a++) {
+        for (b = 0; a + b <= IMU_MAG_MAX_DEGREE; b++) {
+            for (c = 0; a + b + c <= IMU_MAG_MAX_DEGREE; c++) {
+                sums[ImuMagMomentIndex(a, b, c)] += powers[0][a] * powers[1][b] * powers[2][c];
+            }
+        }
+    }
+}
+
+/** @brief sum over samples of (u - p)^(a, b, c) from the power sums (binomial expansion). */
+static double ImuMagShiftOne(const double sums[IMU_MAG_MOMENT_COUNT], double q[3][IMU_MAG_MAX_DEGREE + 1],
+                             int a, int b, int c)
+{
+    double total = 0.0;
+    int x, y, z;
+    for (x = 0; x <= a; x++) {
+        for (y = 0; y <= b; y++) {
+            for (z = 0; z <= c; z++) {
+                total += ImuMagBinomial[a][x] * ImuMagBinomial[b][y] * ImuMagBinomial[c][z] * q[0][a - x] *
+                         q[1][b - y] * q[2][c - z] * sums[ImuMagMomentIndex(x, y, z)];
+            }
+        }
+    }
+    return total;
+}
+
+void ImuMagMomentsShift(const double sums[IMU_MAG_MOMENT_COUNT], const double p[3],
+                        double shifted[IMU_MAG_MOMENT_COUNT])
+{
+    const double minus[3] = {-p[0], -p[1], -p[2]};
+    double q[3][IMU_MAG_MAX_DEGREE + 1];
+    int a, b, c;
+    ImuMagPowers(minus, q);
+    for (a = 0; a <= IMU_MAG_MAX_DEGREE; a++) {
+        for (b = 0; a + b <= IMU_MAG_MAX_DEGREE; b++) {
+            for (c = 0; a + b + c <= IMU_MAG_MAX_DEGREE; c++) {
+                shifted[ImuMagMomentIndex(a, b, c)] = ImuMagShiftOne(sums, q, a, b, c);
+            }
+        }
+    }
+}
+
+/** @brief Shifted sum of the product of phi entries i and j (degree 4) or of entry i alone (j < 0). */
+static double ImuMagPhiMoment(const double t[IMU_MAG_MOMENT_COUNT], int i, int j)
+{
+    const int *e = ImuMagPhiExponent[i];
+    if (j < 0) {
+        return t[ImuMagMomentIndex(e[0], e[1], e[2])];
+    }
+    return t[ImuMagMomentIndex(e[0] + ImuMagPhiExponent[j][0], e[1] + ImuMagPhiExponent[j][1],
+                               e[2] + ImuMagPhiExponent[j][2])];
+}
+
+/** @brief Information matrix J = sum phi phi^T / var + I / s^2 and vector eta = sum phi z / var + m0 / s^2
+ *         with z = offset - |d|^2; returns sum z^2 / var. */
+static double ImuMagNormalEquations(const double t[IMU_MAG_MOMENT_COUNT], const ImuMagMarginalPrior *prior,
+                                    double information[IMU_MAG_SOFT_COUNT][IMU_MAG_SOFT_COUNT],
+                                    double eta[IMU_MAG_SOFT_COUNT])
+{
+    const double precision = 1.0 / (prior->softSpread * prior->softSpread);
+    double squares = 0.0, fourth = 0.0;
+    int i, j;
+    for (i = 0; i < IMU_MAG_SOFT_COUNT; i++) {
+        double sumSquares = 0.0;
+        for (j = 0; j < IMU_MAG_SOFT_COUNT; j++) {
+            information[i][j] = ImuMagPhiFactor[i] * ImuMagPhiFactor[j] * ImuMagPhiMoment(t, i, j) / prior->variance;
+        }
+        information[i][i] += precision;
+        for (j = 0; j < 3; j++) {
+            sumSquares += ImuMagPhiMoment(t, i, ImuMagSquareEntry[j]);
+        }
+        eta[i] = ImuMagPhiFactor[i] * (prior->offset * ImuMagPhiMoment(t, i, -1) - sumSquares) / prior->variance +
+                 prior->softMean[i] * precision;
+    }
+    for (i = 0; i < 3; i++) {
+        squares += ImuMagPhiMoment(t, ImuMagSquareEntry[i], -1);
+        for (j = 0; j < 3; j++) {
+            fourth += ImuMagPhiMoment(t, ImuMagSquareEntry[i], ImuMagSquareEntry[j]);
+        }
+    }
+    return (prior->offset * prior->offset * t[0] - 2.0 * prior->offset * squares + fourth) / prior->variance;
+}
+
+/** @brief In-place Cholesky factor (lower) of a 6x6 matrix; 0, or -1 if not positive definite. */
+static int ImuMagCholesky(double a[IMU_MAG_SOFT_COUNT][IMU_MAG_SOFT_COUNT])
+{
+    int i, j, k;
+    for (j = 0; j < IMU_MAG_SOFT_COUNT; j++) {
+        double d = a[j][j];
+        for (k = 0; k < j; k++) {
+            d -= a[j][k] * a[j][k];
+        }
+        if (!(d > 0.0)) {
+            return -1;
+        }
+        a[j][j] = sqrt(d);
+        for (i = j + 1; i < IMU_MAG_SOFT_COUNT; i++) {
+            double s = a[i][j];
+            for (k = 0; k < j; k++) {
+                s -= a[i][k] * a[j][k];
+            }
+            a[i][j] = s / a[j][j];
+        }
+    }
+    return 0;
+}
+
+/** @brief 1 if the symmetric 3x3 matrix is positive definite (leading minors, Sylvester). */
+static int ImuMagPositiveDefinite(double s[3][3])
+{
+    const double minor2 = s[0][0] * s[1][1] - s[0][1] * s[1][0];
+    const double det = s[0][0] * (s[1][1] * s[2][2] - s[1][2] * s[2][1]) -
+                       s[0][1] * (s[1][0] * s[2][2] - s[1][2] * s[2][0]) +
+                       s[0][2] * (s[1][0] * s[2][1] - s[1][1] * s[2][0]);
+    return s[0][0] > 0.0 && minor2 > 0.0 && det > 0.0;
+}
+
+/** @brief 1 if every eigenvalue of I + M lies in (low, high). */
+static int ImuMagAdmissible(const double m[IMU_MAG_SOFT_COUNT], double low, double high)
+{
+    double above[3][3], below[3][3];
+    int k, i, j;
+    for (k = 0; k < IMU_MAG_SOFT_COUNT; k++) {
+        i = ImuMagSoftRow[k];
+        j = ImuMagSoftColumn[k];
+        above[i][j] = above[j][i] = m[k];
+        below[i][j] = below[j][i] = -m[k];
+    }
+    for (i = 0; i < 3; i++) {
+        above[i][i] += 1.0 - low;
+        below[i][i] += high - 1.0;
+    }
+    return ImuMagPositiveDefinite(above) && ImuMagPositiveDefinite(below);
+}
+
+int ImuMagMarginal(const double sums[IMU_MAG_MOMENT_COUNT], const double p[3], const ImuMagMarginalPrior *prior,
+                   double *logLikelihood, double soft[IMU_MAG_SOFT_COUNT])
+{
+    double t[IMU_MAG_MOMENT_COUNT], l[IMU_MAG_SOFT_COUNT][IMU_MAG_SOFT_COUNT], y[IMU_MAG_SOFT_COUNT];
+    double residual, fit = 0.0, logDet = 0.0, priorFit = 0.0, hard = 0.0;
+    int i, k;
+    ImuMagMomentsShift(sums, p, t);
+    residual = ImuMagNormalEquations(t, prior, l, y);
+    *logLikelihood = -HUGE_VAL;
+    if (ImuMagCholesky(l) != 0) {
+        return 0;
+    }
+    for (i = 0; i < IMU_MAG_SOFT_COUNT; i++) { /* forward: y = L^-1 eta */
+        for (k = 0; k < i; k++) {
+            y[i] -= l[i][k] * y[k];
+        }
+        y[i] /= l[i][i];
+        fit += y[i] * y[i];
+        logDet += log(l[i][i]);
+        priorFit += prior->softMean[i] * prior->softMean[i];
+    }
+    for (i = IMU_MAG_SOFT_COUNT - 1; i >= 0; i--) { /* backward: m = L^-T y */
+        soft[i] = y[i];
+        for (k = i + 1; k < IMU_MAG_SOFT_COUNT; k++) {
+            soft[i] -= l[k][i] * soft[k];
+        }
+        soft[i] /= l[i][i];
+    }
+    if (!ImuMagAdmissible(soft, prior->minEigen, prior->maxEigen)) {
+        return 0;
+    }
+    for (i = 0; i < 3; i++) {
+        const double d = (p[i] - prior->hardCentre[i]) / prior->hardSpread;
+        hard += d * d;
+    }
+    priorFit /= prior->softSpread * prior->softSpread;
+    *logLikelihood = -0.5 * (residual - fit + priorFit) - logDet - 0.5 * hard;
+    return 1;
+}
+
+/** @brief Inverse of a symmetric 3x3 matrix by the adjugate. */
+static void ImuMagInverse3(double a[3][3], double inverse[3][3])
+{
+    const double c00 = a[1][1] * a[2][2] - a[1][2] * a[2][1];
+    const double c01 = a[1][2] * a[2][0] - a[1][0] * a[2][2];
+    const double c02 = a[1][0] * a[2][1] - a[1][1] * a[2][0];
+    const double det = a[0][0] * c00 + a[0][1] * c01 + a[0][2] * c02;
+    inverse[0][0] = c00 / det;
+    inverse[1][0] = c01 / det;
+    inverse[2][0] = c02 / det;
+    inverse[0][1] = (a[0][2] * a[2][1] - a[0][1] * a[2][2]) / det;
+    inverse[1][1] = (a[0][0] * a[2][2] - a[0][2] * a[2][0]) / det;
+    inverse[2][1] = (a[0][1] * a[2][0] - a[0][0] * a[2][1]) / det;
+    inverse[0][2] = (a[0][1] * a[1][2] - a[0][2] * a[1][1]) / det;
+    inverse[1][2] = (a[0][2] * a[1][0] - a[0][0] * a[1][2]) / det;
+    inverse[2][2] = (a[0][0] * a[1][1] - a[0][1] * a[1][0]) / det;
+}
+
+void ImuMagSoftFromQuadratic(const double m[IMU_MAG_SOFT_COUNT], double b[IMU_MAG_SOFT_COUNT])
+{
+    double a[3][3], x[3][3] = {{1, 0, 0}, {0, 1, 0}, {0, 0, 1}}, inverse[3][3];
+    int k, i, j, n;
+    for (k = 0; k < IMU_MAG_SOFT_COUNT; k++) {
+        a[ImuMagSoftRow[k]][ImuMagSoftColumn[k]] = a[ImuMagSoftColumn[k]][ImuMagSoftRow[k]] = m[k];
+    }
+    for (i = 0; i < 3; i++) {
+        a[i][i] += 1.0;
+    }
+    for (n = 0; n < IMU_MAG_SQRT_ITERATIONS; n++) { /* X <- (X + X^-1 A) / 2, then symmetrised */
+        double next[3][3];
+        ImuMagInverse3(x, inverse);
+        for (i = 0; i < 3; i++) {
+            for (j = 0; j < 3; j++) {
+                next[i][j] = 0.5 * (x[i][j] + inverse[i][0] * a[0][j] + inverse[i][1] * a[1][j] + inverse[i][2] * a[2][j]);
+            }
+        }
+        for (i = 0; i < 3; i++) {
+            for (j = 0; j < 3; j++) {
+                x[i][j] = 0.5 * (next[i][j] + next[j][i]);
+            }
+        }
+    }
+    for (k = 0; k < IMU_MAG_SOFT_COUNT; k++) {
+        b[k] = x[ImuMagSoftRow[k]][ImuMagSoftColumn[k]] - (ImuMagSoftRow[k] == ImuMagSoftColumn[k] ? 1.0 : 0.0);
+    }
+}
+
+void ImuMagQuadraticFromSoft(const double b[IMU_MAG_SOFT_COUNT], double m[IMU_MAG_SOFT_COUNT])
+{
+    double s[3][3];
+    int k;
+    for (k = 0; k < IMU_MAG_SOFT_COUNT; k++) {
+        s[ImuMagSoftRow[k]][ImuMagSoftColumn[k]] = s[ImuMagSoftColumn[k]][ImuMagSoftRow[k]] = b[k];
+    }
+    for (k = 0; k < IMU_MAG_SOFT_COUNT; k++) {
+        const int i = ImuMagSoftRow[k], j = ImuMagSoftColumn[k];
+        m[k] = 2.0 * s[i][j] + s[i][0] * s[0][j] + s[i][1] * s[1][j] + s[i][2] * s[2][j];
+    }
+}
