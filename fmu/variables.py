@@ -144,6 +144,9 @@ VARIABLES: tuple[Variable, ...] = (
     _parameter("enable_psobp", 64, None, "Apply the PSO-BP network (temperature and its rate) to the gyro bias "
                "that the gain/bias polynomial leaves (when the artefact carries one)",
                bool(_DEFAULTS["enable_psobp"]), type_="Boolean"),
+    _parameter("pf_rao_blackwell", 65, None, "Particle filter samples the hard iron only and integrates the soft "
+               "iron out exactly (off: the method's 9-state filter with splitting and restoration network)",
+               bool(_DEFAULTS["pf_rao_blackwell"]), type_="Boolean"),
 )
 
 

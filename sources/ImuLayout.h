@@ -67,6 +67,7 @@ typedef enum {
     ImuSetPfThresholdLow,    /* 1/N */
     ImuSetPfSphereBins,      /* cells per cube-face side */
     ImuSetEnablePsoBp,       /* 0 or 1 */
+    ImuSetPfRaoBlackwell,    /* 0 or 1 */
     IMU_SETTING_COUNT
 } ImuSetting;
 

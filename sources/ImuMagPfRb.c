@@ -246,8 +246,10 @@ static void ImuMagPfRbMove(ImuMagPf *pf, double g, double factor[3][3])
     int sweep, k, j;
     for (sweep = 0; sweep < IMU_MAG_PF_MOVE_SWEEPS; sweep++) {
         for (k = 0; k < pf->settings.particleCount; k++) {
-            const double z[3] = {ImuRngNormal(&pf->rng), ImuRngNormal(&pf->rng), ImuRngNormal(&pf->rng)};
-            double before, now, accept, u;
+            double z[3], before, now, accept, u;
+            for (j = 0; j < 3; j++) {
+                z[j] = ImuRngNormal(&pf->rng);
+            }
             for (j = 0; j < 3; j++) {
                 proposal[j] = pf->particle[k][j] + factor[j][0] * z[0] + factor[j][1] * z[1] + factor[j][2] * z[2];
             }

@@ -53,6 +53,7 @@ static void ImuPipelinePfSettings(ImuMagPfSettings *pf, const double *a)
     pf->highThreshold = a[ImuSetPfThresholdHigh];
     pf->lowThreshold = a[ImuSetPfThresholdLow];
     pf->sphereBins = ImuPipelineInteger(a[ImuSetPfSphereBins]);
+    pf->raoBlackwell = ImuPipelineFlag(a[ImuSetPfRaoBlackwell]);
 }
 
 /** @brief Unpack a flat settings array (enable_thermal other than 0/1 becomes -1); 0 or -1 on bad size. */

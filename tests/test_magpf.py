@@ -6,6 +6,7 @@ from datetime import datetime
 import numpy as np
 import pytest
 
+from training import magmoments as mm
 from training import magpf
 from training.ellipsoid import apply_ellipsoid, fit_ellipsoid
 from training.rng import Pcg32
@@ -17,13 +18,19 @@ PCG32_REFERENCE = [0xA15C02B7, 0x7B47F409, 0xBA1D3330, 0x83D2F293, 0xBFA4784B, 0
 # relative (observed ~1e-14). Weight thresholds could in principle flip on such a difference,
 # which is why the comparison is over the first updates only.
 TWIN_RTOL = 1e-9
-# Identity: no hard/soft iron, prior spread 2 µT / 0.01: the random walk (0.01 µT per update over
-# 2000 updates: 0.45 µT) and roughening keep the estimate within 1 µT (1.7 % of 60 µT).
-IDENTITY_HARD_BOUND_UT = 1.0
-IDENTITY_SOFT_BOUND = 0.02
-# Convergence from a zero prior on one seed: the acceptance figure (1 % of |h_0| per axis).
-CONVERGED_HARD_BOUND_UT = 0.6
-JUMP_HARD_BOUND_UT = 1.0
+# Identity: no hard/soft iron, prior spread 2 µT / 0.01: 20 s of tumbling determine the hard iron
+# to ~0.05 µT (docs/magpf.md); 0.3 µT / 0.01 leave margin and stay well inside 1 % of |h_0|.
+IDENTITY_HARD_BOUND_UT = 0.3
+IDENTITY_SOFT_BOUND = 0.01
+# Issue 3 acceptance, simulated, 20 seeds each (worst seed): hard-iron error <= 1 % of |h_0| =
+# 0.6 µT per axis and RMS of |h_c| - |h_0| <= 0.5 % over the last 10 s, after 60 s from a zero
+# prior and 30 s after a 20 µT hard-iron jump.
+ACCEPTANCE_HARD_UT = 0.6
+ACCEPTANCE_NORM_PERCENT = 0.5
+ACCEPTANCE_SEEDS = 20
+# Power sums: the binomial shift and the closed-form likelihood equal direct sums over the samples
+# to rounding; relative 1e-9 on sums of ~1e9 µT^4.
+MOMENTS_RTOL = 1e-9
 # Batch ellipsoid fit on 60 s of tumbling with 0.25 µT noise: 6000 samples determine the 9
 # parameters to ~0.01 µT; 0.05 µT / 0.001 leave margin.
 ELLIPSOID_OFFSET_BOUND_UT = 0.05
@@ -95,11 +102,81 @@ def test_systematic_resampling_counts():
 def test_c_equals_numpy_twin_first_updates(splitting, move, bins):
     d = magpf.simulate_tumbling(0, duration_s=0.6)
     s = magpf.settings(60.0, particle_count=32, seed=5, enable_splitting=splitting, enable_move=move,
-                       sphere_bins=bins, decimation=1, **magpf.zero_prior(60.0))
+                       sphere_bins=bins, decimation=1, **magpf.zero_prior(60.0),
+                       **magpf.METHOD_AS_DESCRIBED)
     c, py = magpf.run_c(d.mag, s), magpf.run_python(d.mag, s)
     for a, b in ((c.hard_iron, py.hard_iron), (c.soft_iron, py.soft_iron), (c.neff, py.neff),
                  (c.compensated, py.compensated)):
         np.testing.assert_allclose(a, b, rtol=TWIN_RTOL, atol=TWIN_RTOL * 60.0)
+
+
+@pytest.mark.parametrize("move, jump", [(1, None), (0, None), (1, 1.5)])
+def test_c_equals_numpy_twin_rao_blackwell(move, jump):
+    # 16 particles, an update every 4th sample: ~75 updates with bridging, resampling, moves and
+    # (jump) a declared change of environment; the twin follows the C code operation by operation.
+    d = magpf.simulate_tumbling(6, duration_s=3.0, jump_at_s=jump)
+    s = magpf.settings(60.0, particle_count=16, seed=9, decimation=4, enable_move=move,
+                       **magpf.zero_prior(60.0))
+    c, py = magpf.run_c(d.mag, s), magpf.run_python(d.mag, s)
+    for a, b in ((c.hard_iron, py.hard_iron), (c.soft_iron, py.soft_iron), (c.neff, py.neff),
+                 (c.compensated, py.compensated), (c.changes, py.changes)):
+        np.testing.assert_allclose(a, b, rtol=TWIN_RTOL, atol=TWIN_RTOL * 60.0)
+
+
+def test_power_sums_shift_and_likelihood_equal_direct_sums():
+    rng = np.random.default_rng(4)
+    u = rng.normal(0.0, 40.0, (300, 3))
+    p = np.array([3.0, -7.0, 11.0])
+    shifted = mm.moments_shift(mm.power_sums(u), p)
+    direct = mm.power_sums(u - p)
+    np.testing.assert_allclose(shifted, direct, rtol=MOMENTS_RTOL, atol=MOMENTS_RTOL * max(map(abs, direct)))
+    # the likelihood from the sums equals the Gaussian linear model evaluated on the samples
+    sigma, norm = 0.4, 50.0
+    prior = mm.MarginalPrior(np.zeros(3), 30.0, np.zeros(6), 0.1, norm ** 2 + 3 * sigma ** 2,
+                             4 * norm ** 2 * sigma ** 2 + 6 * sigma ** 4, 0.01, 100.0)
+    d = u - p
+    phi = np.column_stack([d[:, 0] ** 2, 2 * d[:, 0] * d[:, 1], 2 * d[:, 0] * d[:, 2], d[:, 1] ** 2,
+                           2 * d[:, 1] * d[:, 2], d[:, 2] ** 2])
+    z = prior.offset - np.sum(d * d, axis=1)
+    info = phi.T @ phi / prior.variance + np.eye(6) / prior.soft_spread ** 2
+    eta = phi.T @ z / prior.variance
+    m = np.linalg.solve(info, eta)
+    expected = (-0.5 * (z @ z / prior.variance - eta @ m) - 0.5 * np.linalg.slogdet(info)[1]
+                - 0.5 * np.sum((p / prior.hard_spread) ** 2))
+    value, soft, ok = mm.marginal(mm.power_sums(u), p, prior)
+    assert ok and value == pytest.approx(expected, rel=MOMENTS_RTOL)
+    np.testing.assert_allclose(soft, m, rtol=1e-7, atol=1e-12)
+
+
+def test_soft_iron_square_root_inverts_the_square():
+    b = np.array([0.03, 0.05, -0.04, -0.02, 0.03, 0.04])
+    np.testing.assert_allclose(mm.soft_from_quadratic(mm.quadratic_from_soft(b)), b, atol=1e-14)
+    assert not mm.admissible(mm.quadratic_from_soft([0.5, 0, 0, 0, 0, 0]), 0.49, 1.69)
+
+
+def _acceptance_figures(d, r) -> tuple[float, float]:
+    """Hard-iron max-axis error at the end [µT] and norm RMS [%] of the noise-free distorted field
+    over the last 10 s (the figures of docs/magpf.md)."""
+    inv = np.linalg.inv(np.eye(3) + magpf.soft_matrix(d.soft_iron[0]))
+    tail = slice(-int(10 * d.rate_hz), None)
+    clean = (d.truth @ inv.T + d.hard_iron)[tail]
+    est = np.column_stack([r.hard_iron, r.soft_iron])[tail]
+    norm = np.linalg.norm(magpf.apply(est, clean), axis=1)
+    rms = 100.0 * float(np.sqrt(np.mean((norm - d.field_norm_ut) ** 2))) / d.field_norm_ut
+    return float(np.abs(r.hard_iron[-1] - d.hard_iron[-1]).max()), rms
+
+
+@pytest.mark.parametrize("jump", [None, 30.0], ids=["zero-prior", "jump-20uT"])
+def test_acceptance_over_20_seeds(jump):
+    figures = []
+    for seed in range(ACCEPTANCE_SEEDS):
+        d = magpf.simulate_tumbling(seed, jump_at_s=jump)
+        r = magpf.run_c(d.mag, magpf.settings(60.0, seed=seed, **magpf.zero_prior(60.0)))
+        figures.append(_acceptance_figures(d, r))
+        if jump is not None:
+            assert r.changes[-1] > r.changes[int(jump * d.rate_hz) - 1]   # the jump is declared
+    worst = np.max(figures, axis=0)
+    assert worst[0] <= ACCEPTANCE_HARD_UT and worst[1] <= ACCEPTANCE_NORM_PERCENT
 
 
 def test_identity_estimate_stays_near_zero():
@@ -107,21 +184,6 @@ def test_identity_estimate_stays_near_zero():
     r = magpf.run_c(d.mag, magpf.settings(60.0, prior_spread_hard_ut=2.0, prior_spread_soft=0.01))
     assert np.abs(r.hard_iron[-500:]).max() < IDENTITY_HARD_BOUND_UT
     assert np.abs(r.soft_iron[-500:]).max() < IDENTITY_SOFT_BOUND
-
-
-def test_converges_from_zero_prior_on_one_seed():
-    d = magpf.simulate_tumbling(3)
-    r = magpf.run_c(d.mag, magpf.settings(60.0, seed=3, **magpf.zero_prior(60.0)))
-    assert np.abs(r.hard_iron[-1] - d.hard_iron[-1]).max() < CONVERGED_HARD_BOUND_UT
-
-
-def test_change_of_environment_is_declared_and_followed():
-    # 20 µT hard-iron jump at 30 s from a converged state: the change test fires and 30 s later
-    # the estimate is within 1 µT on this seed (the 20-seed figures are in docs/magpf.md).
-    d = magpf.simulate_tumbling(0, jump_at_s=30.0)
-    r = magpf.run_c(d.mag, magpf.settings(60.0, seed=0, **magpf.zero_prior(60.0)))
-    assert r.changes[2999] == 0 and r.changes[-1] >= 1
-    assert np.abs(r.hard_iron[-1] - d.hard_iron[-1]).max() < JUMP_HARD_BOUND_UT
 
 
 def test_deterministic_and_seed_dependent():
@@ -156,6 +218,8 @@ def test_invalid_samples_are_skipped():
     ({"sphere_bins": magpf.MAX_BIN_SIDE + 1}, "sphereBins"),
     ({"change_threshold": 1.0}, "changeThreshold"),
     ({"enable_move": 2}, "enableMove"),
+    ({"rao_blackwell": 2}, "raoBlackwell"),
+    ({"prior_spread_hard_ut": 0.0}, "priorSpreadHard"),
 ])
 def test_invalid_settings_rejected_with_message(override, word):
     s = {**magpf.settings(50.0), **override}

@@ -8,7 +8,8 @@ Models, all trained on the static training part of each recording and judged on 
   PSO-BP (a)           the paper's model: the same networks from the particle-swarm start,
                        whole bias from T and dT/dt (MODE_FULL)
   poly + PSO-BP (b)    the product's hybrid: the single polynomial plus a PSO-BP network
-                       trained on the bias left after it (MODE_RESIDUAL)
+                       trained on the bias left after it (MODE_RESIDUAL), its output shrunk
+                       by an inner validation on the training rows (fit_gyro_residual_psobp)
 
 Metrics on the validation rows, residual e = gyr - ref_gyr - b_hat (per axis, then averaged):
   residual bias RMS [°/s]     RMS of the `window_s` window means of e (white noise averaged out)
@@ -22,7 +23,9 @@ Metrics on the validation rows, residual e = gyr - ref_gyr - b_hat (per axis, th
                                uniformly spaced at the median step); white noise and the bias
                                walk set it at short tau, so thermal models barely move it
   training time [s]            process CPU time of the fit (time.process_time, insensitive to
-                               other processes' load), mean, standard deviation, CV = sd/mean
+                               other processes' load), mean, standard deviation, CV = sd/mean;
+                               for (b) polynomial + inner validation + final network
+  output shrinkage (b)         per-axis scale s in [0, 1] folded into (b)'s output layer
 Repeated `runs` times with seeds seed, seed+1, ...; the polynomials are deterministic (their
 spread is timing only).
 """
@@ -37,7 +40,8 @@ import numpy as np
 import torch
 
 from .io import read_imu_csv
-from .psobp import MODE_RESIDUAL, PsoBpFitter, apply_psobp, bias_targets, temperature_rate
+from .psobp import (PsoBpFitter, apply_psobp, bias_targets, fit_gyro_residual_psobp,
+                    temperature_rate)
 from .thermal import ThermalModel, apply_thermal, normalised_temperature, temperature_normalisation
 
 DPS = 180.0 / np.pi
@@ -49,6 +53,7 @@ MODELS = ("uncompensated", "single polynomial", "piecewise polynomial", "BP", "P
           "poly + PSO-BP (b)")
 TRAINED = MODELS[1:]
 NETWORKS = MODELS[3:]
+HYBRID = MODELS[-1]
 
 
 # ----------------------------------------------------------------------------- metrics
@@ -182,10 +187,9 @@ def _one_run(data, train, settings: dict, seed: int) -> dict:
                                                          temp[train], seed)
         out[name] = (apply_psobp(fit.model, t, temp), fit.cpu_seconds, fit)
     compensated = gyr - poly
-    fit = PsoBpFitter(mode=MODE_RESIDUAL, **common).fit(t[train], compensated[train], ref[train],
-                                                         temp[train], seed)
-    out["poly + PSO-BP (b)"] = (poly + apply_psobp(fit.model, t, temp),
-                                poly_seconds + fit.cpu_seconds, fit)
+    fit = fit_gyro_residual_psobp(t[train], compensated[train], ref[train], temp[train], seed,
+                                  **common)
+    out[HYBRID] = (poly + apply_psobp(fit.model, t, temp), poly_seconds + fit.cpu_seconds, fit)
     return out
 
 
@@ -210,6 +214,7 @@ def _compare_one(path: Path, out_dir: Path, runs: int, seed: int, settings: dict
     metrics = {m: [] for m in MODELS}
     times = {m: [] for m in TRAINED}
     epochs = {m: [] for m in NETWORKS}
+    shrinkage = []
     first = None
     for run in tqdm(range(runs), desc=f"compare-thermal {data.name}", disable=not progress):
         result = _one_run(data, train, settings, seed + run)
@@ -221,6 +226,7 @@ def _compare_one(path: Path, out_dir: Path, runs: int, seed: int, settings: dict
             times[m].append(result[m][1])
         for m in epochs:
             epochs[m].append(float(result[m][2].epochs))
+        shrinkage.append(result[HYBRID][2].shrinkage)
     summary = {}
     for m in MODELS:
         summary[m] = {k: _summary([r[k] for r in metrics[m]])
@@ -233,6 +239,8 @@ def _compare_one(path: Path, out_dir: Path, runs: int, seed: int, settings: dict
             summary[m]["train_seconds"] = _summary(times[m])
         if m in epochs:
             summary[m]["bp_epochs"] = _summary(epochs[m])
+    summary[HYBRID]["output_shrinkage"] = {"mean": np.mean(shrinkage, axis=0).tolist(),
+                                           "std": np.std(shrinkage, axis=0).tolist()}
     plots = _plots(data, train, valid, first, times, settings, out_dir)
     return {"recording": str(path), "name": data.name, "samples": len(data),
             "train_samples": int(train.sum()), "validation_samples": int(valid.sum()),
@@ -328,6 +336,10 @@ def _markdown(results: dict) -> str:
                 f"({r['allan_min_improvement_pct']:+.1f} %) | "
                 + (f"{tt['mean']:.3f} ± {tt['std']:.3f} ({tt['cv']:.2f})" if tt else "—") + " | "
                 + (f"{ep['mean']:.0f} ± {ep['std']:.0f} ({ep['cv']:.2f})" if ep else "—") + " |")
+        s_out = rec["models"][HYBRID]["output_shrinkage"]
+        lines += ["", f"{HYBRID}: output shrinkage s (inner validation on the training part) "
+                  "x / y / z, mean ± sd over the runs: "
+                  + " / ".join(f"{m:.3f} ± {d:.3f}" for m, d in zip(s_out["mean"], s_out["std"]))]
         lines += [""] + [f"![{p}]({p})" for p in rec["plots"]] + [""]
     return "\n".join(lines)
 

@@ -57,6 +57,7 @@ SETTINGS = (
     ("pf_threshold_low", 0.5),        # ω2 relative to 1/N
     ("pf_sphere_bins", 2.0),          # cells per cube-face side of the direction buffer (0 = off)
     ("enable_psobp", 0.0),            # 1 = PSO-BP network on the gyro bias left by the polynomial
+    ("pf_rao_blackwell", 1.0),        # 1 = soft iron integrated out (docs/magpf.md), 0 = the method's 9-state filter
 )
 
 TRIAD_ORDER = ("gyr", "acc", "mag")

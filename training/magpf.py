@@ -18,7 +18,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from training import runtime
+from training import magpf_rb, runtime
 from training.rng import Pcg32
 
 MAX_PARTICLES = 512          # IMU_MAG_PF_MAX_PARTICLES
@@ -78,6 +78,12 @@ SETTINGS = (
     ("rao_blackwell", "0/1", 1),
 )
 SETTING_NAMES = tuple(name for name, _, _ in SETTINGS)
+
+
+#: The method as its source describes it (docs/magpf.md, mode 0): the 9-state filter with the
+#: change test as tuned for it; the defaults above are those of the Rao-Blackwellised mode.
+METHOD_AS_DESCRIBED = {"rao_blackwell": 0, "innovation_time_constant": 50.0, "change_threshold": 100.0,
+                       "change_spread_hard_ut": 10.0, "change_spread_soft": 0.0, "min_rotation_deg": 0.0}
 
 
 def zero_prior(field_norm_ut: float) -> dict:
@@ -339,12 +345,6 @@ class MagPf:
         """Reseed and draw the prior (weights 1/N)."""
         s = self.s
         self.rng = Pcg32(int(s["seed"]), RNG_STREAM)
-        mean = np.array([s[f"prior_hard_iron_{a}_ut"] for a in "xyz"]
-                        + [s[f"prior_soft_iron_{k}"] for k in ("xx", "xy", "xz", "yy", "yz", "zz")])
-        spread = np.array([s["prior_spread_hard_ut"]] * 3 + [s["prior_spread_soft"]] * 6, float)
-        self.particle = mean + spread * self.rng.normals(self.n * STATE_SIZE).reshape(self.n, STATE_SIZE)
-        self.weight = np.full(self.n, 1.0 / self.n)
-        self.estimate = self.weight @ self.particle
         self.neff = float(self.n)
         self.innovation_average = 1.0
         self.inflation = 1.0
@@ -356,6 +356,15 @@ class MagPf:
         self.updates_since_change = 0
         self.change_armed = False
         self.changes = 0
+        if int(s["rao_blackwell"]):
+            magpf_rb.reset(self)
+            return
+        mean = np.array([s[f"prior_hard_iron_{a}_ut"] for a in "xyz"]
+                        + [s[f"prior_soft_iron_{k}"] for k in ("xx", "xy", "xz", "yy", "yz", "zz")])
+        spread = np.array([s["prior_spread_hard_ut"]] * 3 + [s["prior_spread_soft"]] * 6, float)
+        self.particle = mean + spread * self.rng.normals(self.n * STATE_SIZE).reshape(self.n, STATE_SIZE)
+        self.weight = np.full(self.n, 1.0 / self.n)
+        self.estimate = self.weight @ self.particle
 
     # -- steps ------------------------------------------------------------------------------
 
@@ -420,28 +429,37 @@ class MagPf:
         self.weight = w / w.sum()
         return alpha
 
-    def _detect_change(self) -> None:
+    def _declare_change(self) -> None:
+        self.innovation_average = 1.0
+        self.inflation = 1.0
+        self.updates_since_change = 0
+        self.change_armed = False
+        self.changes += 1
+
+    def _change_declared(self) -> bool:
         s = self.s
         self.updates_since_change += 1
         threshold = float(s["change_threshold"])
         if threshold <= 0.0:
-            return
+            return False
         if not self.change_armed:
             self.change_armed = (self.updates_since_change >= float(s["innovation_time_constant"])
                                  and self.innovation_average < threshold)
-            return
+            return False
         if self.innovation_average <= threshold:
+            return False
+        self._declare_change()
+        return True
+
+    def _detect_change(self) -> None:
+        s = self.s
+        if not self._change_declared():
             return
         spread = np.array([s["change_spread_hard_ut"]] * 3 + [s["change_spread_soft"]] * 6, float)
         self.particle = self.estimate + spread * self.rng.normals(
             self.n * STATE_SIZE).reshape(self.n, STATE_SIZE)
         self.weight = np.full(self.n, 1.0 / self.n)
         self.bin_list = []
-        self.innovation_average = 1.0
-        self.inflation = 1.0
-        self.updates_since_change = 0
-        self.change_armed = False
-        self.changes += 1
 
     def _cloud_sigma(self) -> np.ndarray:
         return self.rough * self.particle.std(axis=0)
@@ -451,6 +469,8 @@ class MagPf:
         mag = np.asarray(mag, dtype=np.float64)
         if not self._valid(mag):
             return False
+        if int(self.s["rao_blackwell"]):
+            return magpf_rb.update(self, mag)
         self.counter += 1
         if self.counter < int(self.s["decimation"]):
             return False

@@ -19,7 +19,11 @@ Two modes (block entry 0), same network, same inputs:
                  corrected rate = apply_thermal(gyr_raw) - b, i.e. the network output is added
                  on top of the polynomial bias. It captures the warm-up (dT/dt) term the
                  polynomial cannot; outside the training range the tansig units saturate at a
-                 small residual and the polynomial carries the extrapolation.
+                 small residual and the polynomial carries the extrapolation. Its output is
+                 scaled per axis by s in [0, 1] chosen by blocked cross-validation on the
+                 training windows (`output_shrinkage`) and folded into w2, b2: s = 0 when the
+                 residual holds nothing the network predicts out of block (then b = 0 and the
+                 hybrid is the polynomial alone).
 
 Fit: particle-swarm optimisation of the initial weights and thresholds (Kennedy & Eberhart
 1995; inertia weight decreasing linearly, Shi & Eberhart 1998), fitness = variance of
@@ -36,7 +40,7 @@ from __future__ import annotations
 
 import ctypes
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 import torch
@@ -420,7 +424,8 @@ def _span(lo: float, hi: float, minimum: float) -> tuple[float, float]:
 class PsoBpFit:
     """Result of `PsoBpFitter.fit`: the model, wall-clock seconds (total, PSO, BP), process CPU
     seconds (total; time.process_time, insensitive to other processes' load), BP epochs, per
-    axis PSO best fitness and BP start/end MSE [normalised²], training windows used."""
+    axis PSO best fitness and BP start/end MSE [normalised²], training windows used, and for
+    `fit_gyro_residual_psobp` the per-axis output shrinkage folded into the model (else None)."""
 
     model: PsoBpModel
     seconds: float
@@ -432,6 +437,7 @@ class PsoBpFit:
     loss_start: tuple[float, float, float]
     loss_end: tuple[float, float, float]
     windows: int
+    shrinkage: tuple[float, float, float] | None = None
 
 
 class PsoBpFitter:
@@ -469,8 +475,18 @@ class PsoBpFitter:
         """Fit on a static recording: t (N,) [s], gyr and ref_gyr (N, 3) [rad/s], temp (N,)
         [°C]. Same seed, same model. Times include target preparation."""
         start, cpu_start = time.perf_counter(), time.process_time()
-        temp_w, rate_w, bias_w = bias_targets(t, gyr, ref_gyr, temp, self.tau_s, self.window_s,
-                                              self.rest_rad_s)
+        fit = self.fit_windows(*self.targets(t, gyr, ref_gyr, temp), seed)
+        return replace(fit, seconds=time.perf_counter() - start,
+                       cpu_seconds=time.process_time() - cpu_start)
+
+    def targets(self, t, gyr, ref_gyr, temp) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """`bias_targets` with this fitter's tau_s, window_s and rest_rad_s."""
+        return bias_targets(t, gyr, ref_gyr, temp, self.tau_s, self.window_s, self.rest_rad_s)
+
+    def fit_windows(self, temp_w, rate_w, bias_w, seed: int) -> PsoBpFit:
+        """Fit on window targets (as `targets` returns them): temp_w (M,) [°C], rate_w (M,)
+        [°C/s], bias_w (M, 3) [rad/s]. Same seed, same model."""
+        start, cpu_start = time.perf_counter(), time.process_time()
         t_min, t_max = _span(float(temp_w.min()), float(temp_w.max()), MIN_TEMP_SPAN_C)
         r_min, r_max = _span(float(rate_w.min()), float(rate_w.max()), MIN_RATE_SPAN_C_S)
         u = np.column_stack([2.0 * (temp_w - t_min) / (t_max - t_min) - 1.0,
@@ -513,16 +529,62 @@ class PsoBpFitter:
 # ----------------------------------------------------------------------------- chain entry
 
 
+#: Contiguous blocks of the training windows (time order, equal counts) in the residual fit's
+#: inner validation; on the six-plateau protocol they are exactly the four training plateaus.
+INNER_FOLDS = 4
+
+
+def shrink_output(model: PsoBpModel, s: np.ndarray) -> PsoBpModel:
+    """`model` with axis i's output scaled by s[i] (3,): w2 and b2 times s, so the stored block
+    layout and the C inference stay as they are."""
+    s = np.asarray(s, dtype=np.float64)
+    return replace(model, w2=model.w2 * s[:, None], b2=model.b2 * s)
+
+
+def output_shrinkage(fitter: PsoBpFitter, temp_w, rate_w, bias_w, seed: int,
+                     folds: int) -> np.ndarray:
+    """Per-axis output shrinkage (3,) in [0, 1] by blocked cross-validation on training windows.
+
+    The windows (M, in time order, as `PsoBpFitter.targets` returns them) are cut into `folds`
+    contiguous blocks of equal count; for each block k a network fitted on the other blocks
+    predicts f_k at block k's windows, whose targets are y_k. s = clip(sum_k <y_k, f_k> /
+    sum_k <f_k, f_k>, 0, 1): the least-squares scale of the out-of-block predictions, 0 when
+    they do not correlate with the targets (then the hybrid is the polynomial alone).
+    """
+    if folds < 2 or temp_w.shape[0] < folds:
+        raise ValueError(f"need 2 <= folds <= windows, got {folds} folds and {temp_w.shape[0]} windows")
+    num, den = np.zeros(3), np.zeros(3)
+    for block in np.array_split(np.arange(temp_w.shape[0]), folds):
+        rest = np.ones(temp_w.shape[0], dtype=bool)
+        rest[block] = False
+        model = fitter.fit_windows(temp_w[rest], rate_w[rest], bias_w[rest], seed).model
+        f = evaluate_psobp(model, temp_w[block], rate_w[block])
+        num += np.sum(f * bias_w[block], axis=0)
+        den += np.sum(f * f, axis=0)
+    return np.clip(np.divide(num, den, out=np.zeros(3), where=den > 0.0), 0.0, 1.0)
+
+
 def fit_gyro_residual_psobp(t, gyr_compensated, ref_gyr, temp, seed: int, hidden: int = 4,
-                            tau_s: float = 10.0, **settings) -> PsoBpFit:
-    """Residual PSO-BP (MODE_RESIDUAL) for the chain's training.
+                            tau_s: float = 10.0, folds: int = INNER_FOLDS,
+                            **settings) -> PsoBpFit:
+    """Residual PSO-BP (MODE_RESIDUAL) for the chain's training, output shrunk by an inner
+    validation on the given rows only (`output_shrinkage`), folded into w2 and b2.
 
     t (N,) [s]; gyr_compensated (N, 3) [rad/s] = apply_thermal(gyro model, gyr_raw, temp);
-    ref_gyr (N, 3) [rad/s]; temp (N,) [°C]; seed: PSO and torch seed; hidden: H; tau_s: rate
-    low-pass [s]; settings: further PsoBpFitter arguments (window_s, rest_rad_s, particles, ...).
+    ref_gyr (N, 3) [rad/s]; temp (N,) [°C]; seed: PSO and torch seed (every fit); hidden: H;
+    tau_s: rate low-pass [s]; folds: blocks of the inner validation; settings: further
+    PsoBpFitter arguments (window_s, rest_rad_s, particles, ...). The network is fitted on all
+    windows; seconds and cpu_seconds include the inner fits, the PSO / BP seconds, epochs and
+    losses are those of the final fit.
     """
-    return PsoBpFitter(hidden=hidden, tau_s=tau_s, mode=MODE_RESIDUAL, **settings).fit(
-        t, gyr_compensated, ref_gyr, temp, seed)
+    start, cpu_start = time.perf_counter(), time.process_time()
+    fitter = PsoBpFitter(hidden=hidden, tau_s=tau_s, mode=MODE_RESIDUAL, **settings)
+    windows = fitter.targets(t, gyr_compensated, ref_gyr, temp)
+    s = output_shrinkage(fitter, *windows, seed, folds)
+    fit = fitter.fit_windows(*windows, seed)
+    return replace(fit, model=shrink_output(fit.model, s), shrinkage=tuple(map(float, s)),
+                   seconds=time.perf_counter() - start,
+                   cpu_seconds=time.process_time() - cpu_start)
 
 
 #: `enable_psobp` needs the hybrid to cut the held-out residual bias RMS by at least this
