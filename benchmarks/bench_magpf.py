@@ -2,15 +2,19 @@
 
     python benchmarks/bench_magpf.py [--seeds 20] [--no-broad] [--no-sim]
 
-1. Simulated tumbling (wide zero prior, magpf.zero_prior) (60 s at 100 Hz, |h_0| = 60 µT, h_p = [30, 40, 20] µT, soft iron up to
-   0.05, uniform + Student-t noise), zero prior: hard-iron error (largest axis) at the end and
-   RMS of |h_c| − |h_0| over the last 10 s, for the filter, plain SIR (steps 5–6 off) and the
-   batch ellipsoid fit; mean and worst over the seeds. The norm error is evaluated on the
-   noise-free distorted field (the calibration's error) and on the measured field.
+1. Simulated tumbling (60 s at 100 Hz, |h_0| = 60 µT, h_p = [30, 40, 20] µT, soft iron up to
+   0.05, uniform + Student-t noise), wide zero prior (magpf.zero_prior): hard-iron error (largest
+   axis) at the end and RMS of |h_c| − |h_0| over the last 10 s, for the product's filter
+   (Rao-Blackwellised, defaults), the same without Metropolis moves, the method as described
+   (9-state filter with splitting and restoration network), its plain SIR baseline (steps 5–6
+   off) and the batch ellipsoid fit; mean and worst over the seeds. The norm error is evaluated on
+   the noise-free distorted field (the calibration's error) and on the measured field.
 2. Hard-iron jump of 20 µT at 30 s: the same figures 30 s after the jump.
 3. BROAD trials (Laidig et al., Data 6(7) 2021, CC-BY-4.0): spread 100·std/mean of |h_c| over
-   eval_mask, raw and filtered, ‖h_0‖ from the sidecar.
-4. Cost: µs per sample of the C filter and of training.runtime.run_batch on a BROAD recording.
+   eval_mask, raw and filtered (‖h_0‖ from the sidecar), and the heading RMSE of the whole
+   runtime (training.bench.run_imufusion, BROAD attitude set) without and with the filter.
+4. Cost: µs per sample of the whole runtime with the filter at its defaults and without it, on a
+   BROAD recording (best of 3 runs).
 """
 from __future__ import annotations
 
@@ -22,7 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
-from training import layout, magpf, runtime
+from training import bench, layout, magpf, runtime
 from training.ellipsoid import apply_ellipsoid, fit_ellipsoid
 from training.io import read_imu_csv
 
@@ -71,18 +75,27 @@ def table(title: str, rows: dict) -> None:
               f"{a[:, 1].mean():.3f} / {a[:, 1].max():.3f} | {a[:, 2].mean():.3f} / {a[:, 2].max():.3f} |")
 
 
+#: Filter variants of the simulated tables: label -> settings overrides (zero prior added).
+SIM_VARIANTS = {
+    "particle filter, Rao-Blackwellised (defaults)": {},
+    "  same, Metropolis moves off": {"enable_move": 0},
+    "method as described (9-state, splitting + network)": magpf.METHOD_AS_DESCRIBED,
+    "plain SIR (9-state, steps 5–6 off)": {**magpf.METHOD_AS_DESCRIBED, "enable_splitting": 0},
+}
+
+
 def simulated(seeds: int) -> None:
     for title, kwargs, end_s in (("Tumbling, zero prior, end of 60 s", {}, 60.0),
                                  ("Hard-iron jump of 20 µT at 30 s, 30 s later", {
                                      "duration_s": 60.0, "jump_at_s": 30.0}, 60.0)):
-        rows = {"particle filter": [], "plain SIR": [], "ellipsoid fit (batch)": []}
+        rows = {name: [] for name in SIM_VARIANTS}
+        rows["ellipsoid fit (batch)"] = []
         for seed in range(seeds):
             d = magpf.simulate_tumbling(seed, **kwargs)
             end = int(end_s * d.rate_hz)
             wide = magpf.zero_prior(60.0)
-            rows["particle filter"].append(run_filter(d, magpf.settings(60.0, seed=seed, **wide), end))
-            rows["plain SIR"].append(run_filter(d, magpf.settings(60.0, seed=seed, enable_splitting=0,
-                                                                  **wide), end))
+            for name, over in SIM_VARIANTS.items():
+                rows[name].append(run_filter(d, magpf.settings(60.0, seed=seed, **{**wide, **over}), end))
             start = int(kwargs.get("jump_at_s", 0.0) * d.rate_hz)
             rows["ellipsoid fit (batch)"].append(run_ellipsoid(magpf.TumblingData(
                 d.mag[start:], d.truth[start:], d.hard_iron[start:], d.soft_iron[start:],
@@ -90,46 +103,69 @@ def simulated(seeds: int) -> None:
         table(f"{title} ({seeds} seeds)", rows)
 
 
+#: FMU settings of the filter on BROAD (the data set is calibrated: its recordings are the
+#: trained calibration, so the prior is tight around zero; the field noise per axis is ~0.7 µT:
+#: the issue's 1.6 % norm noise floor of ~44 µT).
+BROAD_PF = {"enable_pf": 1.0, "pf_measurement_noise": 0.8, "pf_prior_spread_hard": 0.5,
+            "pf_prior_spread_soft": 0.005}
+FIELD = [layout.OUTPUTS.index(n) for n in ("field_x", "field_y", "field_z")]
+QUATERNION = [layout.OUTPUTS.index(n) for n in ("q_w", "q_x", "q_y", "q_z")]
+MAGNET_TRIALS = ("32", "33", "35")
+
+
+def _run_chain(d, overrides: dict) -> np.ndarray:
+    """All runtime outputs (N, len(OUTPUTS)) for a BROAD recording with the BROAD attitude set."""
+    return runtime.run_batch(layout.identity_coefficients(), bench.imufusion_settings(d, overrides),
+                             d.t - d.t[0], bench._inputs(d))
+
+
+def _spread(field: np.ndarray, mask: np.ndarray) -> float:
+    norm = np.linalg.norm(field[mask], axis=1)
+    return 100.0 * float(np.std(norm) / np.mean(norm))
+
+
 def broad() -> None:
-    print("\n### BROAD: spread 100·std/mean of |h_c| over eval_mask [%], default settings "
-          "(prior 0 ± 3 µT / 0.02: the data set is calibrated)\n")
-    print("| trial | raw | particle filter | plain SIR | µs/sample PF |")
-    print("|---|---|---|---|---|")
-    files = sorted(glob.glob(str(BROAD / "*.csv.gz")))
-    for path in files:
+    print("\n### BROAD: spread 100·std/mean of |h_c| [%] and heading RMSE [°] over eval_mask, "
+          f"whole runtime (BROAD attitude set), filter settings {BROAD_PF}\n")
+    print("| trial | spread raw | spread with filter | heading without filter | heading with filter | "
+          "change | changes declared |")
+    print("|---|---|---|---|---|---|---|")
+    for path in sorted(glob.glob(str(BROAD / "*.csv.gz"))):
         name = Path(path).name.split("_")[0]
-        if not (name <= "18" or name in ("32", "33", "35")):
+        if not (name <= "18" or name in MAGNET_TRIALS):
             continue
         d = read_imu_csv(path)
         m = d.eval_mask.astype(bool)
-        spread = lambda v: 100.0 * float(np.std(np.linalg.norm(v[m], axis=1)) /
-                                         np.mean(np.linalg.norm(v[m], axis=1)))
+        without, with_pf = _run_chain(d, {}), _run_chain(d, BROAD_PF)
+        h0 = bench.broad_errors(without[:, QUATERNION], d)["heading"]
+        h1 = bench.broad_errors(with_pf[:, QUATERNION], d)["heading"]
+        changes = magpf.run_c(d.mag, magpf.settings(
+            d.field_norm_ut, measurement_noise_ut=0.8, prior_spread_hard_ut=0.5, prior_spread_soft=0.005)).changes
+        print(f"| {Path(path).name[:-7]} | {_spread(d.mag, m):.2f} | {_spread(with_pf[:, FIELD], m):.2f} | "
+              f"{h0:.2f} | {h1:.2f} | {h1 - h0:+.2f} | {int(changes[-1])} |", flush=True)
+
+
+def _best_us(fn, samples: int, repeats: int = 3) -> float:
+    best = float("inf")
+    for _ in range(repeats):
         t0 = time.perf_counter()
-        pf = magpf.run_c(d.mag, magpf.settings(d.field_norm_ut))
-        cost = 1e6 * (time.perf_counter() - t0) / len(d)
-        sir = magpf.run_c(d.mag, magpf.settings(d.field_norm_ut, enable_splitting=0))
-        print(f"| {Path(path).name[:-7]} | {spread(d.mag):.2f} | {spread(pf.compensated):.2f} | "
-              f"{spread(sir.compensated):.2f} | {cost:.0f} |", flush=True)
+        fn()
+        best = min(best, time.perf_counter() - t0)
+    return 1e6 * best / samples
 
 
 def cost() -> None:
     path = sorted(glob.glob(str(BROAD / "01_*.csv.gz")))[0]
     d = read_imu_csv(path)
-    s = np.array(layout.settings_array({}))
-    c = np.array(layout.identity_coefficients())
-    t0 = time.perf_counter()
-    runtime.run_batch(c, s, d.t - d.t[0], d.inputs())
-    rest = 1e6 * (time.perf_counter() - t0) / len(d)
-    print("\n### Cost on BROAD 01 (µs per sample)\n")
+    print(f"\n### Cost on BROAD 01 ({len(d)} samples at 285.7 Hz, µs per sample, best of 3)\n")
     print("| configuration | µs/sample |\n|---|---|")
-    for label, over in (("filter, defaults (N=128, decimation 16)", {}),
-                        ("filter, plain SIR (splitting off)", {"enable_splitting": 0}),
-                        ("filter, move off", {"enable_move": 0}),
-                        ("filter, N=256", {"particle_count": 256})):
-        t0 = time.perf_counter()
-        magpf.run_c(d.mag, magpf.settings(d.field_norm_ut, **over))
-        print(f"| {label} | {1e6 * (time.perf_counter() - t0) / len(d):.1f} |")
-    print(f"| rest of the runtime (run_batch) | {rest:.2f} |")
+    rows = (("whole runtime, filter off (BROAD attitude set)", {}),
+            ("whole runtime, filter on at its defaults (N = 128, decimation 16)", {"enable_pf": 1.0}),
+            ("whole runtime, filter on, BROAD filter settings", BROAD_PF),
+            ("whole runtime, the method's 9-state filter (pf_rao_blackwell 0)",
+             {"enable_pf": 1.0, "pf_rao_blackwell": 0.0}))
+    for label, over in rows:
+        print(f"| {label} | {_best_us(lambda: _run_chain(d, over), len(d)):.2f} |", flush=True)
 
 
 def main(argv=None) -> int:

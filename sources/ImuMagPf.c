@@ -267,16 +267,17 @@ double ImuMagPfObservation(const double x[IMU_MAG_PF_STATE_SIZE], const double m
     return ImuMagPfNormSquared(mag) - ImuMagPfNormSquared(corrected);
 }
 
-/** @brief 1 if mag [uT] is finite, its norm within (0.001, 20) |h_0| and (when minRotation > 0) its
- *         direction more than minRotation away from the last used sample. */
+/** @brief 1 if mag [uT] is finite and its norm within (0.001, 20) |h_0|. */
 static int ImuMagPfIsValidSample(const ImuMagPf *pf, const double mag[3])
 {
     const double norm = ImuAllFinite(mag, 3) ? ImuVectorNorm(mag) : -1.0;
-    const double last = ImuVectorNorm(pf->lastUsed);
-    if (!(norm > IMU_MAG_PF_MIN_FIELD_RATIO * pf->settings.fieldNorm &&
-          norm < IMU_MAG_PF_MAX_FIELD_RATIO * pf->settings.fieldNorm)) {
-        return 0;
-    }
+    return norm > IMU_MAG_PF_MIN_FIELD_RATIO * pf->settings.fieldNorm &&
+           norm < IMU_MAG_PF_MAX_FIELD_RATIO * pf->settings.fieldNorm;
+}
+
+int ImuMagPfRotated(const ImuMagPf *pf, const double mag[3])
+{
+    const double norm = ImuVectorNorm(mag), last = ImuVectorNorm(pf->lastUsed);
     return pf->settings.minRotation <= 0.0 || last <= 0.0 ||
            mag[0] * pf->lastUsed[0] + mag[1] * pf->lastUsed[1] + mag[2] * pf->lastUsed[2] <
                pf->coefficients.minRotationCosine * norm * last;
@@ -548,7 +549,7 @@ int ImuMagPfUpdate(ImuMagPf *pf, const double mag[3])
     if (pf->settings.raoBlackwell) {
         return ImuMagPfRbUpdate(pf, mag);
     }
-    if (++pf->sampleCounter < pf->settings.decimation) {
+    if (!ImuMagPfRotated(pf, mag) || ++pf->sampleCounter < pf->settings.decimation) {
         return 0;
     }
     pf->sampleCounter = 0;

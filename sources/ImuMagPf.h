@@ -164,6 +164,9 @@ IMU_HIDDEN void ImuMagPfSplit(ImuMagPf *pf, double alpha);
 IMU_HIDDEN void ImuMagPfAdapt(ImuMagPf *pf, const double mag[3], double y);
 /** @brief Count a change of environment and restart the innovation average and the change test. */
 IMU_HIDDEN void ImuMagPfDeclareChange(ImuMagPf *pf);
+/** @brief 1 if minRotation is 0 or the direction of mag [uT] is more than minRotation away from the
+ *         last used sample (the first sample always counts). */
+IMU_HIDDEN int ImuMagPfRotated(const ImuMagPf *pf, const double mag[3]);
 /** @brief Change test on the innovation average; 1 (counters reset, change counted) if a change is declared. */
 IMU_HIDDEN int ImuMagPfChangeDeclared(ImuMagPf *pf);
 /** @brief Effective sample size 1 / sum w^2 of the current weights [particles]. */

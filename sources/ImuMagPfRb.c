@@ -301,9 +301,11 @@ int ImuMagPfRbUpdate(ImuMagPf *pf, const double mag[3])
     const ImuMagPfSettings *s = &pf->settings;
     const double u[3] = {mag[0] - s->priorHardIron[0], mag[1] - s->priorHardIron[1], mag[2] - s->priorHardIron[2]};
     int i;
-    memcpy(pf->lastUsed, mag, sizeof(pf->lastUsed));
-    ImuMagMomentsAdd(pf->moments, u);
-    if (++pf->sampleCounter < s->decimation) {
+    if (ImuMagPfRotated(pf, mag)) { /* the power sums take samples that turned by minRotation */
+        memcpy(pf->lastUsed, mag, sizeof(pf->lastUsed));
+        ImuMagMomentsAdd(pf->moments, u);
+    }
+    if (++pf->sampleCounter < s->decimation) { /* the change test sees every valid sample's updates */
         return 0;
     }
     pf->sampleCounter = 0;

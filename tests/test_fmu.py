@@ -187,6 +187,27 @@ def test_fmu_state_restore_continues_identically(trained_fmu):
                                   run_fmu(trained_fmu, t, raw, parameters=TRAINED_SETTINGS))
 
 
+def test_particle_filter_in_the_fmu_equals_batch_and_its_state_is_restored(trained_fmu):
+    # The filter (particles, power sums, generator) is part of the FMU state: a restore in the
+    # middle of the run continues bit-identically, and the FMU equals the batch runtime.
+    t, raw = synthetic_recording(600)
+    params = {**TRAINED_SETTINGS, "enable_pf": True, "pf_decimation": 4}
+    fmu_out = run_fmu(trained_fmu, t, raw, parameters=params)
+    batch_out = run_batch(trained_coefficients(), settings_array(params), t, raw)
+    np.testing.assert_allclose(fmu_out, batch_out, rtol=0, atol=GOLDEN_TOLERANCE, equal_nan=True)
+    assert np.all(fmu_out[:, OUTPUTS.index("pf_neff")] > 0.0)
+    h, k = step_sizes(t, 0.01), 300
+    with initialised_fmu(trained_fmu, t[0], params) as fmu:
+        step_samples(fmu, t[:k], raw[:k], h[:k])
+        state = fmu.getFMUstate()
+        first = step_samples(fmu, t[k:], raw[k:], h[k:])
+        fmu.setFMUstate(state)
+        second = step_samples(fmu, t[k:], raw[k:], h[k:])
+        fmu.freeFMUstate(state)
+    np.testing.assert_array_equal(first, second)
+    np.testing.assert_array_equal(first, fmu_out[k:])
+
+
 def test_serialized_fmu_state_restores_identically(trained_fmu):
     t, raw = synthetic_recording(300)
     h, k = step_sizes(t, 0.01), 200

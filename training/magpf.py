@@ -373,8 +373,10 @@ class MagPf:
             return False
         norm = float(np.sqrt(mag @ mag))
         f = float(self.s["field_norm_ut"])
-        if not MIN_FIELD_RATIO * f < norm < MAX_FIELD_RATIO * f:
-            return False
+        return MIN_FIELD_RATIO * f < norm < MAX_FIELD_RATIO * f
+
+    def _rotated(self, mag: np.ndarray) -> bool:
+        norm = float(np.sqrt(mag @ mag))
         last = float(np.sqrt(self.last_used @ self.last_used))
         return (float(self.s["min_rotation_deg"]) <= 0.0 or last <= 0.0
                 or float(mag @ self.last_used) < self.min_rotation_cos * norm * last)
@@ -471,6 +473,8 @@ class MagPf:
             return False
         if int(self.s["rao_blackwell"]):
             return magpf_rb.update(self, mag)
+        if not self._rotated(mag):
+            return False
         self.counter += 1
         if self.counter < int(self.s["decimation"]):
             return False

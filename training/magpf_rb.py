@@ -219,8 +219,9 @@ def bridge(pf) -> None:
 
 def update(pf, mag: np.ndarray) -> bool:
     """One valid sample [µT] (ImuMagPfRbUpdate); True if the particles were updated."""
-    pf.last_used = mag.copy()
-    mm.moments_add(pf.moments, mag - _reference(pf))
+    if pf._rotated(mag):
+        pf.last_used = mag.copy()
+        mm.moments_add(pf.moments, mag - _reference(pf))
     pf.counter += 1
     if pf.counter < int(pf.s["decimation"]):
         return False
