@@ -147,6 +147,10 @@ VARIABLES: tuple[Variable, ...] = (
     _parameter("pf_rao_blackwell", 65, None, "Particle filter samples the hard iron only and integrates the soft "
                "iron out exactly (off: the method's 9-state filter with splitting and restoration network)",
                bool(_DEFAULTS["pf_rao_blackwell"]), type_="Boolean"),
+    _parameter("pf_min_rotation", 66, "rad", "Turn of the field direction since the last sample used before the "
+               "filter uses a sample (thins samples at rest)", _DEFAULTS["pf_min_rotation"], "deg"),
+    _parameter("pf_change_spread_hard", 67, "uT", "Prior standard deviation of the hard iron around the estimate "
+               "after a declared change of environment", _DEFAULTS["pf_change_spread_hard"]),
 )
 
 

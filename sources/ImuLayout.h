@@ -68,6 +68,8 @@ typedef enum {
     ImuSetPfSphereBins,      /* cells per cube-face side */
     ImuSetEnablePsoBp,       /* 0 or 1 */
     ImuSetPfRaoBlackwell,    /* 0 or 1 */
+    ImuSetPfMinRotation,     /* rad */
+    ImuSetPfChangeSpreadHard, /* uT */
     IMU_SETTING_COUNT
 } ImuSetting;
 

@@ -126,7 +126,7 @@ static const char *ImuMagPfCheckValues(const ImuMagPfSettings *s)
         return "maxInflation must be in [1, 1000]";
     }
     if (!(s->minRotation >= 0.0 && s->minRotation <= 90.0)) {
-        return "minRotation must be in [0, 90] deg";
+        return "pf_min_rotation (minRotation) must be in [0, 90] deg";
     }
     if (!(s->learningRate > 0.0 && s->learningRate <= 10.0)) {
         return "learningRate must be in (0, 10]";
@@ -135,7 +135,7 @@ static const char *ImuMagPfCheckValues(const ImuMagPfSettings *s)
         return "changeThreshold must be 0 (off) or in [2, 1e6]";
     }
     if (!(s->changeSpreadHard >= 0.0 && s->changeSpreadHard <= 1e4)) {
-        return "changeSpreadHard must be in [0, 1e4] uT";
+        return "pf_change_spread_hard (changeSpreadHard) must be in [0, 1e4] uT";
     }
     if (!(s->changeSpreadSoft >= 0.0 && s->changeSpreadSoft <= 1.0)) {
         return "changeSpreadSoft must be in [0, 1]";
@@ -144,7 +144,7 @@ static const char *ImuMagPfCheckValues(const ImuMagPfSettings *s)
         return "fieldNorm must be in (0, 1e4] uT";
     }
     if (s->raoBlackwell && !(s->priorSpreadHard > 0.0 && s->changeSpreadHard > 0.0)) {
-        return "pf_prior_spread_hard (priorSpreadHard) and changeSpreadHard must be > 0 uT when pf_rao_blackwell is 1";
+        return "pf_prior_spread_hard (priorSpreadHard) and pf_change_spread_hard (changeSpreadHard) must be > 0 uT when pf_rao_blackwell is 1";
     }
     return NULL;
 }

@@ -54,6 +54,8 @@ static void ImuPipelinePfSettings(ImuMagPfSettings *pf, const double *a)
     pf->lowThreshold = a[ImuSetPfThresholdLow];
     pf->sphereBins = ImuPipelineInteger(a[ImuSetPfSphereBins]);
     pf->raoBlackwell = ImuPipelineFlag(a[ImuSetPfRaoBlackwell]);
+    pf->minRotation = a[ImuSetPfMinRotation] * (180.0 / IMU_PI);
+    pf->changeSpreadHard = a[ImuSetPfChangeSpreadHard];
 }
 
 /** @brief Unpack a flat settings array (enable_thermal other than 0/1 becomes -1); 0 or -1 on bad size. */

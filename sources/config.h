@@ -81,7 +81,9 @@ typedef enum {
     vr_pf_threshold_low = 62,
     vr_pf_sphere_bins = 63,
     vr_enable_psobp = 64,
-    vr_pf_rao_blackwell = 65
+    vr_pf_rao_blackwell = 65,
+    vr_pf_min_rotation = 66,
+    vr_pf_change_spread_hard = 67
 } ValueReference;
 
 /** Parameters of type Boolean; every other variable is Real (FMI 3: Float64) unless VR_IS_INTEGER. */
@@ -95,6 +97,6 @@ typedef enum {
 #define VR_FIRST_INPUT vr_gyr_x
 #define VR_FIRST_OUTPUT vr_rate_x
 #define VR_FIRST_SETTING vr_declination
-#define VR_COUNT (vr_pf_rao_blackwell + 1)
+#define VR_COUNT (vr_pf_change_spread_hard + 1)
 
 #endif

@@ -58,6 +58,8 @@ SETTINGS = (
     ("pf_sphere_bins", 2.0),          # cells per cube-face side of the direction buffer (0 = off)
     ("enable_psobp", 0.0),            # 1 = PSO-BP network on the gyro bias left by the polynomial
     ("pf_rao_blackwell", 1.0),        # 1 = soft iron integrated out (docs/magpf.md), 0 = the method's 9-state filter
+    ("pf_min_rotation", 0.008726646259971648),  # rad (0.5°), turn of the field direction before a sample counts
+    ("pf_change_spread_hard", 30.0),  # µT, hard-iron prior spread after a change of environment
 )
 
 TRIAD_ORDER = ("gyr", "acc", "mag")
