@@ -22,11 +22,14 @@ static const double ImuMagBinomial[5][5] = {
 static const int ImuMagSoftRow[IMU_MAG_SOFT_COUNT] = {0, 0, 0, 1, 1, 2};
 static const int ImuMagSoftColumn[IMU_MAG_SOFT_COUNT] = {0, 1, 2, 1, 2, 2};
 
-int ImuMagMomentIndex(int a, int b, int c)
-{
-    const int s = a + b + c;
-    return s * (s + 1) * (s + 2) / 6 + (s - a) * (s - a + 1) / 2 + (s - a - b);
-}
+/** ImuMagIndex[a][b][c]: position of u1^a u2^b u3^c in the power sums (s = a + b + c <= 4:
+ *  s(s+1)(s+2)/6 + (s-a)(s-a+1)/2 + (s-a-b); -1 above degree 4). */
+static const signed char ImuMagIndex[5][5][5] = {
+    {{0, 3, 9, 19, 34}, {2, 8, 18, 33, -1}, {7, 17, 32, -1, -1}, {16, 31, -1, -1, -1}, {30, -1, -1, -1, -1}},
+    {{1, 6, 15, 29, -1}, {5, 14, 28, -1, -1}, {13, 27, -1, -1, -1}, {26, -1, -1, -1, -1}, {-1, -1, -1, -1, -1}},
+    {{4, 12, 25, -1, -1}, {11, 24, -1, -1, -1}, {23, -1, -1, -1, -1}, {-1, -1, -1, -1, -1}, {-1, -1, -1, -1, -1}},
+    {{10, 22, -1, -1, -1}, {21, -1, -1, -1, -1}, {-1, -1, -1, -1, -1}, {-1, -1, -1, -1, -1}, {-1, -1, -1, -1, -1}},
+    {{20, -1, -1, -1, -1}, {-1, -1, -1, -1, -1}, {-1, -1, -1, -1, -1}, {-1, -1, -1, -1, -1}, {-1, -1, -1, -1, -1}}};
 
 /** @brief powers[i][k] = v[i]^k for k = 0..4. */
 static void ImuMagPowers(const double v[3], double powers[3][IMU_MAG_MAX_DEGREE + 1])
@@ -48,43 +51,41 @@ void ImuMagMomentsAdd(double sums[IMU_MAG_MOMENT_COUNT], const double u[3])
     for (a = 0; a <= IMU_MAG_MAX_DEGREE; a++) {
         for (b = 0; a + b <= IMU_MAG_MAX_DEGREE; b++) {
             for (c = 0; a + b + c <= IMU_MAG_MAX_DEGREE; c++) {
-                sums[ImuMagMomentIndex(a, b, c)] += powers[0][a] * powers[1][b] * powers[2][c];
+                sums[ImuMagIndex[a][b][c]] += powers[0][a] * powers[1][b] * powers[2][c];
             }
         }
     }
 }
 
-/** @brief sum over samples of (u - p)^(a, b, c) from the power sums (binomial expansion). */
-static double ImuMagShiftOne(const double sums[IMU_MAG_MOMENT_COUNT], double q[3][IMU_MAG_MAX_DEGREE + 1],
-                             int a, int b, int c)
+/** @brief One axis of the shift: out[e] = sum_k C(e_axis, k) q^(e_axis - k) in[e with e_axis = k]. */
+static void ImuMagShiftAxis(const double in[IMU_MAG_MOMENT_COUNT], int axis, const double q[IMU_MAG_MAX_DEGREE + 1],
+                            double out[IMU_MAG_MOMENT_COUNT])
 {
-    double total = 0.0;
-    int x, y, z;
-    for (x = 0; x <= a; x++) {
-        for (y = 0; y <= b; y++) {
-            for (z = 0; z <= c; z++) {
-                total += ImuMagBinomial[a][x] * ImuMagBinomial[b][y] * ImuMagBinomial[c][z] * q[0][a - x] *
-                         q[1][b - y] * q[2][c - z] * sums[ImuMagMomentIndex(x, y, z)];
+    int e[3], k;
+    for (e[0] = 0; e[0] <= IMU_MAG_MAX_DEGREE; e[0]++) {
+        for (e[1] = 0; e[0] + e[1] <= IMU_MAG_MAX_DEGREE; e[1]++) {
+            for (e[2] = 0; e[0] + e[1] + e[2] <= IMU_MAG_MAX_DEGREE; e[2]++) {
+                int source[3] = {e[0], e[1], e[2]};
+                double total = 0.0;
+                for (k = 0; k <= e[axis]; k++) {
+                    source[axis] = k;
+                    total += ImuMagBinomial[e[axis]][k] * q[e[axis] - k] * in[ImuMagIndex[source[0]][source[1]][source[2]]];
+                }
+                out[ImuMagIndex[e[0]][e[1]][e[2]]] = total;
             }
         }
     }
-    return total;
 }
 
 void ImuMagMomentsShift(const double sums[IMU_MAG_MOMENT_COUNT], const double p[3],
                         double shifted[IMU_MAG_MOMENT_COUNT])
 {
     const double minus[3] = {-p[0], -p[1], -p[2]};
-    double q[3][IMU_MAG_MAX_DEGREE + 1];
-    int a, b, c;
+    double q[3][IMU_MAG_MAX_DEGREE + 1], first[IMU_MAG_MOMENT_COUNT], second[IMU_MAG_MOMENT_COUNT];
     ImuMagPowers(minus, q);
-    for (a = 0; a <= IMU_MAG_MAX_DEGREE; a++) {
-        for (b = 0; a + b <= IMU_MAG_MAX_DEGREE; b++) {
-            for (c = 0; a + b + c <= IMU_MAG_MAX_DEGREE; c++) {
-                shifted[ImuMagMomentIndex(a, b, c)] = ImuMagShiftOne(sums, q, a, b, c);
-            }
-        }
-    }
+    ImuMagShiftAxis(sums, 0, q[0], first); /* (u - p)^e expanded one axis at a time */
+    ImuMagShiftAxis(first, 1, q[1], second);
+    ImuMagShiftAxis(second, 2, q[2], shifted);
 }
 
 /** @brief Shifted sum of the product of phi entries i and j (degree 4) or of entry i alone (j < 0). */
@@ -92,10 +93,10 @@ static double ImuMagPhiMoment(const double t[IMU_MAG_MOMENT_COUNT], int i, int j
 {
     const int *e = ImuMagPhiExponent[i];
     if (j < 0) {
-        return t[ImuMagMomentIndex(e[0], e[1], e[2])];
+        return t[ImuMagIndex[e[0]][e[1]][e[2]]];
     }
-    return t[ImuMagMomentIndex(e[0] + ImuMagPhiExponent[j][0], e[1] + ImuMagPhiExponent[j][1],
-                               e[2] + ImuMagPhiExponent[j][2])];
+    return t[ImuMagIndex[e[0] + ImuMagPhiExponent[j][0]][e[1] + ImuMagPhiExponent[j][1]]
+                       [e[2] + ImuMagPhiExponent[j][2]]];
 }
 
 /** @brief Information matrix J = sum phi phi^T / var + I / s^2 and vector eta = sum phi z / var + m0 / s^2

@@ -32,8 +32,6 @@ typedef struct {
     double maxEigen;                   /* 1, largest admissible eigenvalue of I + M */
 } ImuMagMarginalPrior;
 
-/** @brief Index of the monomial u1^a u2^b u3^c (a + b + c <= 4) in the power sums. */
-IMU_HIDDEN int ImuMagMomentIndex(int a, int b, int c);
 /** @brief sums += all monomials of u [uT^k] (one sample). */
 IMU_HIDDEN void ImuMagMomentsAdd(double sums[IMU_MAG_MOMENT_COUNT], const double u[3]);
 /** @brief shifted[k] = sum over samples of the monomials of (u - p), from the power sums of u. */

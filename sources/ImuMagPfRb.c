@@ -253,8 +253,8 @@ static void ImuMagPfRbMove(ImuMagPf *pf, double g, double factor[3][3])
             for (j = 0; j < 3; j++) {
                 proposal[j] = pf->particle[k][j] + factor[j][0] * z[0] + factor[j][1] * z[1] + factor[j][2] * z[2];
             }
-            before = ImuMagPfRbEvaluate(pf, pf->previousMoments, proposal, softBefore);
             now = ImuMagPfRbEvaluate(pf, pf->moments, proposal, soft);
+            before = g < 1.0 ? ImuMagPfRbEvaluate(pf, pf->previousMoments, proposal, softBefore) : now; /* pi_1 = pi_new */
             u = ImuRngUniform(&pf->rng);
             if (!(before > -HUGE_VAL && now > -HUGE_VAL)) {
                 continue;

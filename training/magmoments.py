@@ -79,19 +79,24 @@ def power_sums(samples) -> list[float]:
     return sums
 
 
-def moments_shift(sums, p) -> list[float]:
-    """Sums of the monomials of (u − p) from the power sums of u (binomial expansion)."""
-    q = _powers([-float(p[0]), -float(p[1]), -float(p[2])])
+def _shift_axis(values, axis: int, q) -> list[float]:
+    """One axis of the shift: out[e] = Σ_k C(e_axis, k) q^(e_axis − k) values[e with e_axis = k]."""
     out = [0.0] * MOMENT_COUNT
-    for a, b, c in _exponents():
+    for e in _exponents():
+        source = list(e)
         total = 0.0
-        for x in range(a + 1):
-            for y in range(b + 1):
-                for z in range(c + 1):
-                    total += (BINOMIAL[a][x] * BINOMIAL[b][y] * BINOMIAL[c][z] * q[0][a - x]
-                              * q[1][b - y] * q[2][c - z] * sums[moment_index(x, y, z)])
-        out[moment_index(a, b, c)] = total
+        for k in range(e[axis] + 1):
+            source[axis] = k
+            total += BINOMIAL[e[axis]][k] * q[e[axis] - k] * values[moment_index(*source)]
+        out[moment_index(*e)] = total
     return out
+
+
+def moments_shift(sums, p) -> list[float]:
+    """Sums of the monomials of (u − p) from the power sums of u (binomial expansion, one axis at a
+    time as in the C code)."""
+    q = _powers([-float(p[0]), -float(p[1]), -float(p[2])])
+    return _shift_axis(_shift_axis(_shift_axis(sums, 0, q[0]), 1, q[1]), 2, q[2])
 
 
 def _phi_moment(t, i: int, j: int | None = None) -> float:

@@ -175,8 +175,8 @@ def move(pf, g: float, f) -> None:
             z = [pf.rng.normal(), pf.rng.normal(), pf.rng.normal()]
             proposal = np.array([pf.particle[k, j] + f[j][0] * z[0] + f[j][1] * z[1] + f[j][2] * z[2]
                                  for j in range(3)])
-            before, _ = evaluate(pf, pf.previous_moments, proposal)
             now, soft = evaluate(pf, pf.moments, proposal)
+            before = evaluate(pf, pf.previous_moments, proposal)[0] if g < 1.0 else now   # π_1 = π_new
             u = pf.rng.uniform()
             if not (before > -math.inf and now > -math.inf):
                 continue
