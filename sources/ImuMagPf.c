@@ -492,21 +492,32 @@ void ImuMagPfCloudSigma(const ImuMagPf *pf, double sigma[IMU_MAG_PF_STATE_SIZE])
  *        each roughened particle is a Metropolis proposal accepted with probability
  *        min(1, (p(buffer | x') / p(buffer | x))^alpha) (resample-move), else it keeps x.
  */
-static void ImuMagPfResample(ImuMagPf *pf, double alpha)
+void ImuMagPfSystematicParents(ImuMagPf *pf)
 {
     const int n = pf->settings.particleCount;
     const double start = ImuRngUniform(&pf->rng) / n;
-    double cumulative = pf->weight[0], sigma[IMU_MAG_PF_STATE_SIZE], proposal[IMU_MAG_PF_STATE_SIZE];
-    int i = 0, k, j;
-    ImuMagPfCloudSigma(pf, sigma);
+    double cumulative = pf->weight[0];
+    int i = 0, k;
     for (k = 0; k < n; k++) {
         const double target = start + (double)k / n;
         while (target > cumulative && i < n - 1) {
             i++;
             cumulative += pf->weight[i];
         }
-        memcpy(pf->work.copy[k], pf->particle[i], sizeof(pf->particle[i]));
-        pf->work.logWeight[k] = pf->work.logLikelihood[i];
+        pf->work.parent[k] = i;
+    }
+}
+
+static void ImuMagPfResample(ImuMagPf *pf, double alpha)
+{
+    const int n = pf->settings.particleCount;
+    double sigma[IMU_MAG_PF_STATE_SIZE], proposal[IMU_MAG_PF_STATE_SIZE];
+    int k, j;
+    ImuMagPfCloudSigma(pf, sigma);
+    ImuMagPfSystematicParents(pf);
+    for (k = 0; k < n; k++) {
+        memcpy(pf->work.copy[k], pf->particle[pf->work.parent[k]], sizeof(pf->particle[0]));
+        pf->work.logWeight[k] = pf->work.logLikelihood[pf->work.parent[k]];
     }
     memcpy(pf->particle, pf->work.copy, (size_t)n * sizeof(pf->particle[0]));
     for (k = 0; k < n; k++) {

@@ -169,6 +169,8 @@ IMU_HIDDEN void ImuMagPfDeclareChange(ImuMagPf *pf);
 IMU_HIDDEN int ImuMagPfRotated(const ImuMagPf *pf, const double mag[3]);
 /** @brief Change test on the innovation average; 1 (counters reset, change counted) if a change is declared. */
 IMU_HIDDEN int ImuMagPfChangeDeclared(ImuMagPf *pf);
+/** @brief Systematic resampling indices (one uniform, offsets (U + k)/N) into work.parent. */
+IMU_HIDDEN void ImuMagPfSystematicParents(ImuMagPf *pf);
 /** @brief Effective sample size 1 / sum w^2 of the current weights [particles]. */
 IMU_HIDDEN double ImuMagPfEss(const ImuMagPf *pf);
 /** @brief Weights from the log weights in work.logWeight (max-subtracted, normalised). */

@@ -218,18 +218,12 @@ static void ImuMagPfRbProposal(const ImuMagPf *pf, double factor[3][3])
 static void ImuMagPfRbResample(ImuMagPf *pf)
 {
     const int n = pf->settings.particleCount;
-    const double start = ImuRngUniform(&pf->rng) / n;
-    double cumulative = pf->weight[0];
-    int i = 0, k;
+    int k;
+    ImuMagPfSystematicParents(pf);
     for (k = 0; k < n; k++) {
-        const double target = start + (double)k / n;
-        while (target > cumulative && i < n - 1) {
-            i++;
-            cumulative += pf->weight[i];
-        }
-        memcpy(pf->work.copy[k], pf->particle[i], sizeof(pf->particle[i]));
-        pf->work.logWeight[k] = pf->work.logLikelihood[i];
-        pf->work.logSpare[k] = pf->previousLog[i];
+        memcpy(pf->work.copy[k], pf->particle[pf->work.parent[k]], sizeof(pf->particle[0]));
+        pf->work.logWeight[k] = pf->work.logLikelihood[pf->work.parent[k]];
+        pf->work.logSpare[k] = pf->previousLog[pf->work.parent[k]];
     }
     memcpy(pf->particle, pf->work.copy, (size_t)n * sizeof(pf->particle[0]));
     memcpy(pf->work.logLikelihood, pf->work.logWeight, (size_t)n * sizeof(double));

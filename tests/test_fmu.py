@@ -172,16 +172,22 @@ def test_parameters_cannot_be_set_after_initialisation(trained_fmu):
             fmu.setReal([by_name("field_norm").value_reference], [40.0])
 
 
-def test_fmu_state_restore_continues_identically(trained_fmu):
-    t, raw = synthetic_recording(300)
-    h, k = step_sizes(t, 0.01), 120
-    with initialised_fmu(trained_fmu, t[0], TRAINED_SETTINGS) as fmu:
+def _restore_midway(fmu_path, t, raw, params, k):
+    """(outputs before sample k, outputs after it, outputs after it again from the state saved at k)."""
+    h = step_sizes(t, 0.01)
+    with initialised_fmu(fmu_path, t[0], params) as fmu:
         head = step_samples(fmu, t[:k], raw[:k], h[:k])
         state = fmu.getFMUstate()
         first = step_samples(fmu, t[k:], raw[k:], h[k:])
         fmu.setFMUstate(state)
         second = step_samples(fmu, t[k:], raw[k:], h[k:])
         fmu.freeFMUstate(state)
+    return head, first, second
+
+
+def test_fmu_state_restore_continues_identically(trained_fmu):
+    t, raw = synthetic_recording(300)
+    head, first, second = _restore_midway(trained_fmu, t, raw, TRAINED_SETTINGS, 120)
     np.testing.assert_array_equal(first, second)
     np.testing.assert_array_equal(np.vstack([head, first]),
                                   run_fmu(trained_fmu, t, raw, parameters=TRAINED_SETTINGS))
@@ -196,16 +202,9 @@ def test_particle_filter_in_the_fmu_equals_batch_and_its_state_is_restored(train
     batch_out = run_batch(trained_coefficients(), settings_array(params), t, raw)
     np.testing.assert_allclose(fmu_out, batch_out, rtol=0, atol=GOLDEN_TOLERANCE, equal_nan=True)
     assert np.all(fmu_out[:, OUTPUTS.index("pf_neff")] > 0.0)
-    h, k = step_sizes(t, 0.01), 300
-    with initialised_fmu(trained_fmu, t[0], params) as fmu:
-        step_samples(fmu, t[:k], raw[:k], h[:k])
-        state = fmu.getFMUstate()
-        first = step_samples(fmu, t[k:], raw[k:], h[k:])
-        fmu.setFMUstate(state)
-        second = step_samples(fmu, t[k:], raw[k:], h[k:])
-        fmu.freeFMUstate(state)
+    _, first, second = _restore_midway(trained_fmu, t, raw, params, 300)
     np.testing.assert_array_equal(first, second)
-    np.testing.assert_array_equal(first, fmu_out[k:])
+    np.testing.assert_array_equal(first, fmu_out[300:])
 
 
 def test_serialized_fmu_state_restores_identically(trained_fmu):
