@@ -12,7 +12,8 @@
 #define IMU_MAG_PF_MAX_FIELD_RATIO 20.0   /* samples above 20 |h_0| are absurd (saturation, glitch) */
 #define IMU_MAG_PF_MIN_FIELD_RATIO 1e-3   /* samples below 0.001 |h_0| are dropouts */
 #define IMU_MAG_PF_RESAMPLE_FRACTION (2.0 / 3.0) /* N_eff threshold relative to N (steps 4, 7) */
-#define IMU_MAG_PF_LN2 0.69314718055994531 /* tempering target: N_eff / N >= 1/2 per update */
+#define IMU_MAG_PF_LN2 0.69314718055994531
+#define IMU_MAG_PF_CLIP_FACTOR 2.0    /* normalised innovations enter the change test clipped at 2 x threshold */ /* tempering target: N_eff / N >= 1/2 per update */
 
 /** State index of B[i][j] (soft iron b11 b12 b13 b22 b23 b33 at 3..8). */
 static const int ImuMagPfSoftIndex[3][3] = {{3, 4, 5}, {4, 6, 7}, {5, 7, 8}};
@@ -283,15 +284,31 @@ int ImuMagPfRotated(const ImuMagPf *pf, const double mag[3])
                pf->coefficients.minRotationCosine * norm * last;
 }
 
-void ImuMagPfAdapt(ImuMagPf *pf, const double mag[3], double y)
+double ImuMagPfInnovation(const ImuMagPf *pf, const double mag[3])
 {
     const ImuMagPfCoefficients *c = &pf->coefficients;
-    double e, ratio;
+    const double e = ImuMagPfNormSquared(mag) - c->fieldNormSquared - ImuMagPfObservation(pf->estimate, mag) -
+                     c->observationMean;
+    return 2.0 * c->halfInverseVariance * e * e;
+}
+
+int ImuMagPfOutlier(const ImuMagPf *pf, const double mag[3])
+{
+    const double threshold = pf->settings.changeThreshold;
+    return threshold > 0.0 && pf->changeArmed && ImuMagPfInnovation(pf, mag) > IMU_MAG_PF_OUTLIER_FACTOR * threshold;
+}
+
+void ImuMagPfAdapt(ImuMagPf *pf, const double mag[3])
+{
+    const ImuMagPfCoefficients *c = &pf->coefficients;
+    const double clip = IMU_MAG_PF_CLIP_FACTOR * pf->settings.changeThreshold;
+    double z, ratio;
     if (c->innovationRate <= 0.0) {
         return;
     }
-    e = y - ImuMagPfObservation(pf->estimate, mag) - c->observationMean;
-    pf->innovationAverage += c->innovationRate * (2.0 * c->halfInverseVariance * e * e - pf->innovationAverage);
+    z = ImuMagPfInnovation(pf, mag);
+    z = clip > 0.0 && z > clip ? clip : z; /* one glitch cannot declare a change */
+    pf->innovationAverage += c->innovationRate * (z - pf->innovationAverage);
     ratio = sqrt(pf->innovationAverage);
     pf->inflation = ratio < 1.0 ? 1.0 : (ratio > pf->settings.maxInflation ? pf->settings.maxInflation : ratio);
 }
@@ -553,7 +570,7 @@ static void ImuMagPfNormalise(ImuMagPf *pf)
 int ImuMagPfUpdate(ImuMagPf *pf, const double mag[3])
 {
     const double threshold = IMU_MAG_PF_RESAMPLE_FRACTION * pf->settings.particleCount;
-    double y, alpha;
+    double alpha;
     if (!ImuMagPfIsValidSample(pf, mag)) {
         return 0;
     }
@@ -565,8 +582,7 @@ int ImuMagPfUpdate(ImuMagPf *pf, const double mag[3])
     }
     pf->sampleCounter = 0;
     memcpy(pf->lastUsed, mag, sizeof(pf->lastUsed));
-    y = ImuMagPfNormSquared(mag) - pf->coefficients.fieldNormSquared;
-    ImuMagPfAdapt(pf, mag, y);
+    ImuMagPfAdapt(pf, mag);
     ImuMagPfDetectChange(pf);
     ImuMagPfStore(pf, mag);
     ImuMagPfPredict(pf);

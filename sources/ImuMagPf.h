@@ -27,6 +27,7 @@
 #define IMU_MAG_PF_MAX_TRAINING 64   /* high-weight particles used to train the network */
 #define IMU_MAG_PF_RNG_STREAM 54U    /* PCG32 stream selector of the filter */
 #define IMU_MAG_PF_MAX_BIN_SIDE 4    /* largest sphereBins (cells per cube-face side) */
+#define IMU_MAG_PF_OUTLIER_FACTOR 4.0 /* samples beyond 4 x changeThreshold (normalised innovation^2) are glitches */
 #define IMU_MAG_PF_MAX_BINS (6 * IMU_MAG_PF_MAX_BIN_SIDE * IMU_MAG_PF_MAX_BIN_SIDE) /* 96 */
 
 /** User settings (units in the comments). */
@@ -160,8 +161,13 @@ IMU_HIDDEN double ImuMagPfMoments(const double *values, int n, int stride, doubl
 IMU_HIDDEN void ImuMagPfCloudSigma(const ImuMagPf *pf, double sigma[IMU_MAG_PF_STATE_SIZE]);
 /** @brief Steps 5-6: splitting with network-based diversity restoration (alpha: tempering exponent). */
 IMU_HIDDEN void ImuMagPfSplit(ImuMagPf *pf, double alpha);
-/** @brief Innovation average and noise inflation from one sample mag [uT] with y = |mag|^2 - |h_0|^2. */
-IMU_HIDDEN void ImuMagPfAdapt(ImuMagPf *pf, const double mag[3], double y);
+/** @brief Normalised innovation squared (y - h(x_estimate) - 3 sigma^2)^2 / var of a sample mag [uT]. */
+IMU_HIDDEN double ImuMagPfInnovation(const ImuMagPf *pf, const double mag[3]);
+/** @brief 1 if the change test is armed and the sample's normalised innovation exceeds
+ *         IMU_MAG_PF_OUTLIER_FACTOR x changeThreshold (a glitch: kept out of the power sums). */
+IMU_HIDDEN int ImuMagPfOutlier(const ImuMagPf *pf, const double mag[3]);
+/** @brief Innovation average (inputs clipped at 2 x changeThreshold) and noise inflation from one sample [uT]. */
+IMU_HIDDEN void ImuMagPfAdapt(ImuMagPf *pf, const double mag[3]);
 /** @brief Count a change of environment and restart the innovation average and the change test. */
 IMU_HIDDEN void ImuMagPfDeclareChange(ImuMagPf *pf);
 /** @brief 1 if minRotation is 0 or the direction of mag [uT] is more than minRotation away from the

@@ -295,7 +295,7 @@ int ImuMagPfRbUpdate(ImuMagPf *pf, const double mag[3])
     const ImuMagPfSettings *s = &pf->settings;
     const double u[3] = {mag[0] - s->priorHardIron[0], mag[1] - s->priorHardIron[1], mag[2] - s->priorHardIron[2]};
     int i;
-    if (ImuMagPfRotated(pf, mag)) { /* the power sums take samples that turned by minRotation */
+    if (ImuMagPfRotated(pf, mag) && !ImuMagPfOutlier(pf, mag)) { /* sums: turned by minRotation, no glitch */
         memcpy(pf->lastUsed, mag, sizeof(pf->lastUsed));
         ImuMagMomentsAdd(pf->moments, u);
     }
@@ -303,7 +303,7 @@ int ImuMagPfRbUpdate(ImuMagPf *pf, const double mag[3])
         return 0;
     }
     pf->sampleCounter = 0;
-    ImuMagPfAdapt(pf, mag, mag[0] * mag[0] + mag[1] * mag[1] + mag[2] * mag[2] - pf->coefficients.fieldNormSquared);
+    ImuMagPfAdapt(pf, mag);
     if (ImuMagPfChangeDeclared(pf)) {
         ImuMagPfRbRestart(pf, mag);
     }

@@ -30,6 +30,8 @@ RNG_STREAM = 54              # IMU_MAG_PF_RNG_STREAM
 MAX_FIELD_RATIO = 20.0
 MIN_FIELD_RATIO = 1e-3
 RESAMPLE_FRACTION = 2.0 / 3.0
+CLIP_FACTOR = 2.0            # IMU_MAG_PF_CLIP_FACTOR: change-test inputs clipped at 2 x threshold
+OUTLIER_FACTOR = 4.0         # IMU_MAG_PF_OUTLIER_FACTOR: glitches kept out of the power sums
 HILL_FRACTION = 0.9
 NETWORK_INIT = 0.5
 TINY = 1e-12
@@ -381,12 +383,23 @@ class MagPf:
         return (float(self.s["min_rotation_deg"]) <= 0.0 or last <= 0.0
                 or float(mag @ self.last_used) < self.min_rotation_cos * norm * last)
 
-    def _adapt(self, mag: np.ndarray, y: float) -> None:
+    def _innovation(self, mag: np.ndarray) -> float:
+        """Normalised innovation squared of a sample against the estimate (ImuMagPfInnovation)."""
+        norm_sq = float(mag[0] * mag[0] + mag[1] * mag[1] + mag[2] * mag[2])
+        e = norm_sq - self.field_sq - float(observation(self.estimate, mag)) - self.obs_mean
+        return 2.0 * self.half_inv_var * e * e
+
+    def _outlier(self, mag: np.ndarray) -> bool:
+        threshold = float(self.s["change_threshold"])
+        return threshold > 0.0 and self.change_armed and self._innovation(mag) > OUTLIER_FACTOR * threshold
+
+    def _adapt(self, mag: np.ndarray) -> None:
         if self.innovation_rate <= 0.0:
             return
-        e = y - float(observation(self.estimate, mag)) - self.obs_mean
-        self.innovation_average += self.innovation_rate * (
-            2.0 * self.half_inv_var * e * e - self.innovation_average)
+        clip = CLIP_FACTOR * float(self.s["change_threshold"])
+        z = self._innovation(mag)
+        z = clip if clip > 0.0 and z > clip else z
+        self.innovation_average += self.innovation_rate * (z - self.innovation_average)
         self.inflation = min(max(math.sqrt(self.innovation_average), 1.0),
                              float(self.s["max_inflation"]))
 
@@ -480,8 +493,7 @@ class MagPf:
             return False
         self.counter = 0
         self.last_used = mag.copy()
-        y = float(mag @ mag) - self.field_sq
-        self._adapt(mag, y)
+        self._adapt(mag)
         self._detect_change()
         self._store(mag)
         self.particle = self.particle + self.inflation * self.q * self.rng.normals(

@@ -219,14 +219,14 @@ def bridge(pf) -> None:
 
 def update(pf, mag: np.ndarray) -> bool:
     """One valid sample [µT] (ImuMagPfRbUpdate); True if the particles were updated."""
-    if pf._rotated(mag):
+    if pf._rotated(mag) and not pf._outlier(mag):
         pf.last_used = mag.copy()
         mm.moments_add(pf.moments, mag - _reference(pf))
     pf.counter += 1
     if pf.counter < int(pf.s["decimation"]):
         return False
     pf.counter = 0
-    pf._adapt(mag, float(mag[0] * mag[0] + mag[1] * mag[1] + mag[2] * mag[2]) - pf.field_sq)
+    pf._adapt(mag)
     if pf._change_declared():
         restart(pf, mag)
     if not weigh_new(pf):
