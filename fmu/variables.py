@@ -151,6 +151,10 @@ VARIABLES: tuple[Variable, ...] = (
                "filter uses a sample (thins samples at rest)", _DEFAULTS["pf_min_rotation"], "deg"),
     _parameter("pf_change_spread_hard", 67, "uT", "Prior standard deviation of the hard iron around the estimate "
                "after a declared change of environment", _DEFAULTS["pf_change_spread_hard"]),
+    _parameter("pf_hold_prior", 68, None, "Particle filter holds the prior (trained) calibration until the first "
+               "declared change of environment", bool(_DEFAULTS["pf_hold_prior"]), type_="Boolean"),
+    _parameter("pf_settle_spread", 69, "uT", "The attitude filter ignores the magnetometer while the particle "
+               "filter's hard-iron standard deviation exceeds this (0: never)", _DEFAULTS["pf_settle_spread"]),
 )
 
 

@@ -9,7 +9,8 @@
  *  18 innovationTimeConstant [updates], 19 maxInflation, 20 decimation, 21 hiddenUnits,
  *  22 trainingEpochs, 23 learningRate, 24 maxTries, 25 enableSplitting, 26 seed, 27 fieldNorm [uT],
  *  28 minRotation [deg], 29 sphereBins, 30 changeThreshold, 31 changeSpreadHard [uT],
- *  32 changeSpreadSoft, 33 enableMove.
+ *  32 changeSpreadSoft, 33 enableMove, 34 raoBlackwell, 35 holdPrior, 36 normTimeConstant [updates],
+ *  37 settleSpread [uT].
  * Outputs per sample (14): compensated field [uT] (3), hard iron [uT] (3), soft iron b11 b12 b13
  * b22 b23 b33 (6), N_eff (1), changes declared so far (1).
  */
@@ -17,7 +18,7 @@
 #include <stddef.h>
 #include "ImuMagPf.h"
 
-#define IMU_BATCH_MAG_PF_SETTINGS 35
+#define IMU_BATCH_MAG_PF_SETTINGS 38
 #define IMU_BATCH_MAG_PF_OUTPUTS 14
 #define IMU_BATCH_MAG_PF_MAX_SEED 9007199254740992.0 /* 2^53: seeds are exact integers as double */
 
@@ -38,16 +39,16 @@ static int ImuBatchMagPfUnpack(ImuMagPfSettings *s, const double *a, size_t n, c
 {
     int j;
     if (a == NULL || n != IMU_BATCH_MAG_PF_SETTINGS) {
-        *message = "settings array is NULL or not of length 35";
+        *message = "settings array is NULL or not of length 38";
         return -1;
     }
     if (!ImuBatchMagPfIsInteger(a[0], 0.0, 1e6) || !ImuBatchMagPfIsInteger(a[20], 0.0, 1e6) ||
         !ImuBatchMagPfIsInteger(a[21], 0.0, 1e6) || !ImuBatchMagPfIsInteger(a[22], 0.0, 1e6) ||
         !ImuBatchMagPfIsInteger(a[24], 0.0, 1e6) || !ImuBatchMagPfIsInteger(a[25], 0.0, 1e6) ||
         !ImuBatchMagPfIsInteger(a[29], 0.0, 1e6) || !ImuBatchMagPfIsInteger(a[33], 0.0, 1e6) ||
-        !ImuBatchMagPfIsInteger(a[34], 0.0, 1e6)) {
+        !ImuBatchMagPfIsInteger(a[34], 0.0, 1e6) || !ImuBatchMagPfIsInteger(a[35], 0.0, 1e6)) {
         *message = "particleCount, decimation, hiddenUnits, trainingEpochs, maxTries, enableSplitting, "
-                   "sphereBins, enableMove and raoBlackwell must be non-negative integers";
+                   "sphereBins, enableMove, raoBlackwell and holdPrior must be non-negative integers";
         return -1;
     }
     if (!ImuBatchMagPfIsInteger(a[26], 0.0, IMU_BATCH_MAG_PF_MAX_SEED)) {
@@ -86,6 +87,9 @@ static int ImuBatchMagPfUnpack(ImuMagPfSettings *s, const double *a, size_t n, c
     s->changeSpreadSoft = a[32];
     s->enableMove = (int)a[33];
     s->raoBlackwell = (int)a[34];
+    s->holdPrior = (int)a[35];
+    s->normTimeConstant = a[36];
+    s->settleSpread = a[37];
     return 0;
 }
 

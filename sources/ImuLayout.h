@@ -70,6 +70,8 @@ typedef enum {
     ImuSetPfRaoBlackwell,    /* 0 or 1 */
     ImuSetPfMinRotation,     /* rad */
     ImuSetPfChangeSpreadHard, /* uT */
+    ImuSetPfHoldPrior,       /* 0 or 1 */
+    ImuSetPfSettleSpread,    /* uT */
     IMU_SETTING_COUNT
 } ImuSetting;
 

@@ -52,6 +52,9 @@ void ImuMagPfSettingsDefault(ImuMagPfSettings *settings, double fieldNorm)
     settings->changeSpreadHard = 30.0;
     settings->changeSpreadSoft = 0.01;
     settings->raoBlackwell = 1;
+    settings->holdPrior = 1;
+    settings->normTimeConstant = 300.0;
+    settings->settleSpread = 1.0;
     settings->seed = 1U;
     settings->fieldNorm = fieldNorm;
 }
@@ -89,6 +92,9 @@ static const char *ImuMagPfCheckCounts(const ImuMagPfSettings *s)
     }
     if (s->raoBlackwell != 0 && s->raoBlackwell != 1) {
         return "pf_rao_blackwell (raoBlackwell) must be 0 or 1";
+    }
+    if (s->holdPrior != 0 && s->holdPrior != 1) {
+        return "pf_hold_prior (holdPrior) must be 0 or 1";
     }
     if (s->sphereBins < 0 || s->sphereBins > IMU_MAG_PF_MAX_BIN_SIDE) {
         return "pf_sphere_bins (sphereBins) must be in 0.." IMU_MAG_PF_STRING(IMU_MAG_PF_MAX_BIN_SIDE) " (IMU_MAG_PF_MAX_BIN_SIDE)";
@@ -140,6 +146,12 @@ static const char *ImuMagPfCheckValues(const ImuMagPfSettings *s)
     }
     if (!(s->changeSpreadSoft >= 0.0 && s->changeSpreadSoft <= 1.0)) {
         return "changeSpreadSoft must be in [0, 1]";
+    }
+    if (!(s->settleSpread >= 0.0 && s->settleSpread <= 1e4)) {
+        return "pf_settle_spread (settleSpread) must be in [0, 1e4] uT (0: always settled)";
+    }
+    if (!(s->normTimeConstant >= 0.0 && s->normTimeConstant <= 1e6)) {
+        return "normTimeConstant must be in [0, 1e6] updates (0: off)";
     }
     if (!(s->fieldNorm > 0.0 && s->fieldNorm <= 1e4)) {
         return "fieldNorm must be in (0, 1e4] uT";
@@ -196,7 +208,22 @@ int ImuMagPfInitialise(ImuMagPf *pf, const ImuMagPfSettings *settings)
     return 0;
 }
 
-/** @brief Weighted mean of the particles into pf->estimate. */
+void ImuMagPfHardSpread(ImuMagPf *pf)
+{
+    double largest = 0.0;
+    int i, j;
+    for (j = 0; j < 3; j++) {
+        double variance = 0.0;
+        for (i = 0; i < pf->settings.particleCount; i++) {
+            const double d = pf->particle[i][j] - pf->estimate[j];
+            variance += pf->weight[i] * d * d;
+        }
+        largest = variance > largest ? variance : largest;
+    }
+    pf->hardSpread = sqrt(largest);
+}
+
+/** @brief Weighted mean of the particles into pf->estimate, and the hard-iron spread. */
 static void ImuMagPfEstimate(ImuMagPf *pf)
 {
     int i, j;
@@ -208,6 +235,7 @@ static void ImuMagPfEstimate(ImuMagPf *pf)
             pf->estimate[j] += pf->weight[i] * pf->particle[i][j];
         }
     }
+    ImuMagPfHardSpread(pf);
 }
 
 /** @brief Reseed the generator and draw the prior particles (weights 1/N). */
@@ -227,6 +255,8 @@ void ImuMagPfReset(ImuMagPf *pf)
     pf->updatesSinceChange = 0;
     pf->changeArmed = 0;
     pf->changeCount = 0;
+    pf->frozen = 0;
+    pf->residualMean = 0.0;
     if (s->raoBlackwell) {
         ImuMagPfRbReset(pf);
         return;
@@ -284,12 +314,17 @@ int ImuMagPfRotated(const ImuMagPf *pf, const double mag[3])
                pf->coefficients.minRotationCosine * norm * last;
 }
 
-double ImuMagPfInnovation(const ImuMagPf *pf, const double mag[3])
+/** @brief Residual e = |h_m|^2 - |h_0|^2 - h(x) - mean of the observation noise [uT^2] of the estimate. */
+static double ImuMagPfResidual(const ImuMagPf *pf, const double mag[3])
 {
     const ImuMagPfCoefficients *c = &pf->coefficients;
-    const double e = ImuMagPfNormSquared(mag) - c->fieldNormSquared - ImuMagPfObservation(pf->estimate, mag) -
-                     c->observationMean;
-    return 2.0 * c->halfInverseVariance * e * e;
+    return ImuMagPfNormSquared(mag) - c->fieldNormSquared - ImuMagPfObservation(pf->estimate, mag) - c->observationMean;
+}
+
+double ImuMagPfInnovation(const ImuMagPf *pf, const double mag[3])
+{
+    const double e = ImuMagPfResidual(pf, mag) - pf->residualMean;
+    return 2.0 * pf->coefficients.halfInverseVariance * e * e;
 }
 
 int ImuMagPfOutlier(const ImuMagPf *pf, const double mag[3])
@@ -308,6 +343,9 @@ void ImuMagPfAdapt(ImuMagPf *pf, const double mag[3])
     }
     z = ImuMagPfInnovation(pf, mag);
     z = clip > 0.0 && z > clip ? clip : z; /* one glitch cannot declare a change */
+    if (pf->settings.normTimeConstant > 0.0) { /* an ambient norm offset is not a change of the carrier */
+        pf->residualMean += (ImuMagPfResidual(pf, mag) - pf->residualMean) / pf->settings.normTimeConstant;
+    }
     pf->innovationAverage += c->innovationRate * (z - pf->innovationAverage);
     ratio = sqrt(pf->innovationAverage);
     pf->inflation = ratio < 1.0 ? 1.0 : (ratio > pf->settings.maxInflation ? pf->settings.maxInflation : ratio);
@@ -426,6 +464,7 @@ void ImuMagPfDeclareChange(ImuMagPf *pf)
     pf->updatesSinceChange = 0;
     pf->changeArmed = 0;
     pf->changeCount++;
+    pf->residualMean = 0.0;
 }
 
 /** Change test: armed once the innovation average is below changeThreshold after
@@ -604,6 +643,11 @@ int ImuMagPfUpdate(ImuMagPf *pf, const double mag[3])
 void ImuMagPfCompensate(const ImuMagPf *pf, const double mag[3], double out[3])
 {
     ImuMagPfApply(pf->estimate, mag, out);
+}
+
+int ImuMagPfSettled(const ImuMagPf *pf)
+{
+    return pf->frozen || pf->settings.settleSpread <= 0.0 || pf->hardSpread < pf->settings.settleSpread;
 }
 
 /** @brief Hard-iron estimate h_p [uT]. */

@@ -57,6 +57,9 @@ typedef struct {
     double changeThreshold;        /* 1, averaged normalised innovation declaring a change; 0: off, else [2, 1e6] */
     double changeSpreadHard;       /* uT, sigma of h_p drawn around the estimate after a change, >= 0 */
     double changeSpreadSoft;       /* 1, sigma of b_ij drawn around the estimate after a change, >= 0 */
+    double normTimeConstant;       /* updates, mean of the residual removed from the change test; 0: off */
+    double settleSpread;           /* uT, the estimate counts as settled while the hard-iron cloud sigma is below it; 0: always */
+    int holdPrior;                 /* 1: mode 1 holds the prior calibration until the first declared change; 0: adapts from the start */
     int raoBlackwell;              /* 1: hard iron sampled, soft iron integrated out (ImuMagPfRb.c); 0: the method's 9-state filter */
     uint64_t seed;                 /* PCG32 initial state */
     double fieldNorm;              /* uT, |h_0| of the undisturbed field, > 0 */
@@ -121,6 +124,9 @@ typedef struct {
     int updatesSinceChange;        /* filter updates since the reset or the last declared change */
     int changeArmed;               /* 1 once the innovation average fell below changeThreshold */
     int changeCount;               /* changes of environment declared since the reset */
+    double residualMean;           /* uT^2, averaged residual of the estimate (normTimeConstant) */
+    double hardSpread;             /* uT, largest weighted sigma of the hard-iron components of the cloud */
+    int frozen;                    /* 1 while the prior calibration is held (holdPrior, no change declared yet) */
     /* Rao-Blackwellised mode only (particle[i] = [h_p (3) uT, m (6) posterior mean of M given h_p]) */
     double moments[IMU_MAG_MOMENT_COUNT];         /* power sums of mag - priorHardIron since the reset or change */
     double previousMoments[IMU_MAG_MOMENT_COUNT]; /* the sums at the previous filter update */
@@ -149,6 +155,10 @@ IMU_HIDDEN void ImuMagPfGetSoftIron(const ImuMagPf *pf, double softIron[6]);
 IMU_HIDDEN void ImuMagPfGetSoftIronMatrix(const ImuMagPf *pf, double matrix[9]);
 /** @brief Effective sample size 1 / sum w^2 after the last update [particles]. */
 IMU_HIDDEN double ImuMagPfGetEffectiveSampleSize(const ImuMagPf *pf);
+/** @brief pf->hardSpread from the particles, their weights and the estimate. */
+IMU_HIDDEN void ImuMagPfHardSpread(ImuMagPf *pf);
+/** @brief 1 while the prior calibration is held or the hard-iron cloud sigma is below settleSpread (or that is 0). */
+IMU_HIDDEN int ImuMagPfSettled(const ImuMagPf *pf);
 /** @brief Number of changes of environment declared since the reset. */
 IMU_HIDDEN int ImuMagPfGetChangeCount(const ImuMagPf *pf);
 /** @brief Observation function h(x) [uT^2] of one state x (hard [uT], soft [1]) at field mag [uT]. */

@@ -88,6 +88,7 @@ static void ImuMagPfRbEstimate(ImuMagPf *pf)
         }
     }
     ImuMagSoftFromQuadratic(m, pf->estimate + 3);
+    ImuMagPfHardSpread(pf);
 }
 
 void ImuMagPfRbReset(ImuMagPf *pf)
@@ -100,6 +101,12 @@ void ImuMagPfRbReset(ImuMagPf *pf)
     ImuMagPfRbSetPrior(pf, s->priorHardIron, s->priorSpreadHard, softMean, 2.0 * s->priorSpreadSoft);
     ImuMagPfRbDraw(pf, s->priorHardIron, s->priorSpreadHard);
     ImuMagPfRbEstimate(pf);
+    pf->frozen = s->holdPrior;
+    pf->changeArmed = pf->frozen; /* the held calibration is the baseline: a prior the data contradict is a change */
+    if (pf->frozen) { /* the held calibration is the prior itself, not the mean of its draw */
+        memcpy(pf->estimate, s->priorHardIron, sizeof(s->priorHardIron));
+        memcpy(pf->estimate + 3, s->priorSoftIron, sizeof(s->priorSoftIron));
+    }
 }
 
 /** @brief New segment after a change: sums restart at the current sample, priors around the estimate. */
@@ -295,7 +302,7 @@ int ImuMagPfRbUpdate(ImuMagPf *pf, const double mag[3])
     const ImuMagPfSettings *s = &pf->settings;
     const double u[3] = {mag[0] - s->priorHardIron[0], mag[1] - s->priorHardIron[1], mag[2] - s->priorHardIron[2]};
     int i;
-    if (ImuMagPfRotated(pf, mag) && !ImuMagPfOutlier(pf, mag)) { /* sums: turned by minRotation, no glitch */
+    if (!pf->frozen && ImuMagPfRotated(pf, mag) && !ImuMagPfOutlier(pf, mag)) { /* sums: turned by minRotation, no glitch */
         memcpy(pf->lastUsed, mag, sizeof(pf->lastUsed));
         ImuMagMomentsAdd(pf->moments, u);
     }
@@ -305,7 +312,10 @@ int ImuMagPfRbUpdate(ImuMagPf *pf, const double mag[3])
     pf->sampleCounter = 0;
     ImuMagPfAdapt(pf, mag);
     if (ImuMagPfChangeDeclared(pf)) {
+        pf->frozen = 0;
         ImuMagPfRbRestart(pf, mag);
+    } else if (pf->frozen) {
+        return 0;
     }
     if (!ImuMagPfRbWeighNew(pf)) { /* no admissible particle left: a change the test did not see */
         ImuMagPfDeclareChange(pf);

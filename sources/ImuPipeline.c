@@ -56,6 +56,8 @@ static void ImuPipelinePfSettings(ImuMagPfSettings *pf, const double *a)
     pf->raoBlackwell = ImuPipelineFlag(a[ImuSetPfRaoBlackwell]);
     pf->minRotation = a[ImuSetPfMinRotation] * (180.0 / IMU_PI);
     pf->changeSpreadHard = a[ImuSetPfChangeSpreadHard];
+    pf->holdPrior = ImuPipelineFlag(a[ImuSetPfHoldPrior]);
+    pf->settleSpread = a[ImuSetPfSettleSpread];
 }
 
 /** @brief Unpack a flat settings array (enable_thermal other than 0/1 becomes -1); 0 or -1 on bad size. */
@@ -252,6 +254,14 @@ static void ImuPipelineMagPf(ImuPipeline *p, double out[IMU_OUTPUT_COUNT])
     out[ImuOutPfNeff] = ImuMagPfGetEffectiveSampleSize(&p->pf);
 }
 
+/** @brief The field the attitude filter may use: out[field], or NaN while the particle filter has not
+ *         settled after a change (its estimate is still wide). */
+static const double *ImuPipelineHeadingField(const ImuPipeline *p, const double out[IMU_OUTPUT_COUNT])
+{
+    static const double unsettled[3] = {NAN, NAN, NAN};
+    return p->settings.enablePf && !ImuMagPfSettled(&p->pf) ? unsettled : &out[ImuOutFieldX];
+}
+
 /** @brief Process one sample at time t [s]: raw inputs in (ImuLayout.h units) -> outputs out. */
 void ImuPipelineUpdate(ImuPipeline *p, double t, const double in[IMU_INPUT_COUNT],
                        double out[IMU_OUTPUT_COUNT])
@@ -268,7 +278,7 @@ void ImuPipelineUpdate(ImuPipeline *p, double t, const double in[IMU_INPUT_COUNT
     if (p->settings.enableElm) {
         ImuElmApply(&p->coefficients.elm, &out[ImuOutFieldX], &out[ImuOutFieldX]);
     }
-    ImuAttitudeUpdate(&p->attitude, &out[ImuOutRateX], &out[ImuOutAccelX], &out[ImuOutFieldX], dt);
+    ImuAttitudeUpdate(&p->attitude, &out[ImuOutRateX], &out[ImuOutAccelX], ImuPipelineHeadingField(p, out), dt);
     ImuAttitudeGetEuler(&p->attitude, &out[ImuOutRoll]);
     out[ImuOutHeading] = ImuWrapAngle(out[ImuOutYaw] + p->settings.declination);
     ImuAttitudeGetQuaternion(&p->attitude, &out[ImuOutQw]);

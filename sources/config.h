@@ -83,11 +83,13 @@ typedef enum {
     vr_enable_psobp = 64,
     vr_pf_rao_blackwell = 65,
     vr_pf_min_rotation = 66,
-    vr_pf_change_spread_hard = 67
+    vr_pf_change_spread_hard = 67,
+    vr_pf_hold_prior = 68,
+    vr_pf_settle_spread = 69
 } ValueReference;
 
 /** Parameters of type Boolean; every other variable is Real (FMI 3: Float64) unless VR_IS_INTEGER. */
-#define VR_IS_BOOLEAN(vr) ((vr) == vr_enable_thermal || (vr) == vr_enable_elm || (vr) == vr_enable_pf || (vr) == vr_enable_psobp || (vr) == vr_pf_rao_blackwell)
+#define VR_IS_BOOLEAN(vr) ((vr) == vr_enable_thermal || (vr) == vr_enable_elm || (vr) == vr_enable_pf || (vr) == vr_enable_psobp || (vr) == vr_pf_rao_blackwell || (vr) == vr_pf_hold_prior)
 /** Parameters of type Integer (FMI 3: Int32), stored as whole numbers in the settings array. */
 #define VR_IS_INTEGER(vr) ((vr) == vr_pf_particles || (vr) == vr_pf_decimation || (vr) == vr_pf_seed || (vr) == vr_pf_sphere_bins)
 
@@ -97,6 +99,6 @@ typedef enum {
 #define VR_FIRST_INPUT vr_gyr_x
 #define VR_FIRST_OUTPUT vr_rate_x
 #define VR_FIRST_SETTING vr_declination
-#define VR_COUNT (vr_pf_change_spread_hard + 1)
+#define VR_COUNT (vr_pf_settle_spread + 1)
 
 #endif

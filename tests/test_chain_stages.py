@@ -14,6 +14,9 @@ SCENARIOS = layout.__file__.rsplit("/training/", 1)[0] + "/scenarios"
 #: change leaves (the filter's own acceptance study is docs/magpf.md; this pins that the chain
 #: feeds it and uses its estimate).
 PF_MIN_GAIN = 0.5
+#: An update every 16th sample: in the first 0.5 s the filter has made a handful of updates, far
+#: too few to bring a 20 µT prior cloud below 1 µT.
+SETTLE_WINDOW_S = 0.5
 
 
 def _truth_calibrated_coefficients(data):
@@ -44,6 +47,18 @@ def test_particle_filter_stage_estimates_the_hard_iron(tumbling):
     before = compute_metrics(off, tumbling).field_ut
     after = compute_metrics(on[len(on) // 2:], tumbling.slice(slice(len(on) // 2, None))).field_ut
     assert after < PF_MIN_GAIN * before, (before, after)
+
+
+def test_heading_ignores_the_field_until_the_particle_filter_settles(tumbling):
+    # From a wide prior (20 µT, nothing held) the hard-iron cloud needs several updates to shrink
+    # below pf_settle_spread = 1 µT: until then the attitude filter must not take a heading from
+    # the half-calibrated field (its yaw gain stays 0); with the gate off it uses the field at once.
+    wide = dict(enable_pf=1.0, pf_prior_spread_hard=20.0, pf_measurement_noise=0.5, pf_hold_prior=0.0)
+    gated, open_ = _run(tumbling, **wide), _run(tumbling, **wide, pf_settle_spread=0.0)
+    yaw_gain = layout.OUTPUTS.index("gain_yaw")
+    first = slice(0, int(SETTLE_WINDOW_S / np.median(np.diff(tumbling.t))))
+    assert np.all(gated[first, yaw_gain] == 0.0) and np.any(open_[first, yaw_gain] > 0.0)
+    assert np.any(gated[len(gated) // 2:, yaw_gain] > 0.0)
 
 
 @pytest.mark.parametrize("name, value, word", [

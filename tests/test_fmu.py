@@ -197,7 +197,7 @@ def test_particle_filter_in_the_fmu_equals_batch_and_its_state_is_restored(train
     # The filter (particles, power sums, generator) is part of the FMU state: a restore in the
     # middle of the run continues bit-identically, and the FMU equals the batch runtime.
     t, raw = synthetic_recording(600)
-    params = {**TRAINED_SETTINGS, "enable_pf": True, "pf_decimation": 4}
+    params = {**TRAINED_SETTINGS, "enable_pf": True, "pf_decimation": 4, "pf_hold_prior": False}
     fmu_out = run_fmu(trained_fmu, t, raw, parameters=params)
     batch_out = run_batch(trained_coefficients(), settings_array(params), t, raw)
     np.testing.assert_allclose(fmu_out, batch_out, rtol=0, atol=GOLDEN_TOLERANCE, equal_nan=True)

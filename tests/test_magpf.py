@@ -35,6 +35,11 @@ MOMENTS_RTOL = 1e-9
 # parameters to ~0.01 µT; 0.05 µT / 0.001 leave margin.
 ELLIPSOID_OFFSET_BOUND_UT = 0.05
 ELLIPSOID_MATRIX_BOUND = 1e-3
+# Held calibration: the jump test of the acceptance on 5 seeds (the 20-seed table is in docs/magpf.md).
+HELD_SEEDS = 5
+# Ambient field growth that the change test must not take for a change of the carrier: 4 % of
+# |h_0| makes the normalised residual ~(2·60·2.4/36)² ≈ 64, far above the threshold 25.
+AMBIENT_GROWTH = 0.04
 
 
 def test_pcg32_reference_values_python_and_c():
@@ -110,13 +115,16 @@ def test_c_equals_numpy_twin_first_updates(splitting, move, bins):
         np.testing.assert_allclose(a, b, rtol=TWIN_RTOL, atol=TWIN_RTOL * 60.0)
 
 
-@pytest.mark.parametrize("move, jump", [(1, None), (0, None), (1, 1.5)])
-def test_c_equals_numpy_twin_rao_blackwell(move, jump):
+@pytest.mark.parametrize("move, jump, prior", [(1, None, "zero"), (0, None, "zero"), (1, 1.5, "zero"),
+                                               (1, None, "held")])
+def test_c_equals_numpy_twin_rao_blackwell(move, jump, prior):
     # 16 particles, an update every 4th sample: ~75 updates with bridging, resampling, moves and
-    # (jump) a declared change of environment; the twin follows the C code operation by operation.
+    # (jump) a declared change of environment; "held": the default prior (3 µT around zero) is
+    # held until the data contradict it, then a change restarts the filter. The twin follows the
+    # C code operation by operation.
     d = magpf.simulate_tumbling(6, duration_s=3.0, jump_at_s=jump)
     s = magpf.settings(60.0, particle_count=16, seed=9, decimation=4, enable_move=move,
-                       **magpf.zero_prior(60.0))
+                       **(magpf.zero_prior(60.0) if prior == "zero" else {}))
     c, py = magpf.run_c(d.mag, s), magpf.run_python(d.mag, s)
     for a, b in ((c.hard_iron, py.hard_iron), (c.soft_iron, py.soft_iron), (c.neff, py.neff),
                  (c.compensated, py.compensated), (c.changes, py.changes)):
@@ -194,9 +202,51 @@ def test_a_burst_of_glitches_neither_declares_a_change_nor_moves_the_estimate():
 
 def test_identity_estimate_stays_near_zero():
     d = magpf.simulate_tumbling(1, duration_s=20.0, hard_iron=(0, 0, 0), soft_iron=(0,) * 6)
-    r = magpf.run_c(d.mag, magpf.settings(60.0, prior_spread_hard_ut=2.0, prior_spread_soft=0.01))
+    r = magpf.run_c(d.mag, magpf.settings(60.0, prior_spread_hard_ut=2.0, prior_spread_soft=0.01, hold_prior=0))
     assert np.abs(r.hard_iron[-500:]).max() < IDENTITY_HARD_BOUND_UT
     assert np.abs(r.soft_iron[-500:]).max() < IDENTITY_SOFT_BOUND
+
+
+def test_held_calibration_is_exact_until_a_hard_iron_jump_then_reconverges():
+    # A trained calibration (the truth, 0.5 µT / 0.005) is held bit for bit — no particle-mean
+    # jitter — until a 20 µT hard-iron jump at 30 s is declared; 30 s later the bounds hold.
+    for seed in range(HELD_SEEDS):
+        d = magpf.simulate_tumbling(seed, jump_at_s=30.0)
+        r = magpf.run_c(d.mag, magpf.settings(60.0, seed=seed, **magpf.trained_prior(d.hard_iron[0], d.soft_iron[0])))
+        before = slice(0, int(30.0 * d.rate_hz))
+        assert np.all(r.hard_iron[before] == d.hard_iron[0]) and np.all(r.soft_iron[before] == d.soft_iron[0])
+        assert r.changes[before.stop - 1] == 0 and r.changes[-1] >= 1
+        hard, norm = _acceptance_figures(d, r)
+        assert hard <= ACCEPTANCE_HARD_UT and norm <= ACCEPTANCE_NORM_PERCENT, (seed, hard, norm)
+
+
+def test_a_held_calibration_the_data_contradict_from_the_start_is_a_change():
+    # The default prior (3 µT around zero) on a sensor with a [30, 40, 20] µT hard iron: the held
+    # calibration is the change test's baseline from the first update, so the mismatch is declared
+    # at once and the filter converges to the bounds by the end of 60 s.
+    d = magpf.simulate_tumbling(3)
+    r = magpf.run_c(d.mag, magpf.settings(60.0, seed=3))
+    assert r.changes[int(5.0 * d.rate_hz)] >= 1
+    hard, norm = _acceptance_figures(d, r)
+    assert hard <= ACCEPTANCE_HARD_UT and norm <= ACCEPTANCE_NORM_PERCENT
+
+
+def test_an_ambient_norm_drift_is_not_a_change_of_the_carrier():
+    # The field around a calibrated sensor grows by 4 % over 40 s (walking into a stronger field):
+    # the residual is then the same at every orientation, and its running mean (norm time constant
+    # 300 updates = 12 s here) keeps it out of the change test; without that a change is declared.
+    # A 3 µT hard-iron step (residual 2 h_p·h, orientation-dependent) is still declared.
+    d = magpf.simulate_tumbling(0)
+    inv = np.linalg.inv(np.eye(3) + magpf.soft_matrix(d.soft_iron[0]))
+    noise = d.mag - (d.truth @ inv.T + d.hard_iron)
+    t = np.arange(len(d.mag)) / d.rate_hz
+    grow = 1.0 + AMBIENT_GROWTH * np.clip((t - 10.0) / 40.0, 0.0, 1.0)
+    drifting = (d.truth * grow[:, None]) @ inv.T + d.hard_iron + noise
+    stepped = d.mag + np.where(t[:, None] >= 30.0, [3.0, 0.0, 0.0], 0.0)
+    s = magpf.settings(60.0, seed=0, decimation=4, **magpf.trained_prior(d.hard_iron[0], d.soft_iron[0]))
+    assert magpf.run_c(drifting, s).changes[-1] == 0
+    assert magpf.run_c(drifting, {**s, "norm_time_constant": 0.0}).changes[-1] >= 1
+    assert magpf.run_c(stepped, s).changes[-1] >= 1
 
 
 def test_deterministic_and_seed_dependent():
@@ -232,6 +282,9 @@ def test_invalid_samples_are_skipped():
     ({"change_threshold": 1.0}, "changeThreshold"),
     ({"enable_move": 2}, "enableMove"),
     ({"rao_blackwell": 2}, "raoBlackwell"),
+    ({"hold_prior": 2}, "holdPrior"),
+    ({"settle_spread_ut": -1.0}, "settleSpread"),
+    ({"norm_time_constant": -1.0}, "normTimeConstant"),
     ({"prior_spread_hard_ut": 0.0}, "priorSpreadHard"),
 ])
 def test_invalid_settings_rejected_with_message(override, word):

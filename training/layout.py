@@ -60,6 +60,8 @@ SETTINGS = (
     ("pf_rao_blackwell", 1.0),        # 1 = soft iron integrated out (docs/magpf.md), 0 = the method's 9-state filter
     ("pf_min_rotation", 0.008726646259971648),  # rad (0.5°), turn of the field direction before a sample counts
     ("pf_change_spread_hard", 30.0),  # µT, hard-iron prior spread after a change of environment
+    ("pf_hold_prior", 1.0),           # 1 = the prior calibration is held until the first declared change
+    ("pf_settle_spread", 1.0),        # µT, the attitude filter ignores the field while the hard-iron cloud sigma exceeds it (0 = never)
 )
 
 TRIAD_ORDER = ("gyr", "acc", "mag")

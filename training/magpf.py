@@ -78,6 +78,9 @@ SETTINGS = (
     ("change_spread_soft", "1", 0.01),
     ("enable_move", "0/1", 1),
     ("rao_blackwell", "0/1", 1),
+    ("hold_prior", "0/1", 1),
+    ("norm_time_constant", "updates", 300.0),
+    ("settle_spread_ut", "µT", 1.0),
 )
 SETTING_NAMES = tuple(name for name, _, _ in SETTINGS)
 
@@ -85,12 +88,22 @@ SETTING_NAMES = tuple(name for name, _, _ in SETTINGS)
 #: The method as its source describes it (docs/magpf.md, mode 0): the 9-state filter with the
 #: change test as tuned for it; the defaults above are those of the Rao-Blackwellised mode.
 METHOD_AS_DESCRIBED = {"rao_blackwell": 0, "innovation_time_constant": 50.0, "change_threshold": 100.0,
-                       "change_spread_hard_ut": 10.0, "change_spread_soft": 0.0, "min_rotation_deg": 0.0}
+                       "change_spread_hard_ut": 10.0, "change_spread_soft": 0.0, "min_rotation_deg": 0.0,
+                       "norm_time_constant": 0.0}
 
 
 def zero_prior(field_norm_ut: float) -> dict:
-    """Wide prior around zero for an uncalibrated start: 0.5 |h_0| [µT] and 0.05."""
-    return {"prior_spread_hard_ut": 0.5 * float(field_norm_ut), "prior_spread_soft": 0.05}
+    """Wide prior around zero for an uncalibrated start: 0.5 |h_0| [µT] and 0.05, adapting from the
+    first sample (nothing to hold)."""
+    return {"prior_spread_hard_ut": 0.5 * float(field_norm_ut), "prior_spread_soft": 0.05, "hold_prior": 0}
+
+
+def trained_prior(hard_iron_ut, soft_iron, spread_hard_ut: float = 0.5, spread_soft: float = 0.005) -> dict:
+    """Prior settings around a known calibration (hard iron [µT], soft iron b11 b12 b13 b22 b23
+    b33), as `train` would give it: tight spreads, held until a change (the default)."""
+    p = {f"prior_hard_iron_{a}_ut": float(v) for a, v in zip("xyz", hard_iron_ut)}
+    p.update({f"prior_soft_iron_{k}": float(v) for k, v in zip(("xx", "xy", "xz", "yy", "yz", "zz"), soft_iron)})
+    return {**p, "prior_spread_hard_ut": float(spread_hard_ut), "prior_spread_soft": float(spread_soft)}
 
 
 def settings(field_norm_ut: float, **overrides) -> dict:
@@ -105,7 +118,7 @@ def settings(field_norm_ut: float, **overrides) -> dict:
 
 
 def settings_array(s: dict) -> np.ndarray:
-    """(35,) float64 array of a settings dict in the order of SETTINGS."""
+    """(38,) float64 array of a settings dict in the order of SETTINGS."""
     return np.array([float(s[name]) for name in SETTING_NAMES], dtype=np.float64)
 
 
@@ -358,6 +371,8 @@ class MagPf:
         self.updates_since_change = 0
         self.change_armed = False
         self.changes = 0
+        self.frozen = False
+        self.residual_mean = 0.0
         if int(s["rao_blackwell"]):
             magpf_rb.reset(self)
             return
@@ -383,10 +398,15 @@ class MagPf:
         return (float(self.s["min_rotation_deg"]) <= 0.0 or last <= 0.0
                 or float(mag @ self.last_used) < self.min_rotation_cos * norm * last)
 
-    def _innovation(self, mag: np.ndarray) -> float:
-        """Normalised innovation squared of a sample against the estimate (ImuMagPfInnovation)."""
+    def _residual(self, mag: np.ndarray) -> float:
+        """|h_m|² − |h_0|² − h(x) − noise mean [µT²] of the estimate (ImuMagPfResidual)."""
         norm_sq = float(mag[0] * mag[0] + mag[1] * mag[1] + mag[2] * mag[2])
-        e = norm_sq - self.field_sq - float(observation(self.estimate, mag)) - self.obs_mean
+        return norm_sq - self.field_sq - float(observation(self.estimate, mag)) - self.obs_mean
+
+    def _innovation(self, mag: np.ndarray) -> float:
+        """Normalised innovation squared of a sample against the estimate, the averaged residual
+        removed (ImuMagPfInnovation)."""
+        e = self._residual(mag) - self.residual_mean
         return 2.0 * self.half_inv_var * e * e
 
     def _outlier(self, mag: np.ndarray) -> bool:
@@ -399,6 +419,8 @@ class MagPf:
         clip = CLIP_FACTOR * float(self.s["change_threshold"])
         z = self._innovation(mag)
         z = clip if clip > 0.0 and z > clip else z
+        if float(self.s["norm_time_constant"]) > 0.0:
+            self.residual_mean += (self._residual(mag) - self.residual_mean) / float(self.s["norm_time_constant"])
         self.innovation_average += self.innovation_rate * (z - self.innovation_average)
         self.inflation = min(max(math.sqrt(self.innovation_average), 1.0),
                              float(self.s["max_inflation"]))
@@ -450,6 +472,7 @@ class MagPf:
         self.updates_since_change = 0
         self.change_armed = False
         self.changes += 1
+        self.residual_mean = 0.0
 
     def _change_declared(self) -> bool:
         s = self.s

@@ -75,6 +75,10 @@ def reset(pf) -> None:
               2.0 * float(s["prior_spread_soft"]))
     draw(pf, _reference(pf), float(s["prior_spread_hard_ut"]))
     estimate(pf)
+    pf.frozen = bool(int(s["hold_prior"]))
+    pf.change_armed = pf.frozen   # the held calibration is the baseline: a prior the data contradict is a change
+    if pf.frozen:   # the held calibration is the prior itself, not the mean of its draw
+        pf.estimate = np.concatenate([_reference(pf), np.asarray(soft, dtype=np.float64)])
 
 
 def restart(pf, mag: np.ndarray) -> None:
@@ -219,7 +223,7 @@ def bridge(pf) -> None:
 
 def update(pf, mag: np.ndarray) -> bool:
     """One valid sample [µT] (ImuMagPfRbUpdate); True if the particles were updated."""
-    if pf._rotated(mag) and not pf._outlier(mag):
+    if not pf.frozen and pf._rotated(mag) and not pf._outlier(mag):
         pf.last_used = mag.copy()
         mm.moments_add(pf.moments, mag - _reference(pf))
     pf.counter += 1
@@ -228,7 +232,10 @@ def update(pf, mag: np.ndarray) -> bool:
     pf.counter = 0
     pf._adapt(mag)
     if pf._change_declared():
+        pf.frozen = False
         restart(pf, mag)
+    elif pf.frozen:
+        return False
     if not weigh_new(pf):
         pf._declare_change()
         restart(pf, mag)
