@@ -64,7 +64,8 @@ def test_heading_ignores_the_field_until_the_particle_filter_settles(tumbling):
 @pytest.mark.parametrize("name, value, word", [
     ("pf_particles", 1000.0, "pf_particles"), ("pf_particles", 2.5, "pf_particles"),
     ("pf_measurement_noise", -1.0, "pf_measurement_noise"), ("pf_seed", -3.0, "pf_seed"),
-    ("enable_pf", 2.0, "enable_pf"), ("enable_elm", 0.5, "enable_elm")])
+    ("enable_pf", 2.0, "enable_pf"), ("enable_elm", 0.5, "enable_elm"),
+    ("pf_hold_prior", 2.0, "pf_hold_prior"), ("pf_settle_spread", -1.0, "pf_settle_spread")])
 def test_invalid_stage_settings_name_the_parameter(name, value, word):
     settings = np.array(layout.settings_array({name: value}))
     with pytest.raises(ValueError, match=word):
