@@ -1,6 +1,6 @@
 """Benchmark of the magnetometer particle filter (docs/magpf.md): prints Markdown tables.
 
-    python benchmarks/bench_magpf.py [--seeds 20] [--no-broad] [--no-sim]
+    python benchmarks/bench_magpf.py [--seeds 20] [--no-broad] [--no-sim] [--only-train] [--sensitivity]
 
 1. Simulated tumbling (60 s at 100 Hz, |h_0| = 60 µT, h_p = [30, 40, 20] µT, soft iron up to
    0.05, uniform + Student-t noise), wide zero prior (magpf.zero_prior): hard-iron error (largest
@@ -15,7 +15,16 @@
    eval_mask, raw and filtered (‖h_0‖ from the sidecar), and the heading RMSE of the whole
    runtime (training.bench.run_imufusion, BROAD attitude set) without the filter, with it
    (holding the calibration until a change) and with it adapting from the start.
-4. Cost: µs per sample of the whole runtime without the filter, with it holding the calibration
+4. Settings derived from the calibration (train): the chain applies the calibration that
+   training on BROAD 01 + 02 gives (stand-in for the self-calibration: batch ellipsoid fit of the
+   raw field of 01 + 02 to their sample-weighted sidecar norm, `train_calibration`), attitude_mode 1,
+   rest_gyro_threshold 0.035, field norm/dip from each trial's sidecar; the filter is switched on with
+   `enable_pf = 1` and the settings `training.pf_settings.pf_settings_from_calibration` derives from
+   the calibrated 01 + 02 field — nothing else. Norm spread, heading RMSE and declared changes per
+   trial without the filter, with the derived settings and, for comparison, with the hand-set
+   BROAD_PF on the same chain. `--sensitivity` adds the table of each rule constant varied ±50 %.
+       python benchmarks/bench_magpf.py --only-train [--sensitivity]
+5. Cost: µs per sample of the whole runtime without the filter, with it holding the calibration
    and with it adapting, on a BROAD recording (best of 3 runs).
 """
 from __future__ import annotations
@@ -29,9 +38,10 @@ from pathlib import Path
 
 import numpy as np
 
-from training import bench, layout, magpf, runtime
+from training import bench, layout, magpf, pf_settings, runtime
 from training.ellipsoid import apply_ellipsoid, fit_ellipsoid
 from training.io import read_imu_csv
+from training.thermal import ThermalModel
 
 BROAD = Path(__file__).resolve().parents[2] / "shared" / "data" / "broad"
 TAIL_S = 10.0
@@ -131,9 +141,11 @@ QUATERNION = [layout.OUTPUTS.index(n) for n in ("q_w", "q_x", "q_y", "q_z")]
 MAGNET_TRIALS = ("32", "33", "35")
 
 
-def _run_chain(d, overrides: dict) -> np.ndarray:
-    """All runtime outputs (N, len(OUTPUTS)) for a BROAD recording with the BROAD attitude set."""
-    return runtime.run_batch(layout.identity_coefficients(), bench.imufusion_settings(d, overrides),
+def _run_chain(d, overrides: dict, coefficients=None) -> np.ndarray:
+    """All runtime outputs (N, len(OUTPUTS)) for a BROAD recording with the BROAD attitude set
+    (coefficients: a trained coefficient array; identity when None)."""
+    coefficients = layout.identity_coefficients() if coefficients is None else coefficients
+    return runtime.run_batch(coefficients, bench.imufusion_settings(d, overrides),
                              d.t - d.t[0], bench._inputs(d))
 
 
@@ -162,6 +174,105 @@ def broad() -> None:
         print(f"| {Path(path).name[:-7]} | {_spread(d.mag, m):.2f} | {_spread(with_pf[:, FIELD], m):.2f} | "
               f"{h0:.2f} | {h1:.2f} | {h1 - h0:+.2f} | {int(changes[-1])} | {h2:.2f} ({h2 - h0:+.2f}) | "
               f"{_ellipsoid_heading(d, m):.2f} |", flush=True)
+
+
+# ----------------------------------------------------------------------------- settings from train
+
+#: Trials `train` calibrates the magnetometer on (the rest are evaluation trials).
+TRAIN_TRIALS = ("01", "02")
+#: Attitude settings of the derived-settings table (becoming the FMU defaults).
+TRAIN_ATTITUDE = {"attitude_mode": 1.0, "rest_gyro_threshold": 0.035}
+UNDISTURBED_TRIALS = ("01", "02", "04", "05", "06", "08", "09", "10", "11", "14", "15", "18")
+#: Rule constants of training.pf_settings varied by ±50 % in the sensitivity table.
+SENSITIVITY = (("update_interval_s", pf_settings.UPDATE_INTERVAL_S, "decimation: update interval T_u [s]"),
+               ("gate_sigmas", pf_settings.GATE_SIGMAS, "rotation gate k [σ]"),
+               ("change_margin", pf_settings.CHANGE_MARGIN, "change spread κ"),
+               ("settle_samples", pf_settings.SETTLE_SAMPLES, "settle floor n_s [samples]"))
+
+
+def _trial(number: str):
+    return read_imu_csv(sorted(glob.glob(str(BROAD / f"{number}_*.csv.gz")))[0])
+
+
+def train_calibration(trials=TRAIN_TRIALS):
+    """What `train` gives on the training trials, standing in for the self-calibration: a batch
+    ellipsoid fit of their raw field to the sample-weighted mean of their sidecar norms.
+    Returns (fit, field_norm [µT], coefficients for the runtime, calibrated field (N, 3) µT, t (N,) s):
+    the magnetometer block is x_c = M (x − offset), the other triads identity."""
+    data = [_trial(n) for n in trials]
+    norm = float(sum(len(d) * d.meta["earth_field"]["norm_ut"] for d in data) / sum(len(d) for d in data))
+    fit = fit_ellipsoid(np.vstack([d.mag for d in data]), norm)
+    mag = ThermalModel(True, 25.0, 1.0, 0, A=fit.matrix, g=np.zeros((3, 0)), b=fit.offset.reshape(3, 1))
+    identity = ThermalModel.identity().to_block()
+    coefficients = layout.pack_coefficients([identity, identity, mag.to_block()])
+    return (fit, norm, coefficients, np.vstack([apply_ellipsoid(fit, d.mag) for d in data]),
+            np.concatenate([d.t for d in data]))
+
+
+def _evaluate(d, coefficients, settings: dict) -> tuple[float, float]:
+    """(norm spread [%], heading RMSE [°]) of the chain with the BROAD attitude set + settings."""
+    out = _run_chain(d, {**TRAIN_ATTITUDE, **settings}, coefficients)
+    return _spread(out[:, FIELD], d.eval_mask.astype(bool)), bench.broad_errors(out[:, QUATERNION], d)["heading"]
+
+
+def _figures(trials: dict, coefficients, settings: dict) -> dict:
+    """trial -> (spread [%], heading [°]) for the derived/hand-set settings (empty: filter off)."""
+    return {n: _evaluate(d, coefficients, settings) for n, d in trials.items()}
+
+
+def _summary(off: dict, on: dict) -> str:
+    mag = " | ".join(f"{on[n][0]:.2f} / {on[n][1]:.2f}" for n in MAGNET_TRIALS)
+    worst = max(UNDISTURBED_TRIALS, key=lambda n: on[n][1] - off[n][1])
+    return f"{mag} | {on[worst][1] - off[worst][1]:+.2f} ({worst})"
+
+
+def broad_train(sensitivity_table: bool = False) -> None:
+    fit, norm, coefficients, calibrated, t = train_calibration()
+    rate = float(_trial(TRAIN_TRIALS[0]).meta["rate_hz"])
+    stats = pf_settings.noise_statistics(calibrated, t, rate, pf_settings.decimation_for(rate))
+    derived = pf_settings.pf_settings_from_calibration(calibrated, t, norm, rate)
+    shown = {k: round(float(np.rad2deg(v)) if k == "pf_min_rotation" else v, 4) for k, v in derived.items()}
+    print(f"\n### BROAD, settings derived from the calibration (train on {' + '.join(TRAIN_TRIALS)})\n")
+    print(f"Calibration: ellipsoid fit of the raw 01 + 02 field to |h_0| = {norm:.3f} µT, offset "
+          f"{np.round(fit.offset, 3).tolist()} µT, residual {fit.residual:.3f} µT. Calibrated field: "
+          f"σ = {stats.sigma:.3f} µT (about the test's running mean), σ_w = {stats.sigma_white:.3f} µT "
+          f"(variogram plateau at lag {stats.plateau_lag}), σ_slow = {stats.sigma_slow:.3f} µT. "
+          f"Derived (pf_min_rotation in °): {shown}. Chain: {TRAIN_ATTITUDE}, field norm/dip from each "
+          "sidecar; 'derived' = only `enable_pf = 1` plus these; 'hand-set' = BROAD_PF (comparison).\n")
+    print("| trial | spread raw | spread without filter | spread derived | spread hand-set | heading without "
+          "filter | heading derived | change | changes declared | heading hand-set |")
+    print("|---|---|---|---|---|---|---|---|---|---|")
+    on = {"enable_pf": 1.0, **derived}
+    trials = {n: _trial(n) for n in (*UNDISTURBED_TRIALS, *MAGNET_TRIALS)}
+    off_figures = {}
+    derived_figures = {}
+    for n, d in trials.items():
+        off_figures[n] = _evaluate(d, coefficients, {})
+        derived_figures[n] = _evaluate(d, coefficients, on)
+        hand = _evaluate(d, coefficients, BROAD_PF)
+        field = apply_ellipsoid(fit, d.mag)
+        changes = magpf.run_c(field, magpf.settings(d.field_norm_ut, **pf_settings.to_magpf(derived))).changes
+        (s0, h0), (s1, h1) = off_figures[n], derived_figures[n]
+        print(f"| {d.name[:36]} | {_spread(d.mag, d.eval_mask.astype(bool)):.2f} | {s0:.2f} | {s1:.2f} | "
+              f"{hand[0]:.2f} | {h0:.2f} | {h1:.2f} | {h1 - h0:+.2f} | {int(changes[-1])} | {hand[1]:.2f} |",
+              flush=True)
+    if not sensitivity_table:
+        return
+    print("\n### Sensitivity: each rule constant of training.pf_settings at 0.5× and 1.5× (others as derived)\n")
+    print("Cells: magnet trials spread [%] / heading [°] with the filter (without: "
+          + ", ".join(f"{n} {off_figures[n][1]:.2f}°" for n in MAGNET_TRIALS)
+          + "); last column: largest heading change on the undisturbed trials [°] (trial).\n")
+    print("| constant | value | " + " | ".join(MAGNET_TRIALS) + " | worst undisturbed change |")
+    print("|---|---|---|---|---|---|")
+    print(f"| (derived) | — | {_summary(off_figures, derived_figures)} |", flush=True)
+    rows = [(label, value * f, {key: value * f}, None) for key, value, label in SENSITIVITY for f in (0.5, 1.5)]
+    rows += [("settle spread S × factor", f, {}, f) for f in (0.5, 1.5)]
+    for label, value, constants, settle_factor in rows:
+        s = pf_settings.pf_settings_from_calibration(calibrated, t, norm, rate, **constants)
+        if settle_factor is not None:
+            s["pf_settle_spread"] *= settle_factor
+        figures = _figures(trials, coefficients, {"enable_pf": 1.0, **s})
+        print(f"| {label} | {value:.4g} | {_summary(off_figures, figures)} |", flush=True)
 
 
 def _ellipsoid_heading(d, mask: np.ndarray) -> float:
@@ -206,11 +317,20 @@ def main(argv=None) -> int:
     p.add_argument("--seeds", type=int, default=20)
     p.add_argument("--no-broad", action="store_true")
     p.add_argument("--no-sim", action="store_true")
+    p.add_argument("--only-train", action="store_true",
+                   help="only the table of the settings derived from the calibration (train)")
+    p.add_argument("--sensitivity", action="store_true",
+                   help="add the table of the rule constants varied by ±50 %%")
     a = p.parse_args(argv)
+    if a.only_train:
+        if BROAD.is_dir():
+            broad_train(sensitivity_table=a.sensitivity)
+        return 0
     if not a.no_sim:
         simulated(a.seeds)
     if not a.no_broad and BROAD.is_dir():
         broad()
+        broad_train(sensitivity_table=a.sensitivity)
         cost()
     return 0
 
