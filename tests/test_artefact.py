@@ -98,14 +98,15 @@ def test_train_recovers_acc_and_records_data(artefact):
 
 def test_train_fits_mag_from_the_set_with_reference(artefact, datasets):
     stats = artefact.fit_stats["mag"]
-    assert stats["rows_used"] == N_PER_SET and stats["rows_dropped"] == N_PER_SET
+    # only the recording that carries ref_mag is used (training.reference_source): nothing dropped
+    assert stats["rows_used"] == N_PER_SET and stats["rows_dropped"] == 0
+    assert stats["reference"] == "columns"
     mag = artefact.thermal["mag"]
     assert np.abs(mag.A - TRUTH["mag"].A).max() < RECOVERY_TOL
     assert np.abs(mag.b - TRUTH["mag"].b).max() / 5.0 < RECOVERY_TOL
     warm = datasets[0]
     corrected = apply_thermal(mag, warm.mag, warm.temp)
     assert np.abs(corrected - warm.ref_mag).max() < RECOVERY_TOL * 50.0
-    assert any(note.startswith("mag:") and "dropped" in note for note in artefact.notes)
 
 
 def test_train_settings_from_sidecar_and_gyro_residual(artefact):
@@ -120,19 +121,21 @@ def test_train_settings_from_sidecar_and_gyro_residual(artefact):
     assert abs(artefact.fit_stats["gyr"]["rms_after"] / GYRO_SIGMA - 1.0) < GYRO_NOISE_RTOL
 
 
-def test_train_disables_triads_without_reference_or_data():
+def test_train_refuses_when_nothing_can_be_calibrated():
+    # random rates without any rest, no accelerometer, a random field: no reference, no invariant
     data = recording("partial", -20.0, 60.0, seed=4, with_ref_mag=False)
     data.acc[:] = np.nan
     data.ref_gyr = None
-    art = train([data], seed=0, progress=False)
+    with pytest.raises(ModelError, match="nothing could be calibrated.*--allow-identity"):
+        train([data], seed=0, progress=False)
+    art = train([data], seed=0, progress=False, allow_identity=True)
     for triad in ("gyr", "acc", "mag"):
         assert art.thermal[triad].to_block()[0] == 0.0
         assert art.thermal[triad].to_block()[1:] == ThermalModel.identity().to_block()[1:]
-    assert any("no reference (ref_mag)" in n for n in art.notes)
     assert any("acc: raw data are all NaN" in n for n in art.notes)
     assert any(n.startswith("gyro_noise") for n in art.notes)
     assert art.settings["gyro_noise"] == settings_defaults()["gyro_noise"]
-    assert art.fit_stats == {}
+    assert {k: v["reference"] for k, v in art.fit_stats.items()} == {"gyr": "none", "acc": "columns", "mag": "none"}
 
 
 def test_train_rejects_empty_input():

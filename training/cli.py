@@ -39,16 +39,20 @@ def cmd_simulate(args) -> None:
 
 
 def cmd_train(args) -> None:
-    """imufmu train DATA... --out DIR [--seed N] [--degree P]."""
+    """imufmu train DATA... --out DIR [--seed N] [--degree P] [--allow-identity]."""
+    from .calibration_report import summary_text, write_calibration_report
     from .io import read_imu_csv
     from .train import train
     datasets = [read_imu_csv(_existing_file(p, "data file")) for p in args.data]
-    artefact = train(datasets, seed=args.seed, degree=args.degree)
+    artefact = train(datasets, seed=args.seed, degree=args.degree, allow_identity=args.allow_identity)
     out = Path(args.out) / "model.json"
     artefact.save(out)
+    report = write_calibration_report(artefact, datasets, args.out)
     for note in artefact.notes:
         print(f"note: {note}")
-    print(f"wrote {out}")
+    print()
+    print(summary_text(artefact, datasets))
+    print(f"wrote {out} and {report}")
 
 
 def cmd_build_fmu(args) -> None:
@@ -110,10 +114,13 @@ def cmd_diagnose(args) -> None:
 
 
 def cmd_bench(args) -> None:
-    """imufmu bench broad [--trials ...] --out DIR | imufmu bench speed --out DIR."""
+    """imufmu bench broad|broad-trained [--trials ...] --out DIR | imufmu bench speed --out DIR."""
     from .bench import bench_broad, bench_speed
+    from .bench_trained import bench_broad_trained
     if args.what == "broad":
         bench_broad(args.trials, Path(args.out))
+    elif args.what == "broad-trained":
+        bench_broad_trained(Path(args.out), args.trials)
     else:
         bench_speed(Path(args.out))
     print(f"wrote results to {args.out}")
@@ -142,11 +149,14 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--seed", type=int, default=None, help="random seed (default: the scenario's)")
     s.set_defaults(func=cmd_simulate)
     s = sub.add_parser("train", help="train the models on calibration recordings")
-    s.add_argument("data", nargs="+", help="imu-csv/1 files (.csv or .csv.gz) with reference columns")
-    s.add_argument("--out", required=True, help="output folder for model.json")
+    s.add_argument("data", nargs="+", help="imu-csv/1 files (.csv or .csv.gz); reference columns, an "
+                   "attitude reference or a static sidecar are used when present, else self-calibration")
+    s.add_argument("--out", required=True, help="output folder for model.json and calibration.md")
     s.add_argument("--seed", type=int, default=0)
     s.add_argument("--degree", type=int, default=2, choices=(0, 1, 2, 3),
-                   help="polynomial degree of G(T) and B(T)")
+                   help="largest polynomial degree of G(T) and B(T) (lower when the data span fewer temperatures)")
+    s.add_argument("--allow-identity", action="store_true",
+                   help="write an identity model instead of failing when nothing can be calibrated")
     s.set_defaults(func=cmd_train)
     s = sub.add_parser("build-fmu", help="write the trained model into the FMU sources and build it")
     s.add_argument("--model", required=True, help="model.json from 'imufmu train'")
@@ -178,8 +188,8 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--out", required=True, help="report folder (diagnosis.json, report.md, model.json)")
     s.add_argument("--seed", type=int, default=0)
     s.set_defaults(func=cmd_diagnose)
-    s = sub.add_parser("bench", help="benchmarks: BROAD attitude accuracy or runtime speed")
-    s.add_argument("what", choices=("broad", "speed"))
+    s = sub.add_parser("bench", help="benchmarks: BROAD attitude accuracy (filters, or trained FMU) or runtime speed")
+    s.add_argument("what", choices=("broad", "broad-trained", "speed"))
     s.add_argument("--trials", nargs="*", default=None, help="BROAD trial prefixes (default: all)")
     s.add_argument("--out", required=True, help="output folder")
     s.set_defaults(func=cmd_bench)

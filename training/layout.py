@@ -36,11 +36,11 @@ SETTINGS = (
     ("mse_time_constant", 1.0),       # s, averaging time of the innovation mean-square errors
     ("angle_noise", 0.0175),          # rad, floor of the acc/mag angle error standard deviation
     ("enable_thermal", 1.0),          # 1 = apply the gain/bias temperature model
-    ("attitude_mode", 0.0),           # 0 = adaptive-gain Euler fusion, 1 = quaternion filter
+    ("attitude_mode", 1.0),           # 1 = quaternion filter (wins on real data, docs/BENCHMARKS.md), 0 = the method's adaptive-gain Euler fusion
     ("field_dip", 1.0471975511965976),  # rad, local earth-field dip (positive down), 60°
     ("tau_acc", 3.0),                 # s, time constant of the quaternion filter's inclination correction
     ("tau_mag", 9.0),                 # s, time constant of the quaternion filter's heading correction
-    ("rest_gyro_threshold", 0.0),     # rad/s, rest detection for the gyro bias (0 = no bias estimation)
+    ("rest_gyro_threshold", 0.035),   # rad/s, rest detection for the gyro bias (0 = none); 2 °/s = VQF's default, train sets it from the data
     ("rest_acc_threshold", 0.5),      # m/s², rest detection: specific-force deviation threshold
     ("mag_reject_time", 60.0),        # s, longest rejection of a disturbed field (0 = no rejection)
     ("enable_elm", 0.0),              # 1 = apply the ELM nonlinear field model (when trained)

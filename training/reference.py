@@ -64,6 +64,23 @@ def rate_from_attitude(t: np.ndarray, q: np.ndarray) -> np.ndarray:
                                   w * dz - x * dy + y * dx - z * dw])
 
 
+def matched_raw(data: ImuData, triad: str) -> np.ndarray:
+    """The raw triad (N, 3) filtered as its derived reference is: the rate reference is the
+    Savitzky-Golay derivative of the attitude, a low-pass, so the raw rate is integrated and
+    differentiated by the same filter (a linear, unit-DC-gain filter: a gain/bias model fitted on the
+    filtered pair holds for the raw signal). Regressing the raw rate on the smoothed reference would
+    shrink the gains (BROAD: 0.95 instead of 1). The field reference is not filtered; neither is the
+    raw field. Specific force: returned unfiltered (its kinematic part is smoothed over
+    ACCEL_WINDOW_S, gravity is not)."""
+    raw = np.asarray(getattr(data, triad), dtype=np.float64)
+    if triad != "gyr":
+        return raw
+    dt = np.diff(data.t, prepend=data.t[0])
+    angle = np.cumsum(np.nan_to_num(raw) * dt[:, None], axis=0)
+    angle[~np.all(np.isfinite(raw), axis=1)] = np.nan
+    return _derivative(angle, data.t, RATE_WINDOW_S, 1)
+
+
 def derive_references(data: ImuData) -> tuple[ImuData, list[str]]:
     """A copy of `data` with ref_gyr, ref_mag and ref_acc filled from ref_q where they are missing,
     and notes saying what was derived. Without ref_q the data is returned unchanged."""

@@ -171,6 +171,27 @@ class ThermalFit:
     unit: str
 
 
+#: Width of a temperature cluster [°C]: a MEMS bias drifts smoothly, by ~0.01-0.1 °/s or
+#: ~1 mg per °C, so samples within 2.5 °C of each other pin down one point of B(T), not a slope.
+CLUSTER_WIDTH_C = 2.5
+#: Share of the finite temperature samples a cluster must hold to count: a transit through a
+#: temperature during a ramp of a few seconds does not pin the model there.
+CLUSTER_MIN_SHARE = 0.02
+
+
+def temperature_clusters(temp: np.ndarray) -> int:
+    """Number of distinct temperatures [°C] the data pin down: CLUSTER_WIDTH_C-wide bins holding
+    at least CLUSTER_MIN_SHARE of the finite samples (0 when none is finite). A polynomial B(T) of
+    degree d needs d + 1 of them."""
+    finite = np.asarray(temp, dtype=np.float64)
+    finite = finite[np.isfinite(finite)]
+    if finite.size == 0:
+        return 0
+    bins = np.floor((finite - finite.min()) / CLUSTER_WIDTH_C).astype(int)
+    counts = np.bincount(bins)
+    return int(np.sum(counts >= CLUSTER_MIN_SHARE * finite.size))
+
+
 def temperature_normalisation(temp: np.ndarray) -> tuple[float, float] | None:
     """(t0, ts) = centre and half-range of the finite temperatures [°C], ts >= MIN_TS;
     None when no temperature is finite."""

@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 from contextlib import contextmanager
+from dataclasses import replace
 
 import numpy as np
 import torch
@@ -11,13 +12,19 @@ from .artefact import ModelArtefact
 from .dataset import ImuData
 from .errors import ModelError
 from .layout import TRIAD_ORDER, settings_defaults
+from .reference import matched_raw
+from .reference_source import TriadReference, choose_reference
+from .selfcal import SelfCalResult, self_calibrate
 from .thermal import (GainBiasFitter, ThermalFit, ThermalModel, apply_thermal, normalised_temperature,
+                      temperature_clusters,
                       temperature_normalisation)
 
 #: The ELM stage is switched on only when it lowers the held-out field error RMS of the
 #: calibration data by at least this fraction: a smaller gain is within what a different random
 #: split moves, and an ELM that does not clearly help is not worth its risk on other data.
 ELM_MIN_GAIN = 0.10
+#: Share of a single calibration recording (its end, in time) held out to decide on the ELM.
+ELM_HOLDOUT_FRACTION = 0.25
 #: Rows of the calibration data the ELM sees (every n-th sample): neighbouring samples at 100 Hz
 #: carry the same field direction, so thinning loses nothing but training time.
 ELM_STRIDE = 8
@@ -40,6 +47,21 @@ STATIC_RATE = 0.005
 #: instability of a good consumer MEMS gyro. A fit to simulated data leaves a near-zero mean
 #: residual, but run-to-run bias changes that no calibration captures remain in the field.
 GYRO_BIAS_RESIDUAL_FLOOR = 1e-5
+#: Rows whose derived reference (from ref_q) disagrees with the sensor by more than this many
+#: robust σ are left out of the fit: an optical marker glitch or a gap in the motion capture gives
+#: rates of hundreds of °/s for a few samples, which least squares would follow; honest sensor
+#: errors (bias, 1-5 % gains) stay far inside 5 σ of the residual's spread.
+REFERENCE_OUTLIER_SIGMAS = 5.0
+#: Shortest rest run [samples] whose statistics count: 20 samples give a std within ~16 %.
+MIN_REST_RUN = 20
+#: rest_gyro_threshold ≥ this many σ of the per-sample gyro noise: the runtime's detector needs
+#: every sample of 1.5 s within the threshold of the low-passed rate; at 5σ a still sensor at
+#: 300 Hz passes with > 99 % probability (at 4σ, ~97 %).
+REST_NOISE_SIGMAS = 5.0
+#: rest_gyro_threshold ≥ this many times the largest bias the calibration leaves at rest (run
+#: means, between and within recordings): the detector also requires the low-passed rate inside
+#: the threshold, so a residual bias at half of it is still accepted.
+REST_BIAS_MARGIN = 2.0
 #: Sidecar earth-field magnitudes of the training sets may differ by this much [µT] before
 #: the artefact warns that their mean is a poor single field_norm.
 FIELD_NORM_SPREAD = 1.0
@@ -134,58 +156,119 @@ def _rate_hz(data: ImuData) -> float:
     return float(rate) if rate else float(1.0 / np.median(np.diff(data.t)))
 
 
-def _gyro_residuals(datasets: list[ImuData], model: ThermalModel):
-    """[(residual (M, 3) rad/s, true rate (M, 3) rad/s, rate_hz)] per dataset with gyro
-    reference, finite rows only; residual = corrected gyro - true rate."""
+def _rest_masks(refs: dict[str, TriadReference], selfcal) -> list[tuple[ImuData, np.ndarray, np.ndarray]]:
+    """[(recording, true rate (N, 3) rad/s, rest mask (N,))] of the recordings that show the gyro at
+    rest: where the reference rate is below STATIC_RATE, or the self-calibration's rest windows."""
+    ref = refs["gyr"]
+    if ref.source != "none":
+        return [(d, d.ref_gyr, np.all(np.isfinite(d.ref_gyr), axis=1)
+                 & (np.linalg.norm(np.nan_to_num(d.ref_gyr, nan=np.inf), axis=1) < STATIC_RATE))
+                for d in ref.datasets]
+    return [(d, np.zeros_like(d.gyr), mask) for d, mask in zip(ref.datasets, selfcal.rest_masks)]
+
+
+def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
+    """[start, stop) of the True runs of a boolean array at least MIN_REST_RUN samples long."""
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], mask.astype(int), [0]])))
+    return [(a, b) for a, b in zip(edges[::2], edges[1::2]) if b - a >= MIN_REST_RUN]
+
+
+def _rest_residuals(recordings, model: ThermalModel):
+    """[(per-run mean residual (3,), per-run variance (3,), rate_hz)] over the rest runs; residual =
+    compensated gyro − true rate [rad/s], finite rows."""
     out = []
-    for d in datasets:
-        if d.ref_gyr is None or len(d) < 2:
-            continue
-        res = apply_thermal(model, d.gyr, d.temp) - d.ref_gyr
-        ok = np.all(np.isfinite(res), axis=1)
-        if ok.any():
-            out.append((res[ok], d.ref_gyr[ok], _rate_hz(d)))
+    for d, truth, mask in recordings:
+        residual = apply_thermal(model, d.gyr, d.temp) - truth
+        for a, b in _runs(mask & np.all(np.isfinite(residual), axis=1)):
+            out.append((residual[a:b].mean(axis=0), residual[a:b].var(axis=0), _rate_hz(d), b - a))
     return out
 
 
-def _gyro_settings(residuals) -> dict[str, float]:
-    """gyro_noise and gyro_bias_residual from the gyro fit residuals.
+def gyro_rest_settings(runs) -> dict[str, float]:
+    """gyro_noise, gyro_bias_residual and rest_gyro_threshold from the gyro at rest after calibration.
 
-    gyro_noise [rad/s/√Hz]: white-noise density N = σ / √f_s (σ per-sample std at rate f_s,
-    IEEE Std 952 convention), σ = RMS over axes of the residual std, row-weighted mean over
-    the datasets. gyro_bias_residual [rad/s]: largest per-axis |mean residual| over static
-    rows (all rows when none is static), not below GYRO_BIAS_RESIDUAL_FLOOR.
+    runs: [(mean residual (3,), variance (3,), rate_hz, samples)] per rest run. gyro_noise
+    [rad/s/√Hz] = σ / √f_s (IEEE Std 952), σ the per-sample std within the runs (RMS over axes);
+    gyro_bias_residual [rad/s] = largest |mean| of the residual over all rest samples per axis (not
+    below GYRO_BIAS_RESIDUAL_FLOOR); rest_gyro_threshold [rad/s] = max(REST_NOISE_SIGMAS · σ of the
+    noisiest axis, REST_BIAS_MARGIN · largest |run mean|): the runtime's rest detector must accept
+    every sample of a still sensor (noise) and the bias the calibration leaves (it checks the
+    low-passed rate against the threshold too), and no more — a larger threshold takes a slow turn
+    for a bias.
     """
-    rows = np.array([len(r) for r, _, _ in residuals], dtype=float)
-    density = [np.sqrt(np.mean(np.var(r, axis=0))) / np.sqrt(f) for r, _, f in residuals]
-    res = np.concatenate([r for r, _, _ in residuals])
-    ref = np.concatenate([w for _, w, _ in residuals])
-    static = np.linalg.norm(ref, axis=1) < STATIC_RATE
-    bias = np.max(np.abs(np.mean(res[static] if static.any() else res, axis=0)))
-    return {"gyro_noise": float(np.average(density, weights=rows)),
-            "gyro_bias_residual": float(max(bias, GYRO_BIAS_RESIDUAL_FLOOR))}
+    weights = np.array([n for *_, n in runs], dtype=float)
+    means = np.array([m for m, *_ in runs])
+    variances = np.array([v for _, v, *_ in runs])
+    sigma_axis = np.sqrt(np.average(variances, axis=0, weights=weights))
+    density = [np.sqrt(np.mean(v)) / np.sqrt(f) for _, v, f, _ in runs]
+    bias = np.abs(np.average(means, axis=0, weights=weights))
+    return {"gyro_noise": float(np.average(density, weights=weights)),
+            "gyro_bias_residual": float(max(bias.max(), GYRO_BIAS_RESIDUAL_FLOOR)),
+            "rest_gyro_threshold": float(max(REST_NOISE_SIGMAS * sigma_axis.max(),
+                                             REST_BIAS_MARGIN * np.abs(means).max()))}
 
 
-def recommended_settings(datasets: list[ImuData], thermal: dict[str, ThermalModel],
-                         notes: list[str]) -> dict[str, float]:
-    """FMU parameter values from the data's sidecars and the gyro fit (defaults otherwise);
-    appends a note for each value left at its default or taken from inconsistent data."""
-    settings = settings_defaults()
-    norms = _sidecar_values(datasets, "norm_ut")
+def _field_settings(datasets: list[ImuData], selfcal, notes: list[str]) -> dict[str, float]:
+    """field_norm [µT], field_dip [rad] and declination [rad]: from the sidecars, else from the
+    self-calibration of the magnetometer, else the defaults (with a note)."""
+    settings, mag = {}, (selfcal.report.get("mag", {}) if selfcal else {})
+    norms, dips = _sidecar_values(datasets, "norm_ut"), _sidecar_values(datasets, "dip_deg")
     if norms:
         settings["field_norm"] = float(np.mean(norms))
         if max(norms) - min(norms) > FIELD_NORM_SPREAD:
             notes.append(f"field_norm: sidecar values {norms} µT differ; using their mean")
+    elif mag.get("field_norm_ut"):
+        settings["field_norm"] = float(mag["field_norm_ut"])
+        notes.append(f"field_norm: {settings['field_norm']:.2f} µT from the magnetometer calibration "
+                     f"({mag.get('field_norm_source', 'self-calibration')})")
     else:
-        notes.append("field_norm: no earth_field.norm_ut in the sidecars; default kept")
+        notes.append("field_norm: no earth_field.norm_ut in the sidecars and no magnetometer "
+                     "calibration; default kept")
+    if dips:
+        settings["field_dip"] = float(np.deg2rad(np.mean(dips)))
+    elif mag.get("dip_deg") is not None:
+        settings["field_dip"] = float(np.deg2rad(mag["dip_deg"]))
+        notes.append(f"field_dip: {mag['dip_deg']:.2f}° estimated at the rest poses")
     declinations = _sidecar_values(datasets, "declination_deg")
     if declinations:
         settings["declination"] = float(np.deg2rad(np.mean(declinations)))
-    residuals = _gyro_residuals(datasets, thermal["gyr"]) if thermal["gyr"].enabled else []
-    if residuals:
-        settings.update(_gyro_settings(residuals))
+    return settings
+
+
+def _pf_settings(datasets: list[ImuData], model: ThermalModel, field_norm: float,
+                 notes: list[str]) -> dict[str, float]:
+    """Particle-filter settings from the calibrated field of the recordings (training.pf_settings):
+    what the filter will see at run time, so that switching it on declares no change that is noise."""
+    from .pf_settings import pf_settings_from_calibration
+    usable = [d for d in datasets if d.has("mag")]
+    if not usable or not model.enabled:
+        notes.append("pf_*: no calibrated magnetometer; particle-filter defaults kept")
+        return {}
+    field = np.concatenate([apply_thermal(model, d.mag, d.temp) for d in usable])
+    t = np.concatenate([d.t for d in usable])
+    try:
+        return pf_settings_from_calibration(field, t, field_norm, float(np.median([_rate_hz(d) for d in usable])))
+    except ValueError as e:
+        notes.append(f"pf_*: {e}; particle-filter defaults kept")
+        return {}
+
+
+def recommended_settings(datasets: list[ImuData], refs: dict[str, TriadReference],
+                         thermal: dict[str, ThermalModel], selfcal, notes: list[str]) -> dict[str, float]:
+    """FMU parameter values from the sidecars, the calibration and the sensor at rest (defaults
+    otherwise); appends a note for each value left at its default or taken from inconsistent data."""
+    settings = settings_defaults()
+    settings.update(_field_settings(datasets, selfcal, notes))
+    runs = _rest_residuals(_rest_masks(refs, selfcal), thermal["gyr"]) if thermal["gyr"].enabled else []
+    if runs:
+        settings.update(gyro_rest_settings(runs))
+        if len({id(d) for d, *_ in _rest_masks(refs, selfcal)}) < 2:
+            notes.append("rest_gyro_threshold: one recording shows only this power-up's bias; record a "
+                         "second session (power-cycled) so that train sees the run-to-run bias change")
     else:
-        notes.append("gyro_noise, gyro_bias_residual: no fitted gyro; defaults kept")
+        notes.append("gyro_noise, gyro_bias_residual, rest_gyro_threshold: no gyro at rest after "
+                     "calibration; defaults kept")
+    settings.update(_pf_settings(datasets, thermal["mag"], settings["field_norm"], notes))
     return settings
 
 
@@ -196,12 +279,28 @@ def _compensated(d: ImuData, thermal: dict[str, ThermalModel]) -> ImuData:
     return c
 
 
+def _elm_holdout(sets: list) -> list[tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]]:
+    """Hold-out folds of the prepared compass sets: each recording once held out against the others
+    when there are several (the ELM must carry over to a recording it has not seen); with one, its
+    last ELM_HOLDOUT_FRACTION in time against the rest (neighbouring samples of a random split
+    share the same field direction and position, and would flatter the model).
+    Returns [(train field, train reference, test field, test reference)] (µT)."""
+    if len(sets) > 1:
+        return [(np.concatenate([s.field for j, s in enumerate(sets) if j != k]),
+                 np.concatenate([s.reference for j, s in enumerate(sets) if j != k]),
+                 sets[k].field, sets[k].reference) for k in range(len(sets))]
+    s = sets[0]
+    cut = int(round(len(s.field) * (1.0 - ELM_HOLDOUT_FRACTION)))
+    return [(s.field[:cut], s.reference[:cut], s.field[cut:], s.reference[cut:])]
+
+
 def _elm_stage(datasets: list[ImuData], thermal: dict[str, ThermalModel], seed: int,
                notes: list[str]) -> tuple[dict[str, list[float]], bool, dict]:
     """Fit the field-form ELM on the thermally compensated field against ref_mag.
 
-    Returns ({'elm': block} or {}, enabled, stats). Enabled only when the ELM lowers the
-    held-out (10 %) field error RMS by ELM_MIN_GAIN; otherwise the block is kept but off.
+    Returns ({'elm': block} or {}, enabled, stats). Enabled only when the ELM lowers the field
+    error RMS of the held-out data (`_elm_holdout`) by ELM_MIN_GAIN; the block is fitted on all
+    the data and kept but off otherwise.
     """
     from . import elm
     usable = [d for d in datasets if d.ref_mag is not None and d.ref_q is not None and d.has("mag")]
@@ -211,20 +310,22 @@ def _elm_stage(datasets: list[ImuData], thermal: dict[str, ThermalModel], seed: 
         return {}, False, {}
     prep = elm.CompassPrep(stride=ELM_STRIDE)
     sets = [elm.prepare_compass(_compensated(d, thermal), None, prep, seed) for d in usable]
-    field = np.concatenate([s.field for s in sets])
-    ref = np.concatenate([s.reference for s in sets])
-    train = np.concatenate([s.train + o for s, o in zip(sets, np.cumsum([0] + [len(s.field) for s in sets]))])
-    test = np.setdiff1d(np.arange(len(field)), train)
-    model = elm.ElmFitter(**ELM_FITTER).fit(field[train], ref[train], seed)
-    before = float(np.sqrt(np.mean((field[test] - ref[test]) ** 2)))
-    after = float(np.sqrt(np.mean((elm.elm_apply(model, field[test]) - ref[test]) ** 2)))
+    errors = []
+    for train_x, train_y, test_x, test_y in _elm_holdout(sets):
+        fold = elm.ElmFitter(**ELM_FITTER).fit(train_x, train_y, seed)
+        errors.append(((test_x - test_y) ** 2, (elm.elm_apply(fold, test_x) - test_y) ** 2))
+    before = float(np.sqrt(np.mean(np.concatenate([e for e, _ in errors]))))
+    after = float(np.sqrt(np.mean(np.concatenate([e for _, e in errors]))))
+    model = elm.ElmFitter(**ELM_FITTER).fit(np.concatenate([s.field for s in sets]),
+                                           np.concatenate([s.reference for s in sets]), seed)
     enabled = after <= (1.0 - ELM_MIN_GAIN) * before
     if not enabled:
         notes.append(f"elm: held-out field error {before:.3g} -> {after:.3g} µT is not a "
                      f"{ELM_MIN_GAIN:.0%} gain; ELM stage off")
-    stats = {"unit": "µT", "hidden": model.hidden, "rows_train": int(len(train)),
-             "rows_test": int(len(test)), "rms_before": before, "rms_after": after,
-             "enabled": enabled, "train_time_s": model.train_time_s}
+    stats = {"unit": "µT", "hidden": model.hidden, "folds": len(errors),
+             "holdout": "each recording against the others" if len(sets) > 1 else
+             f"last {ELM_HOLDOUT_FRACTION:.0%} of the recording in time",
+             "rms_before": before, "rms_after": after, "enabled": enabled, "train_time_s": model.train_time_s}
     return {"elm": [float(v) for v in elm.to_block(model)]}, enabled, stats
 
 
@@ -258,43 +359,132 @@ def _psobp_stage(datasets: list[ImuData], thermal: dict[str, ThermalModel], seed
     return {"psobp": [float(v) for v in fit.model.to_block()]}, bool(decision.enable), stats
 
 
+def gate_outliers(raw: np.ndarray, target: np.ndarray) -> tuple[np.ndarray, int]:
+    """target (N, 3) with NaN rows where |raw − target − median| exceeds REFERENCE_OUTLIER_SIGMAS
+    robust standard deviations (1.4826 · MAD of the norm); returns it and the count set to NaN."""
+    residual = raw - target
+    ok = np.all(np.isfinite(residual), axis=1)
+    if ok.sum() < 10:
+        return target, 0
+    r = np.linalg.norm(residual - np.median(residual[ok], axis=0), axis=1)
+    scale = 1.4826 * np.median(np.abs(r[ok] - np.median(r[ok])))
+    bad = ok & (r > np.median(r[ok]) + REFERENCE_OUTLIER_SIGMAS * scale)
+    out = target.copy()
+    out[bad] = np.nan
+    return out, int(bad.sum())
+
+
+def _fit_with_reference(ref: TriadReference, degree: int, seed: int) -> tuple[ThermalModel, dict, list[str]]:
+    """Fit one triad against the reference its recordings carry (columns, derived or static):
+    the full gain/bias model when the reference moves along every axis, else the bias B(T) only."""
+    triad, datasets = ref.triad, list(ref.datasets)
+    temp = np.concatenate([d.temp for d in datasets]).astype(np.float64)
+    raw, target = _stack(datasets, triad), _stack(datasets, f"ref_{triad}")
+    notes = []
+    if ref.source == "attitude":
+        raw = np.concatenate([matched_raw(d, triad) for d in datasets])
+        target, dropped = gate_outliers(raw, target)
+        if dropped:
+            notes.append(f"{triad}: {dropped} rows whose derived reference disagrees with the sensor by more "
+                         f"than {REFERENCE_OUTLIER_SIGMAS:g} robust σ (optical gaps, marker glitches) left out")
+    reason = _skip_reason(datasets, triad, raw, target, degree)
+    if reason:
+        return ThermalModel.identity(enabled=False), {}, [f"{reason}; thermal model disabled"]
+    excitation = _weakest_excitation(target)
+    if excitation >= MIN_EXCITATION[triad]:
+        fit = GainBiasFitter(degree=degree).fit(raw, target, temp, seed, UNITS[triad])
+        return fit.model, _fit_stats(fit), notes + _fit_notes(triad, fit, degree)
+    if ref.source == "static" and triad != "gyr" and temperature_clusters(temp) < 2:
+        return ThermalModel.identity(enabled=False), {}, [
+            f"{triad}: a static log at one temperature identifies nothing of the {triad} (its bias and "
+            "gains need several poses or a reference); thermal model disabled"]
+    model = fit_bias_only(raw, target, temp, min(degree, max(temperature_clusters(temp) - 1, 0)))
+    stats = {"unit": UNITS[triad], "bias_only": True, "weakest_excitation": excitation}
+    what = ("the temperature drift of the bias only (the absolute bias and the gains are not "
+            "identifiable from a static log)") if ref.source == "static" and triad != "gyr" else "the bias B(T) only"
+    return model, stats, notes + [f"{triad}: the reference hardly moves (weakest direction {excitation:.3g} "
+                          f"{UNITS[triad]} RMS < {MIN_EXCITATION[triad]}): gains not identifiable, "
+                          f"fitted {what} (A = I, G = 1)"]
+
+
+def _self_calibrated(datasets: list[ImuData], triads: list[str], degree: int, progress: bool,
+                     notes: list[str]) -> SelfCalResult:
+    """Self-calibration from invariants of every recording (training.selfcal) for the triads
+    without any reference; the field norm from the sidecars when they give one."""
+    norms = _sidecar_values(datasets, "norm_ut")
+    result = self_calibrate(datasets, field_norm=float(np.mean(norms)) if norms else None,
+                            degree=degree, progress=progress)
+    for triad in triads:
+        notes += [f"{triad}: {n}" for n in result.report.get(triad, {}).get("notes", [])]
+    return result
+
+
+def _prepared_datasets(datasets: list[ImuData], refs: dict[str, TriadReference]) -> list[ImuData]:
+    """The recordings with every reference chosen for them filled in (for the ELM and PSO-BP
+    stages, which fit against reference columns)."""
+    out = []
+    for d in datasets:
+        fields = {}
+        for triad, ref in refs.items():
+            if ref.source in ("columns", "attitude"):
+                match = next((r for r in ref.datasets if r.name == d.name and len(r) == len(d)), None)
+                if match is not None:
+                    fields[f"ref_{triad}"] = getattr(match, f"ref_{triad}")
+        out.append(replace(d, **fields))
+    return out
+
+
+def _refuse_identity(thermal: dict[str, ThermalModel], refs: dict[str, TriadReference], selfcal,
+                     notes: list[str]) -> None:
+    """ModelError naming what is missing when no triad could be calibrated, or when nothing carries a
+    reference and the self-calibration identified only the gyro bias at rest (no accelerometer poses,
+    no field ellipsoid, no rotation: no motion — a still log, which calibrates the gyro bias only and
+    must then say so with "reference": "static" in its sidecar)."""
+    hint = " — record the protocol of docs/calibration.md, or pass --allow-identity"
+    if not any(m.enabled for m in thermal.values()):
+        raise ModelError("nothing could be calibrated: " + "; ".join(
+            n for n in notes if any(n.startswith(f"{t}:") for t in TRIAD_ORDER)) + hint)
+    moved = thermal["acc"].enabled or thermal["mag"].enabled or not np.array_equal(thermal["gyr"].A, np.eye(3))
+    if all(r.source == "none" for r in refs.values()) and not moved:
+        names = ", ".join(d.name for d in refs["gyr"].datasets)
+        raise ModelError(f"no reference and too little motion in {names}: only the gyro bias at rest is "
+                         "identifiable (no accelerometer poses, no field ellipsoid, no rotation between "
+                         "rests); a still log must say \"reference\": \"static\" in its sidecar" + hint)
+
+
 def train(datasets: list[ImuData], seed: int = 0, degree: int = 2,
-          progress: bool = True) -> ModelArtefact:
+          progress: bool = True, allow_identity: bool = False) -> ModelArtefact:
     """Fit the gain/bias temperature model of every triad and return the model artefact.
 
-    datasets: calibration recordings with references (ref_gyr / ref_acc / ref_mag); they
-    are concatenated. A triad without reference, with all-NaN raw data or with too few rows
-    gets a disabled identity model and a note. degree: polynomial degree (0..MAX_DEGREE).
-    Deterministic given `seed`. Raises ModelError when `datasets` is empty.
+    datasets: calibration recordings. Per triad the best reference any recording offers is used
+    (training.reference_source: reference columns, an attitude reference, a static log); a triad
+    without any is self-calibrated from invariants (training.selfcal). degree: largest polynomial
+    degree (0..MAX_DEGREE). Deterministic given `seed`. Raises ModelError when `datasets` is empty,
+    and when no triad can be calibrated unless allow_identity (then an identity model is returned).
     """
     if not datasets:
         raise ModelError("train: no training data given")
-    temp = np.concatenate([d.temp for d in datasets]).astype(np.float64)
+    refs = {triad: choose_reference(datasets, triad) for triad in TRIAD_ORDER}
     thermal, stats, notes = {}, {}, []
     with _deterministic(seed):
-        for triad in tqdm(TRIAD_ORDER, desc="thermal fit", disable=not progress):
-            raw, ref = _stack(datasets, triad), _stack(datasets, f"ref_{triad}")
-            reason = _skip_reason(datasets, triad, raw, ref, degree)
-            if reason:
-                notes.append(f"{reason}; thermal model disabled")
-                thermal[triad] = ThermalModel.identity(enabled=False)
-                continue
-            excitation = _weakest_excitation(ref)
-            if excitation < MIN_EXCITATION[triad]:
-                thermal[triad] = fit_bias_only(raw, ref, temp, degree)
-                stats[triad] = {"unit": UNITS[triad], "bias_only": True, "weakest_excitation": excitation}
-                notes.append(f"{triad}: the reference hardly moves (weakest direction {excitation:.3g} "
-                             f"{UNITS[triad]} RMS < {MIN_EXCITATION[triad]}): gains not identifiable, "
-                             "fitted the bias B(T) only (A = I, G = 1)")
-                continue
-            fit = GainBiasFitter(degree=degree).fit(raw, ref, temp, seed, UNITS[triad])
-            thermal[triad], stats[triad] = fit.model, _fit_stats(fit)
-            notes += _fit_notes(triad, fit, degree)
-        blocks, elm_on, stats["elm"] = _elm_stage(datasets, thermal, seed, notes)
-        psobp_block, psobp_on, stats["psobp"] = _psobp_stage(datasets, thermal, seed, notes)
+        referenced = [t for t in TRIAD_ORDER if refs[t].source != "none"]
+        for triad in tqdm(referenced, desc="reference fit", disable=not progress or not referenced):
+            thermal[triad], stats[triad], fit_notes = _fit_with_reference(refs[triad], degree, seed)
+            notes += list(refs[triad].notes) + fit_notes
+        blind = [t for t in TRIAD_ORDER if refs[t].source == "none"]
+        selfcal = _self_calibrated(datasets, blind, degree, progress, notes) if blind else None
+        for triad in blind:
+            thermal[triad], stats[triad] = selfcal.thermal[triad], selfcal.report.get(triad, {})
+        for triad in TRIAD_ORDER:
+            stats.setdefault(triad, {})["reference"] = refs[triad].source
+        prepared = _prepared_datasets(datasets, refs)
+        blocks, elm_on, stats["elm"] = _elm_stage(prepared, thermal, seed, notes)
+        psobp_block, psobp_on, stats["psobp"] = _psobp_stage(prepared, thermal, seed, notes)
+    if not allow_identity:
+        _refuse_identity(thermal, refs, selfcal, notes)
     blocks.update(psobp_block)
     stats = {k: v for k, v in stats.items() if v}
-    settings = recommended_settings(datasets, thermal, notes)
+    settings = recommended_settings(datasets, refs, thermal, selfcal, notes)
     settings["enable_elm"] = float(elm_on)
     settings["enable_psobp"] = float(psobp_on)
     return ModelArtefact(seed=seed, thermal=thermal, settings=settings, fit_stats=stats,

@@ -1,0 +1,111 @@
+"""Which reference calibrates each triad (training.reference_source) and what train does with it."""
+from __future__ import annotations
+
+import json
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from training.cli import main
+from training.dataset import ImuData
+from training.io import write_imu_csv
+from training.reference_source import choose_reference
+from training.simulator.quaternion import quat_from_euler
+from training.train import gate_outliers, gyro_rest_settings
+
+RATE_HZ = 100.0
+EARTH = {"norm_ut": 50.0, "dip_deg": 60.0, "declination_deg": 0.0}
+
+
+def _recording(n: int = 600, name: str = "rec", **extra) -> ImuData:
+    """A recording turning slowly about z, with finite raw triads and no reference."""
+    rng = np.random.default_rng(0)
+    t = np.arange(n) / RATE_HZ
+    gyr = np.column_stack([np.zeros(n), np.zeros(n), np.full(n, 0.3)]) + 1e-3 * rng.standard_normal((n, 3))
+    acc = np.tile([0.0, 0.0, -9.81], (n, 1))
+    mag = np.tile([25.0, 0.0, 43.3], (n, 1))
+    return ImuData(t=t, gyr=gyr, acc=acc, mag=mag, temp=np.full(n, 20.0), name=name,
+                   meta={"format": "imu-csv/1", "rate_hz": RATE_HZ, "earth_field": EARTH}, **extra)
+
+
+def _attitude(n: int) -> np.ndarray:
+    """ref_q (n, 4) of a turn about z at 0.3 rad/s, body -> NED."""
+    yaw = 0.3 * np.arange(n) / RATE_HZ
+    return quat_from_euler(np.column_stack([yaw, np.zeros(n), np.zeros(n)]))
+
+
+def test_columns_win_over_an_attitude_reference():
+    data = _recording()
+    data = replace(data, ref_gyr=np.tile([0.0, 0.0, 0.3], (len(data), 1)), ref_q=_attitude(len(data)))
+    ref = choose_reference([data], "gyr")
+    assert ref.source == "columns" and ref.datasets[0] is data
+
+
+def test_attitude_reference_derives_rate_and_field_like_diagnose():
+    data = replace(_recording(), ref_q=_attitude(600))
+    gyr, mag, acc = (choose_reference([data], t) for t in ("gyr", "mag", "acc"))
+    assert gyr.source == "attitude" and mag.source == "attitude"
+    # derived rate of a 0.3 rad/s turn about z: the Savitzky-Golay derivative is exact for it
+    inner = gyr.datasets[0].ref_gyr[20:-20]
+    assert np.allclose(inner, [0.0, 0.0, 0.3], atol=1e-9)
+    # body field = R(q)^T m_ned; its norm is the sidecar's
+    assert np.allclose(np.linalg.norm(mag.datasets[0].ref_mag, axis=1), EARTH["norm_ut"])
+    assert acc.source == "none"  # no aux_pos_*: no specific-force reference
+    assert any("ref_gyr derived" in n for n in gyr.notes)
+
+
+def test_static_log_gives_zero_rate_and_acc_mag_only_when_all_static():
+    still = replace(_recording(name="still"), meta={**_recording().meta, "reference": "static"})
+    moving = _recording(name="moving")
+    gyr = choose_reference([still, moving], "gyr")
+    assert gyr.source == "static" and [d.name for d in gyr.datasets] == ["still"]
+    assert np.array_equal(gyr.datasets[0].ref_gyr, np.zeros((len(still), 3)))
+    # with a moving recording beside it, acc/mag are self-calibrated, not "static"
+    assert choose_reference([still, moving], "acc").source == "none"
+    only = choose_reference([still], "mag")
+    assert only.source == "static"
+    assert np.allclose(only.datasets[0].ref_mag, still.mag.mean(axis=0))
+
+
+def test_no_reference_keeps_every_recording():
+    a, b = _recording(name="a"), _recording(name="b")
+    ref = choose_reference([a, b], "mag")
+    assert ref.source == "none" and ref.datasets == (a, b)
+
+
+def test_gate_outliers_drops_glitches_only():
+    rng = np.random.default_rng(1)
+    target = rng.standard_normal((1000, 3))
+    raw = target + 0.01 * rng.standard_normal((1000, 3)) + 0.2  # a bias is no outlier
+    raw[[10, 500]] += 5.0                                         # two glitches
+    gated, dropped = gate_outliers(raw, target)
+    assert dropped == 2 and np.isnan(gated[[10, 500]]).all() and np.isfinite(np.delete(gated, [10, 500], 0)).all()
+
+
+def test_rest_threshold_covers_noise_and_the_residual_bias():
+    sigma, bias = 2e-3, 4e-3
+    runs = [(np.array([bias, 0.0, 0.0]), np.full(3, sigma ** 2), 100.0, 300),
+            (np.array([-bias, 0.0, 0.0]), np.full(3, sigma ** 2), 100.0, 300)]
+    s = gyro_rest_settings(runs)
+    assert s["rest_gyro_threshold"] == pytest.approx(max(5 * sigma, 2 * bias))
+    assert s["gyro_noise"] == pytest.approx(sigma / np.sqrt(100.0))
+
+
+def test_train_cli_refuses_a_still_log_without_reference(tmp_path, capsys):
+    rng = np.random.default_rng(2)
+    n = 2000
+    still = ImuData(t=np.arange(n) / RATE_HZ, gyr=0.01 + 1e-3 * rng.standard_normal((n, 3)),
+                    acc=[0, 0, -9.81] + 0.01 * rng.standard_normal((n, 3)),
+                    mag=[20, 0, 40] + 0.1 * rng.standard_normal((n, 3)), temp=np.full(n, np.nan),
+                    meta={"format": "imu-csv/1", "rate_hz": RATE_HZ, "reference": "none"}, name="still")
+    path = write_imu_csv(still, tmp_path / "still.csv")
+    assert main(["train", str(path), "--out", str(tmp_path / "m")]) == 1
+    err = [line for line in capsys.readouterr().err.splitlines() if line.startswith("imufmu train:")]
+    assert len(err) == 1 and "no reference and too little motion in still" in err[0] and "--allow-identity" in err[0]
+    # declared static, the same log calibrates the gyro bias and says so
+    sidecar = tmp_path / "still.json"
+    sidecar.write_text(json.dumps({**json.loads(sidecar.read_text()), "reference": "static"}))
+    assert main(["train", str(path), "--out", str(tmp_path / "m")]) == 0
+    out = capsys.readouterr().out
+    assert "gyroscope: reference: static log" in out and (tmp_path / "m" / "calibration.md").is_file()
