@@ -7,9 +7,11 @@ invariants only:
 1. rests and hand-held holds, grouped into poses (rest.py);
 2. gyro bias B(T) from the rest means (gyro.py);
 3. accelerometer A (symmetric) and b(T) from the gravity norm at the poses (accel.py);
-4. magnetometer hard/soft iron from the field norm over the recording, then its rotation onto
-   the accelerometer frame and the dip from the dip-angle invariant at the poses (magnet.py);
-5. gyro gains and misalignment A_g from the rotation between consecutive rests (gyro.py).
+4. magnetometer hard/soft iron (and their temperature drift B(T), G(T)) from the field norm over
+   the recording, then its rotation onto the accelerometer frame and the dip from the dip-angle
+   invariant at the poses (magnet.py);
+5. gyro gains and misalignment A_g (and the gain drift G(T)) from the rotation between
+   consecutive rests (gyro.py).
 
 Every stage fits only what the data identify (Jacobian condition and parameter standard errors)
 and says in the report what it fitted and why not more. Deterministic: no randomness.
@@ -51,11 +53,13 @@ def self_calibrate(datasets: list[ImuData], *, field_norm: float | None, degree:
 
     field_norm: local earth-field magnitude [µT] (sidecar earth_field.norm_ut, a geomagnetic
     model, ...); None: the recordings' own median norm about the hard-iron centre (the field is
-    then calibrated in the sensor's own scale). degree: largest B(T) degree. gravity: local g [m/s²].
+    then calibrated in the sensor's own scale). degree: largest degree of the temperature
+    polynomials B(T) and G(T) (fewer where the data do not pin them). gravity: local g [m/s²].
 
-    Report per triad: unit; fitted (what); why_not_more; notes (sentences); poses; degree;
-    temperature span and clusters; bias (3,) at t0 and bias_coefficients (3, P+1) in powers of
-    Tn = (T - t0)/ts; scale_factors (gain of each raw axis), scale_factor_error_pct,
+    Report per triad: unit; fitted (what); why_not_more; notes (sentences); rest_windows, holds,
+    poses; degree; temperature_span_c and temperature_clusters; bias (3,) at t0 and
+    bias_coefficients (3, P+1) in powers of Tn = (T - t0)/ts (t0_c, ts_c); gain_coefficients
+    (3, Q) of G(T) (gyr, mag); scale_factors (gain of each raw axis), scale_factor_error_pct,
     nonorthogonality_deg, misalignment_deg (angle of each raw axis to the body axis); residual:
     {metric: {before, after}} — gyr: rest_rate_rms_rad_s, direction_error_rms_deg (also
     bias_only); acc: gravity_norm_rms_ms2; mag: field_norm_rms_ut, field_norm_spread (std/mean),
@@ -74,7 +78,8 @@ def self_calibrate(datasets: list[ImuData], *, field_norm: float | None, degree:
         acc_fit = accel.fit_accelerometer(windows, gravity, t0, ts, degree)
         acc_model = _acc_model(acc_fit, t0, ts)
     with _stage("selfcal: magnetometer (field norm, dip)", progress):
-        mag_fit, alignment, mag_model = _magnetometer(datasets, windows, acc_model, field_norm, t0, ts, degree)
+        mag_fit, alignment, mag_model = _magnetometer(datasets, windows, acc_model, field_norm, t0, ts,
+                                                      degree)
     directions = _directions(windows, acc_model, mag_fit, alignment, mag_model)
     with tqdm(desc="selfcal: gyro gains (L-BFGS evaluations)", disable=not progress) as bar:
         noise = _direction_noise(acc_fit, mag_fit, gravity)
@@ -134,8 +139,32 @@ def _magnetometer(datasets, windows, acc_model, field_norm, t0, ts, degree):
     alignment = None
     if use.any():
         field = _unit(_field_means(windows, fit))
-        alignment = magnet.fit_alignment(_unit(_rest_means(windows, "acc", acc_model))[use], field[use])
+        gravity = _unit(_rest_means(windows, "acc", acc_model))
+        use &= _consistent_dip(gravity, field, use)
+        alignment = magnet.fit_alignment(gravity[use], field[use])
     return fit, alignment, fit.model(alignment.R if alignment is not None else None)
+
+
+#: A rest whose dip (R = I) is further than DIP_OUTLIER_SIGMAS robust σ from the median dip of the
+#: rests, and at least DIP_OUTLIER_FLOOR_DEG, saw a disturbed field direction (iron nearby turns the
+#: field without changing its norm much: xio_handheld's disturbance moves the dip by 19°, its norm by
+#: 1 %). A magnetometer misaligned to the accelerometer by α scatters the dip by at most ±α, a few
+#: degrees for a MEMS package, so honest rests stay inside the floor.
+DIP_OUTLIER_SIGMAS = 5.0
+DIP_OUTLIER_FLOOR_DEG = 3.0
+
+
+def _consistent_dip(gravity: np.ndarray, field: np.ndarray, use: np.ndarray) -> np.ndarray:
+    """(K,) bool: rests whose dip asin(-f̂·ĥ) [°] from unit specific-force and field directions (K, 3)
+    is within max(DIP_OUTLIER_SIGMAS robust σ, DIP_OUTLIER_FLOOR_DEG) of the median over `use`."""
+    with np.errstate(invalid="ignore"):
+        dip = np.degrees(np.arcsin(np.clip(-np.sum(gravity * field, axis=1), -1.0, 1.0)))
+    ok = use & np.isfinite(dip)
+    if ok.sum() < 3:
+        return ok
+    median = np.median(dip[ok])
+    limit = max(DIP_OUTLIER_SIGMAS * 1.4826 * np.median(np.abs(dip[ok] - median)), DIP_OUTLIER_FLOOR_DEG)
+    return ok & (np.abs(dip - median) <= limit)
 
 
 def _field_means(windows: list[RestWindow], fit: magnet.MagFit) -> np.ndarray:

@@ -171,13 +171,15 @@ def _torch_threads(n: int):
 @dataclass(frozen=True)
 class Segments:
     """Motions between consecutive rests: rotation-vector increments per segment [(L_s, 3) rad]
-    (rate x dt, raw and bias-corrected), the normalised temperature of each increment [(L_s,)],
+    (rate x dt, raw and bias-corrected), the normalised temperature of each increment [(L_s,)]
+    (0 where unknown, as in the runtime), the mean temperature (S,) °C (NaN where unknown),
     start/end directions (S, D, 3) (unit; NaN-free, weight 0 where missing), weights (S, D), and
     the (dataset, begin, end) sample indices of each."""
 
     raw: list
     corrected: list
     tn: list
+    temp: np.ndarray
     start: np.ndarray
     end: np.ndarray
     weight: np.ndarray
@@ -235,15 +237,18 @@ def build_segments(datasets: list[ImuData], windows: list[RestWindow], direction
                 continue
             raw = _increments(data, begin, end, np.zeros_like(data.gyr))
             tn = normalised_temperature(data.temp[begin:end + 1], t0, ts)
+            temp = data.temp[begin:end + 1]
             items.append((raw, inc, directions[ka], directions[kb], both, (a.dataset, begin, end),
-                          0.5 * (tn[:-1] + tn[1:])))
+                          0.5 * (tn[:-1] + tn[1:]),
+                          float(np.nanmean(temp)) if np.isfinite(temp).any() else np.nan))
     if not items:
         return None, skipped
     raw, cor, tns = [it[0] for it in items], [it[1] for it in items], [it[6] for it in items]
     start = np.nan_to_num(np.array([it[2] for it in items]))
     end = np.nan_to_num(np.array([it[3] for it in items]))
     weight = np.array([it[4] for it in items], dtype=float)
-    return Segments(raw, cor, tns, start, end, weight, [it[5] for it in items]), skipped
+    return Segments(raw, cor, tns, np.array([it[7] for it in items]), start, end, weight,
+                    [it[5] for it in items]), skipped
 
 
 def quaternion_increments(theta: torch.Tensor) -> torch.Tensor:
@@ -384,7 +389,8 @@ def _jacobian(params: torch.Tensor, batch: Batch, degree: int) -> np.ndarray:
         for k in range(len(params)):
             step = torch.zeros(len(params), dtype=torch.float64)
             step[k] = JACOBIAN_STEP
-            diff = segment_residual(params + step, batch, degree) - segment_residual(params - step, batch, degree)
+            diff = (segment_residual(params + step, batch, degree)
+                    - segment_residual(params - step, batch, degree))
             cols.append((diff / (2 * JACOBIAN_STEP)).reshape(-1).numpy())
     return np.column_stack(cols)
 
@@ -419,11 +425,10 @@ def _segment_outliers(res: np.ndarray, present: np.ndarray) -> np.ndarray:
     return out
 
 
-def gain_degree(seg: Segments, requested: int, t0: float, ts: float) -> tuple[int, str]:
+def gain_degree(seg: Segments, requested: int) -> tuple[int, str]:
     """(degree P of the gain polynomial G(T), reason when lower than requested) from the distinct
     temperatures of the segments (their mean temperatures, °C)."""
-    temps = np.array([t0 + ts * float(np.mean(tn)) for tn in seg.tn])
-    degree, reason = choose_degree(temps, min(requested, MAX_DEGREE), len(temps))
+    degree, reason = choose_degree(seg.temp, min(requested, MAX_DEGREE), len(seg.temp))
     return degree, reason.replace("bias", "gain") if reason else ""
 
 
@@ -452,8 +457,9 @@ def fit_gyro_gain(seg: Segments | None, skipped: dict, noise: np.ndarray, degree
     DIRECTION_NOISE_FLOOR; outlier segments of that fit are dropped. Then G(T) + A_g is fitted and
     judged, and A_g alone when G(T) is not identifiable."""
     if seg is None:
-        return GyroGain(np.eye(3), np.zeros((3, 0)), False, "no usable motion between two rests (see skipped)",
-                        0, skipped, np.nan, np.nan, np.nan, None, np.full(len(noise), np.nan))
+        return GyroGain(np.eye(3), np.zeros((3, 0)), False,
+                        "no usable motion between two rests (see segments_skipped)", 0, skipped, np.nan,
+                        np.nan, np.nan, None, np.full(len(noise), np.nan))
     present = seg.weight
     sigma = np.maximum(np.nan_to_num(noise, nan=1.0), DIRECTION_NOISE_FLOOR)
     keep = np.ones(len(present), dtype=bool)
@@ -501,7 +507,7 @@ def fit_gyroscope(datasets: list[ImuData], windows: list[RestWindow], directions
         seg, skipped = build_segments(datasets, windows, directions, biases, t0, ts)
         if seg is None:
             return fit_gyro_gain(seg, skipped, np.asarray(noise, dtype=float), 0, bar)
-        p, why_degree = gain_degree(seg, degree, t0, ts)
+        p, why_degree = gain_degree(seg, degree)
         if not seg.weight[:, 1].any() or not seg.weight[:, 0].any():
             gain = fit_gyro_gain(seg, skipped, np.asarray(noise, dtype=float), p, bar)
         else:

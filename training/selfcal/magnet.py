@@ -473,6 +473,7 @@ def summarise(fit: MagFit, alignment: Alignment | None) -> dict:
         out["residual"]["dip_invariant_rms"] = {"before": alignment.rms_before, "after": alignment.rms_after}
         what = f"R fitted ({out['alignment_angle_deg']:.2f}°)" if aligned else alignment.reason
         notes.append(f"alignment to the accelerometer: {what}; dip {alignment.dip_deg:.2f}°")
-    notes.append(f"not richer: {out['why_not_more']}")
+    if out["why_not_more"]:
+        notes.append(f"not richer: {out['why_not_more']}")
     out["notes"] = notes
     return out
