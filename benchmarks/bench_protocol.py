@@ -11,7 +11,7 @@ sensor down as well as the lab calibration set (scenarios/calibration.toml)? Pri
 2. For each seed s: simulate protocol.toml and calibration.toml with seed s, train each WITH its
    reference columns (training.train.train, as the main job does), simulate eval_handheld and
    eval_figure8 with seeds s+1 and s+2 (as training.pipeline does), run the batch runtime with
-   attitude_mode 0, attitude_mode 1, and attitude_mode 1 with rest_gyro_threshold 0.035 rad/s,
+   the settings train wrote ("as trained") and the method's Euler fusion set by hand,
    and compute training.evaluate.compute_metrics. Table: mean over seeds (worst in brackets when
    more than one seed), acceptance bounds of the main job and the uncompensated sensors below.
    --selfcal adds the protocol trained WITHOUT its truth columns (self-calibration from the
@@ -36,52 +36,37 @@ from training.simulator import load_scenario, simulate
 SCENARIOS = Path(__file__).resolve().parents[1] / "scenarios"
 TRAINING_SETS = ("protocol.toml", "calibration.toml")
 EVALUATIONS = ("eval_handheld.toml", "eval_figure8.toml")
-CONFIGS = {"mode 0": {"attitude_mode": 0.0},
-           "mode 1": {"attitude_mode": 1.0},
-           "mode 1, rest 0.035": {"attitude_mode": 1.0, "rest_gyro_threshold": 0.035}}
+#: Runtime settings: as `train` wrote them (the FMU defaults plus the trained values), and the
+#: method's adaptive-gain Euler fusion set by hand for comparison.
+CONFIGS = {"as trained": {},
+           "attitude_mode 0, no rest bias (hand-set)": {"attitude_mode": 0.0, "rest_gyro_threshold": 0.0}}
 COLUMNS = (("rate_err_dps", "rate [°/s]", 4), ("field_err_ut", "field [µT]", 3),
            ("roll_err_deg", "roll [°]", 3), ("pitch_err_deg", "pitch [°]", 3),
            ("yaw_err_deg", "yaw [°]", 3), ("tilt_err_deg", "tilt [°]", 3),
            ("heading_err_deg", "heading [°]", 3))
 
-# Rest detection in the raw signals (what a self-calibration sees): centred moving window,
-# every gyro axis std below GYR_STD and every accelerometer axis std below ACC_STD, for MIN_REST_S.
-REST_WINDOW_S = 0.5
-GYR_STD = np.deg2rad(0.15)      # rad/s: 5 × the per-sample gyro noise (0.03 °/s)
-ACC_STD = 0.04                  # m/s²: 4 × the per-sample accelerometer noise (0.0098 m/s²)
+#: A positions segment whose holds are shorter than this [s] is a continuous tour (a tumble).
 MIN_REST_S = 1.5
-POSE_SEPARATION_DEG = 15.0
 # Field-direction coverage: a cell counts when the true field points into it for this long.
 CELL_MIN_S = 0.2
 
 
 # ----------------------------------------------------------------------------- checks
 
-def moving_std(x: np.ndarray, n: int) -> np.ndarray:
-    """Centred moving standard deviation over n samples of each column of x (N, C)."""
-    pad = np.pad(x, ((n // 2, n - 1 - n // 2), (0, 0)), mode="edge")
-    c1 = np.cumsum(np.vstack([np.zeros((1, x.shape[1])), pad]), axis=0)
-    c2 = np.cumsum(np.vstack([np.zeros((1, x.shape[1])), pad * pad]), axis=0)
-    mean = (c1[n:] - c1[:-n]) / n
-    return np.sqrt(np.maximum((c2[n:] - c2[:-n]) / n - mean * mean, 0.0))
+def rest_windows(data) -> list:
+    """The rests the self-calibration finds in the raw signals (training.selfcal.rest), with poses."""
+    from training.selfcal.rest import detect_rest, group_poses
+    return group_poses(list(detect_rest(data).windows))
 
 
-def rest_windows(data, rate_hz: float) -> list[tuple[int, int]]:
-    """(start, stop) sample indices of rest windows found in the raw gyro and accelerometer."""
-    n = int(round(REST_WINDOW_S * rate_hz))
-    still = ((moving_std(data.gyr, n) < GYR_STD).all(axis=1)
-             & (moving_std(data.acc, n) < ACC_STD).all(axis=1))
-    edges = np.flatnonzero(np.diff(np.concatenate([[0], still.astype(int), [0]])))
-    return [(a, b) for a, b in zip(edges[::2], edges[1::2]) if b - a >= MIN_REST_S * rate_hz]
-
-
-def cluster_directions(directions: np.ndarray, min_deg: float) -> np.ndarray:
-    """Greedy clusters: a direction further than min_deg from every centre starts a new one."""
-    centres: list[np.ndarray] = []
-    for d in directions:
-        if all(np.degrees(np.arccos(np.clip(d @ c, -1, 1))) > min_deg for c in centres):
-            centres.append(d)
-    return np.array(centres)
+def pose_directions(windows) -> np.ndarray:
+    """(P, 3) mean gravity ('down') direction of each pose of the windows."""
+    down = {}
+    for w in windows:
+        if w.pose >= 0:
+            down.setdefault(w.pose, []).append(-w.acc / np.linalg.norm(w.acc))
+    centres = np.array([np.mean(v, axis=0) for v in down.values()])
+    return centres / np.linalg.norm(centres, axis=1, keepdims=True)
 
 
 def cell_directions() -> np.ndarray:
@@ -138,10 +123,9 @@ def check_protocol(seed: int) -> None:
                       for n in EVALUATIONS for e in [simulate(load_scenario(SCENARIOS / n),
                                                               seed=seed + 1)]))
 
-    windows = rest_windows(data, rate)
-    gravity = np.array([np.mean(data.acc[a:b], axis=0) for a, b in windows])
-    down = -gravity / np.linalg.norm(gravity, axis=1, keepdims=True)
-    centres = cluster_directions(down, POSE_SEPARATION_DEG)
+    rests = rest_windows(data)
+    windows = [(w.start, w.stop) for w in rests]
+    centres = pose_directions(rests)
     sep = np.degrees(np.arccos(np.clip(centres @ centres.T, -1, 1)))
     np.fill_diagonal(sep, 180.0)
     lengths = np.array([(b - a) / rate for a, b in windows])
@@ -149,18 +133,17 @@ def check_protocol(seed: int) -> None:
     rotations = np.array([rotation_deg(data.ref_q[b1 - 1], data.ref_q[a2]) for (_, b1), (a2, _) in pairs])
     swept = np.array([np.degrees(np.sum(np.linalg.norm(data.ref_gyr[b1:a2], axis=1))) / rate
                       for (_, b1), (a2, _) in pairs])
-    print(f"\nRest windows (raw gyro std < {np.degrees(GYR_STD):.2f} °/s and acc std < "
-          f"{ACC_STD} m/s² over {REST_WINDOW_S} s, >= {MIN_REST_S} s): {len(windows)}, "
+    print(f"\nRest windows (training.selfcal.rest, as the self-calibration finds them): {len(windows)}, "
           f"{lengths.sum():.0f} s in all ({lengths.min():.1f} .. {lengths.max():.1f} s each), "
           f"at {data.temp[[a for a, _ in windows]].min():.1f} .. "
           f"{data.temp[[a for a, _ in windows]].max():.1f} °C.")
-    print(f"Distinct gravity directions (> {POSE_SEPARATION_DEG:g}° apart): {len(centres)}; "
+    print(f"Distinct gravity directions (poses of training.selfcal.rest): {len(centres)}; "
           f"closest pair {sep.min():.1f}° apart.")
     blocks = [(a, b) for kind, a, b in spans if kind == "positions"]
     for k, (a, b) in enumerate(blocks):
-        inside = [i for i, (s, e) in enumerate(windows) if s / rate < b and e / rate > a]
+        inside = [w for w in rests if w.start / rate < b and w.stop / rate > a]
         print(f"  block {k + 1}: {len(inside)} rests in the pose set, "
-              f"{len(cluster_directions(down[inside], POSE_SEPARATION_DEG))} distinct directions")
+              f"{len({w.pose for w in inside if w.pose >= 0})} distinct directions")
     turned, full = rotations > 10.0, (rotations <= 10.0) & (swept > 300.0)
     print(f"Consecutive rest pairs (the gyro gain fit's data): {len(pairs)}; {int(turned.sum())} with "
           f"a net rotation of {rotations[turned].min():.0f} .. {rotations[turned].max():.0f}°, "
