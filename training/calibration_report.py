@@ -67,6 +67,12 @@ def triad_summary(artefact: ModelArtefact, triad: str) -> list[str]:
     fit = _fit_line(stats, triad)
     if fit:
         lines.append(f"  {fit} (on the calibration data)")
+    held = stats.get("held_out") or {}
+    if held.get("before") is not None and held.get("after") is not None:
+        unit, factor = DISPLAY[triad]
+        metric = held["metric"].replace(f"[{UNITS[triad]}]", f"[{unit}]")
+        lines.append(f"  held-out ({held['holdout']}): {metric} "
+                     f"{held['before'] * factor:.4g} → {held['after'] * factor:.4g}")
     for key in ("fitted", "why_not_more", "rest_windows", "poses", "segments", "coverage"):
         if stats.get(key) not in (None, ""):
             lines.append(f"  {key.replace('_', ' ')}: {stats[key]}")

@@ -171,7 +171,7 @@ class ThermalFit:
     unit: str
 
 
-#: Width of a temperature cluster [°C]: a MEMS bias drifts smoothly, by ~0.01-0.1 °/s or
+#: Width of a temperature cluster [°C] (reference fits here, rest windows in training.selfcal): a MEMS bias drifts smoothly, by ~0.01-0.1 °/s or
 #: ~1 mg per °C, so samples within 2.5 °C of each other pin down one point of B(T), not a slope.
 CLUSTER_WIDTH_C = 2.5
 #: Share of the finite temperature samples a cluster must hold to count: a transit through a

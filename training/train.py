@@ -434,6 +434,26 @@ def _prepared_datasets(datasets: list[ImuData], refs: dict[str, TriadReference])
     return out
 
 
+def _held_out(datasets: list[ImuData], refs: dict[str, TriadReference], degree: int, seed: int,
+              selfcal, notes: list[str]) -> dict[str, dict]:
+    """Held-out error per triad (training.holdout): the same procedure refitted without the last
+    quarter of every recording, scored on it; {} with a note when the recordings are too short."""
+    from .holdout import held_out
+    from .simulator.earth import STANDARD_GRAVITY
+    norms = _sidecar_values(datasets, "norm_ut")
+    norm = float(np.mean(norms)) if norms else (selfcal.report.get("mag", {}).get("field_norm_ut") if selfcal else None)
+
+    def fit_selfcal(parts):
+        return self_calibrate(parts, field_norm=norm, degree=degree, progress=False).thermal
+    try:
+        with _deterministic(seed):
+            return held_out(datasets, refs, lambda r: _fit_with_reference(r, degree, seed)[0], fit_selfcal,
+                            norm, STANDARD_GRAVITY)
+    except ValueError as e:
+        notes.append(f"held-out error not computed: {e}")
+        return {}
+
+
 def _refuse_identity(thermal: dict[str, ThermalModel], refs: dict[str, TriadReference], selfcal,
                      notes: list[str]) -> None:
     """ModelError naming what is missing when no triad could be calibrated, or when nothing carries a
@@ -482,6 +502,8 @@ def train(datasets: list[ImuData], seed: int = 0, degree: int = 2,
         psobp_block, psobp_on, stats["psobp"] = _psobp_stage(prepared, thermal, seed, notes)
     if not allow_identity:
         _refuse_identity(thermal, refs, selfcal, notes)
+    for triad, score in _held_out(datasets, refs, degree, seed, selfcal, notes).items():
+        stats[triad]["held_out"] = score
     blocks.update(psobp_block)
     stats = {k: v for k, v in stats.items() if v}
     settings = recommended_settings(datasets, refs, thermal, selfcal, notes)

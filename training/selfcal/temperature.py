@@ -10,13 +10,8 @@ from __future__ import annotations
 import numpy as np
 
 from ..layout import MAX_DEGREE
-from ..thermal import DEFAULT_T0, DEFAULT_TS, normalised_temperature, temperature_normalisation
-
-#: Width of one distinct temperature [°C]. A MEMS bias drifts smoothly (~0.01-0.1 °/s or ~1 mg
-#: per °C) and an on-chip temperature sensor reads the die to ~±1 °C, with the package lagging the
-#: die by about as much during a ramp: rests within 2.5 °C of each other pin one point of B(T),
-#: not a slope (the same width as training/thermal.py uses for the reference fits).
-CLUSTER_WIDTH_C = 2.5
+from ..thermal import (CLUSTER_WIDTH_C, DEFAULT_T0, DEFAULT_TS, normalised_temperature,
+                       temperature_normalisation)
 
 
 def cluster_labels(temp: np.ndarray) -> np.ndarray:
