@@ -109,3 +109,22 @@ def test_train_cli_refuses_a_still_log_without_reference(tmp_path, capsys):
     assert main(["train", str(path), "--out", str(tmp_path / "m")]) == 0
     out = capsys.readouterr().out
     assert "gyroscope: reference: static log" in out and (tmp_path / "m" / "calibration.md").is_file()
+
+
+def test_sidecar_site_gives_the_field_through_igrf():
+    from datetime import datetime
+
+    from training.errors import ModelError
+    from training.geomag import earth_field
+    from training.train import _sidecar_values
+    site = {"latitude_deg": 47.8, "longitude_deg": 9.2, "altitude_km": 0.4, "date": "2020-06-01"}
+    data = replace(_recording(), meta={"format": "imu-csv/1", "rate_hz": RATE_HZ, "site": site})
+    igrf = earth_field(47.8, 9.2, 0.4, datetime(2020, 6, 1))
+    assert _sidecar_values([data], "norm_ut") == [igrf.norm_ut]
+    assert _sidecar_values([data], "dip_deg") == [igrf.dip_deg]
+    # an explicit earth_field wins over the site
+    both = replace(data, meta={**data.meta, "earth_field": EARTH})
+    assert _sidecar_values([both], "norm_ut") == [EARTH["norm_ut"]]
+    bad = replace(data, meta={**data.meta, "site": {"latitude_deg": "north"}})
+    with pytest.raises(ModelError, match="rec: sidecar site"):
+        _sidecar_values([bad], "norm_ut")

@@ -24,6 +24,22 @@ class EarthField:
     down_ut: float
 
 
+def site_field(meta: dict) -> EarthField | None:
+    """The IGRF field at the sidecar's optional site {"latitude_deg", "longitude_deg", "altitude_km"
+    (default 0), "date" (ISO, default today)}; None when the sidecar gives no site. ValueError names
+    a malformed site."""
+    site = meta.get("site")
+    if not site:
+        return None
+    try:
+        date = datetime.fromisoformat(str(site["date"])) if site.get("date") else datetime.now()
+        return earth_field(float(site["latitude_deg"]), float(site["longitude_deg"]),
+                           float(site.get("altitude_km", 0.0)), date)
+    except (KeyError, TypeError, ValueError) as e:
+        raise ValueError(f"sidecar site {site}: {e!r} (expected latitude_deg, longitude_deg, "
+                         "altitude_km, date)") from None
+
+
 def earth_field(latitude_deg: float, longitude_deg: float, altitude_km: float,
                 date: datetime) -> EarthField:
     """IGRF main field at a geodetic position and date."""

@@ -145,9 +145,21 @@ def _fit_stats(fit: ThermalFit) -> dict:
 
 
 def _sidecar_values(datasets: list[ImuData], key: str) -> list[float]:
-    """earth_field[key] of every dataset whose sidecar gives it."""
-    values = [(d.meta.get("earth_field") or {}).get(key) for d in datasets]
-    return [float(v) for v in values if v is not None]
+    """earth_field[key] (norm_ut, dip_deg, declination_deg) of every dataset whose sidecar gives it,
+    else of the IGRF field at the sidecar's site (training.geomag.site_field) when it gives one."""
+    from .geomag import site_field
+    values = []
+    for d in datasets:
+        value = (d.meta.get("earth_field") or {}).get(key)
+        if value is None:
+            try:
+                field = site_field(d.meta)
+            except ValueError as e:
+                raise ModelError(f"{d.name}: {e}") from None
+            value = getattr(field, key) if field is not None else None
+        if value is not None:
+            values.append(float(value))
+    return values
 
 
 def _rate_hz(data: ImuData) -> float:
