@@ -11,7 +11,8 @@ from training.errors import ModelError
 from training.layout import (LAYOUT_VERSION, N_COEFFICIENTS, SETTINGS, identity_coefficients,
                              settings_defaults)
 from training.thermal import ThermalModel, apply_thermal
-from training.train import GYRO_BIAS_RESIDUAL_FLOOR, train
+from training.recommend import GYRO_BIAS_RESIDUAL_FLOOR
+from training.train import train
 
 #: Noise-free acc data: the fit pins coefficients to ~1e-11 (tests/test_thermal.py); 1e-8
 #: (A, g dimensionless, b relative to its scale) proves exact recovery through train().

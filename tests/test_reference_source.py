@@ -12,7 +12,8 @@ from training.dataset import ImuData
 from training.io import write_imu_csv
 from training.reference_source import choose_reference
 from training.simulator.quaternion import quat_from_euler
-from training.train import gate_outliers, gyro_rest_settings
+from training.recommend import gyro_rest_settings
+from training.train import gate_outliers
 
 RATE_HZ = 100.0
 EARTH = {"norm_ut": 50.0, "dip_deg": 60.0, "declination_deg": 0.0}
@@ -116,15 +117,15 @@ def test_sidecar_site_gives_the_field_through_igrf():
 
     from training.errors import ModelError
     from training.geomag import earth_field
-    from training.train import _sidecar_values
+    from training.recommend import sidecar_values
     site = {"latitude_deg": 47.8, "longitude_deg": 9.2, "altitude_km": 0.4, "date": "2020-06-01"}
     data = replace(_recording(), meta={"format": "imu-csv/1", "rate_hz": RATE_HZ, "site": site})
     igrf = earth_field(47.8, 9.2, 0.4, datetime(2020, 6, 1))
-    assert _sidecar_values([data], "norm_ut") == [igrf.norm_ut]
-    assert _sidecar_values([data], "dip_deg") == [igrf.dip_deg]
+    assert sidecar_values([data], "norm_ut") == [igrf.norm_ut]
+    assert sidecar_values([data], "dip_deg") == [igrf.dip_deg]
     # an explicit earth_field wins over the site
     both = replace(data, meta={**data.meta, "earth_field": EARTH})
-    assert _sidecar_values([both], "norm_ut") == [EARTH["norm_ut"]]
+    assert sidecar_values([both], "norm_ut") == [EARTH["norm_ut"]]
     bad = replace(data, meta={**data.meta, "site": {"latitude_deg": "north"}})
     with pytest.raises(ModelError, match="rec: sidecar site"):
-        _sidecar_values([bad], "norm_ut")
+        sidecar_values([bad], "norm_ut")

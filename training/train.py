@@ -11,7 +11,8 @@ from tqdm import tqdm
 from .artefact import ModelArtefact
 from .dataset import ImuData
 from .errors import ModelError
-from .layout import TRIAD_ORDER, settings_defaults
+from .layout import TRIAD_ORDER
+from .recommend import recommended_settings, sidecar_values
 from .reference import matched_raw
 from .reference_source import TriadReference, choose_reference
 from .selfcal import SelfCalResult, self_calibrate
@@ -40,31 +41,11 @@ UNITS = {"gyr": "rad/s", "acc": "m/s²", "mag": "µT"}
 #: A·G would be degenerate — A = 0 reproduces a zero reference exactly — so only the bias B(T) is
 #: fitted, by linear least squares, with A = I and G = 1.
 MIN_EXCITATION = {"gyr": 0.01, "acc": 0.1, "mag": 1.0}
-#: A sample counts as static for the gyro bias residual when the true rate is below this
-#: [rad/s] (0.3 °/s: far above the reference noise of a rate table, far below any motion).
-STATIC_RATE = 0.005
-#: Lower bound of the recommended gyro_bias_residual [rad/s]: 1e-5 rad/s ≈ 2 °/h, the bias
-#: instability of a good consumer MEMS gyro. A fit to simulated data leaves a near-zero mean
-#: residual, but run-to-run bias changes that no calibration captures remain in the field.
-GYRO_BIAS_RESIDUAL_FLOOR = 1e-5
 #: Rows whose derived reference (from ref_q) disagrees with the sensor by more than this many
 #: robust σ are left out of the fit: an optical marker glitch or a gap in the motion capture gives
 #: rates of hundreds of °/s for a few samples, which least squares would follow; honest sensor
 #: errors (bias, 1-5 % gains) stay far inside 5 σ of the residual's spread.
 REFERENCE_OUTLIER_SIGMAS = 5.0
-#: Shortest rest run [samples] whose statistics count: 20 samples give a std within ~16 %.
-MIN_REST_RUN = 20
-#: rest_gyro_threshold ≥ this many σ of the per-sample gyro noise: the runtime's detector needs
-#: every sample of 1.5 s within the threshold of the low-passed rate; at 5σ a still sensor at
-#: 300 Hz passes with > 99 % probability (at 4σ, ~97 %).
-REST_NOISE_SIGMAS = 5.0
-#: rest_gyro_threshold ≥ this many times the largest bias the calibration leaves at rest (run
-#: means, between and within recordings): the detector also requires the low-passed rate inside
-#: the threshold, so a residual bias at half of it is still accepted.
-REST_BIAS_MARGIN = 2.0
-#: Sidecar earth-field magnitudes of the training sets may differ by this much [µT] before
-#: the artefact warns that their mean is a poor single field_norm.
-FIELD_NORM_SPREAD = 1.0
 
 
 @contextmanager
@@ -142,146 +123,6 @@ def _fit_stats(fit: ThermalFit) -> dict:
             "iterations": fit.iterations, "converged": fit.converged,
             "final_loss": fit.loss_history[-1], "rms_before": fit.rms_before,
             "rms_after": fit.rms_after}
-
-
-def _sidecar_values(datasets: list[ImuData], key: str) -> list[float]:
-    """earth_field[key] (norm_ut, dip_deg, declination_deg) of every dataset whose sidecar gives it,
-    else of the IGRF field at the sidecar's site (training.geomag.site_field) when it gives one."""
-    from .geomag import site_field
-    values = []
-    for d in datasets:
-        value = (d.meta.get("earth_field") or {}).get(key)
-        if value is None:
-            try:
-                field = site_field(d.meta)
-            except ValueError as e:
-                raise ModelError(f"{d.name}: {e}") from None
-            value = getattr(field, key) if field is not None else None
-        if value is not None:
-            values.append(float(value))
-    return values
-
-
-def _rate_hz(data: ImuData) -> float:
-    """Sample rate [Hz]: sidecar rate_hz, else 1 / median time step."""
-    rate = data.meta.get("rate_hz")
-    return float(rate) if rate else float(1.0 / np.median(np.diff(data.t)))
-
-
-def _rest_masks(refs: dict[str, TriadReference], selfcal) -> list[tuple[ImuData, np.ndarray, np.ndarray]]:
-    """[(recording, true rate (N, 3) rad/s, rest mask (N,))] of the recordings that show the gyro at
-    rest: where the reference rate is below STATIC_RATE, or the self-calibration's rest windows."""
-    ref = refs["gyr"]
-    if ref.source != "none":
-        return [(d, d.ref_gyr, np.all(np.isfinite(d.ref_gyr), axis=1)
-                 & (np.linalg.norm(np.nan_to_num(d.ref_gyr, nan=np.inf), axis=1) < STATIC_RATE))
-                for d in ref.datasets]
-    return [(d, np.zeros_like(d.gyr), mask) for d, mask in zip(ref.datasets, selfcal.rest_masks)]
-
-
-def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
-    """[start, stop) of the True runs of a boolean array at least MIN_REST_RUN samples long."""
-    edges = np.flatnonzero(np.diff(np.concatenate([[0], mask.astype(int), [0]])))
-    return [(a, b) for a, b in zip(edges[::2], edges[1::2]) if b - a >= MIN_REST_RUN]
-
-
-def _rest_residuals(recordings, model: ThermalModel):
-    """[(per-run mean residual (3,), per-run variance (3,), rate_hz)] over the rest runs; residual =
-    compensated gyro − true rate [rad/s], finite rows."""
-    out = []
-    for d, truth, mask in recordings:
-        residual = apply_thermal(model, d.gyr, d.temp) - truth
-        for a, b in _runs(mask & np.all(np.isfinite(residual), axis=1)):
-            out.append((residual[a:b].mean(axis=0), residual[a:b].var(axis=0), _rate_hz(d), b - a))
-    return out
-
-
-def gyro_rest_settings(runs) -> dict[str, float]:
-    """gyro_noise, gyro_bias_residual and rest_gyro_threshold from the gyro at rest after calibration.
-
-    runs: [(mean residual (3,), variance (3,), rate_hz, samples)] per rest run. gyro_noise
-    [rad/s/√Hz] = σ / √f_s (IEEE Std 952), σ the per-sample std within the runs (RMS over axes);
-    gyro_bias_residual [rad/s] = largest |mean| of the residual over all rest samples per axis (not
-    below GYRO_BIAS_RESIDUAL_FLOOR); rest_gyro_threshold [rad/s] = max(REST_NOISE_SIGMAS · σ of the
-    noisiest axis, REST_BIAS_MARGIN · largest |run mean|): the runtime's rest detector must accept
-    every sample of a still sensor (noise) and the bias the calibration leaves (it checks the
-    low-passed rate against the threshold too), and no more — a larger threshold takes a slow turn
-    for a bias.
-    """
-    weights = np.array([n for *_, n in runs], dtype=float)
-    means = np.array([m for m, *_ in runs])
-    variances = np.array([v for _, v, *_ in runs])
-    sigma_axis = np.sqrt(np.average(variances, axis=0, weights=weights))
-    density = [np.sqrt(np.mean(v)) / np.sqrt(f) for _, v, f, _ in runs]
-    bias = np.abs(np.average(means, axis=0, weights=weights))
-    return {"gyro_noise": float(np.average(density, weights=weights)),
-            "gyro_bias_residual": float(max(bias.max(), GYRO_BIAS_RESIDUAL_FLOOR)),
-            "rest_gyro_threshold": float(max(REST_NOISE_SIGMAS * sigma_axis.max(),
-                                             REST_BIAS_MARGIN * np.abs(means).max()))}
-
-
-def _field_settings(datasets: list[ImuData], selfcal, notes: list[str]) -> dict[str, float]:
-    """field_norm [µT], field_dip [rad] and declination [rad]: from the sidecars, else from the
-    self-calibration of the magnetometer, else the defaults (with a note)."""
-    settings, mag = {}, (selfcal.report.get("mag", {}) if selfcal else {})
-    norms, dips = _sidecar_values(datasets, "norm_ut"), _sidecar_values(datasets, "dip_deg")
-    if norms:
-        settings["field_norm"] = float(np.mean(norms))
-        if max(norms) - min(norms) > FIELD_NORM_SPREAD:
-            notes.append(f"field_norm: sidecar values {norms} µT differ; using their mean")
-    elif mag.get("field_norm_ut"):
-        settings["field_norm"] = float(mag["field_norm_ut"])
-        notes.append(f"field_norm: {settings['field_norm']:.2f} µT from the magnetometer calibration "
-                     f"({mag.get('field_norm_source', 'self-calibration')})")
-    else:
-        notes.append("field_norm: no earth_field.norm_ut in the sidecars and no magnetometer "
-                     "calibration; default kept")
-    if dips:
-        settings["field_dip"] = float(np.deg2rad(np.mean(dips)))
-    elif mag.get("dip_deg") is not None:
-        settings["field_dip"] = float(np.deg2rad(mag["dip_deg"]))
-        notes.append(f"field_dip: {mag['dip_deg']:.2f}° estimated at the rest poses")
-    declinations = _sidecar_values(datasets, "declination_deg")
-    if declinations:
-        settings["declination"] = float(np.deg2rad(np.mean(declinations)))
-    return settings
-
-
-def _pf_settings(datasets: list[ImuData], model: ThermalModel, field_norm: float,
-                 notes: list[str]) -> dict[str, float]:
-    """Particle-filter settings from the calibrated field of the recordings (training.pf_settings):
-    what the filter will see at run time, so that switching it on declares no change that is noise."""
-    from .pf_settings import pf_settings_from_calibration
-    usable = [d for d in datasets if d.has("mag")]
-    if not usable or not model.enabled:
-        notes.append("pf_*: no calibrated magnetometer; particle-filter defaults kept")
-        return {}
-    field = np.concatenate([apply_thermal(model, d.mag, d.temp) for d in usable])
-    t = np.concatenate([d.t for d in usable])
-    try:
-        return pf_settings_from_calibration(field, t, field_norm, float(np.median([_rate_hz(d) for d in usable])))
-    except ValueError as e:
-        notes.append(f"pf_*: {e}; particle-filter defaults kept")
-        return {}
-
-
-def recommended_settings(datasets: list[ImuData], refs: dict[str, TriadReference],
-                         thermal: dict[str, ThermalModel], selfcal, notes: list[str]) -> dict[str, float]:
-    """FMU parameter values from the sidecars, the calibration and the sensor at rest (defaults
-    otherwise); appends a note for each value left at its default or taken from inconsistent data."""
-    settings = settings_defaults()
-    settings.update(_field_settings(datasets, selfcal, notes))
-    runs = _rest_residuals(_rest_masks(refs, selfcal), thermal["gyr"]) if thermal["gyr"].enabled else []
-    if runs:
-        settings.update(gyro_rest_settings(runs))
-        if len({id(d) for d, *_ in _rest_masks(refs, selfcal)}) < 2:
-            notes.append("rest_gyro_threshold: one recording shows only this power-up's bias; record a "
-                         "second session (power-cycled) so that train sees the run-to-run bias change")
-    else:
-        notes.append("gyro_noise, gyro_bias_residual, rest_gyro_threshold: no gyro at rest after "
-                     "calibration; defaults kept")
-    settings.update(_pf_settings(datasets, thermal["mag"], settings["field_norm"], notes))
-    return settings
 
 
 def _compensated(d: ImuData, thermal: dict[str, ThermalModel]) -> ImuData:
@@ -423,7 +264,7 @@ def _self_calibrated(datasets: list[ImuData], triads: list[str], degree: int, pr
                      notes: list[str]) -> SelfCalResult:
     """Self-calibration from invariants of every recording (training.selfcal) for the triads
     without any reference; the field norm from the sidecars when they give one."""
-    norms = _sidecar_values(datasets, "norm_ut")
+    norms = sidecar_values(datasets, "norm_ut")
     result = self_calibrate(datasets, field_norm=float(np.mean(norms)) if norms else None,
                             degree=degree, progress=progress)
     for triad in triads:
@@ -452,7 +293,7 @@ def _held_out(datasets: list[ImuData], refs: dict[str, TriadReference], degree: 
     quarter of every recording, scored on it; {} with a note when the recordings are too short."""
     from .holdout import held_out
     from .simulator.earth import STANDARD_GRAVITY
-    norms = _sidecar_values(datasets, "norm_ut")
+    norms = sidecar_values(datasets, "norm_ut")
     norm = float(np.mean(norms)) if norms else (selfcal.report.get("mag", {}).get("field_norm_ut") if selfcal else None)
 
     def fit_selfcal(parts):
