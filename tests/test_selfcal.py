@@ -433,6 +433,10 @@ def test_report_is_json_and_rest_masks_cover_the_recording(simulated):
 
 # ----------------------------------------------------------------------------- a real log
 
+#: Dip of xio_handheld's raw field at its undisturbed rests [deg]: every one reads 67.8-70.0°.
+XIO_DIP_RANGE_DEG = (67.5, 70.5)
+
+
 @pytest.mark.skipif(not XIO.is_file(), reason=f"x-io handheld log not found at {XIO}")
 def test_real_handheld_log_improves_invariants():
     from training.io import read_imu_csv
@@ -440,9 +444,13 @@ def test_real_handheld_log_improves_invariants():
     result = self_calibrate([data], field_norm=None, progress=False)
     report = result.report
     assert report["rest"]["rests"] >= XIO_MIN_RESTS and report["rest"]["poses"] >= XIO_MIN_POSES
-    raw = np.linalg.norm(data.mag, axis=1)
-    calibrated = np.linalg.norm(apply_thermal(result.thermal["mag"], data.mag, data.temp), axis=1)
-    assert np.std(calibrated) / np.mean(calibrated) < np.std(raw) / np.mean(raw)
+    # this magnetometer is calibrated inside the sensor: its raw norm is constant to 1.4 % (robust)
+    # over a quarter of the sphere, where a sphere fit scatters it to 2 % — refused, and said so
+    assert not result.thermal["mag"].enabled
+    assert "less constant than the raw sensor" in report["mag"]["why_not_more"]
+    # the dip of the raw field at the undisturbed rests (68-70° each, by inspection of the log's 25
+    # rests; the disturbed ones at 100-118 s read 71-76° and are left out)
+    assert XIO_DIP_RANGE_DEG[0] < report["mag"]["dip_deg"] < XIO_DIP_RANGE_DEG[1]
     windows = result.rest_windows
     f_raw = np.array([w.acc for w in windows])
     f_cal = apply_thermal(result.thermal["acc"], f_raw, np.array([w.temp for w in windows]))

@@ -146,8 +146,8 @@ def _pf_settings(datasets: list[ImuData], model: ThermalModel, field_norm: float
     what the filter will see at run time, so that switching it on declares no change that is noise."""
     from .pf_settings import pf_settings_from_calibration
     usable = [d for d in datasets if d.has("mag")]
-    if not usable or not model.enabled:
-        notes.append("pf_*: no calibrated magnetometer; particle-filter defaults kept")
+    if not usable:
+        notes.append("pf_*: no magnetometer recorded; particle-filter defaults kept")
         return {}
     field = np.concatenate([apply_thermal(model, d.mag, d.temp) for d in usable])
     t = np.concatenate([d.t for d in usable])

@@ -132,17 +132,29 @@ def _magnetometer(datasets, windows, acc_model, field_norm, t0, ts, degree):
     """(MagFit, Alignment or None, ThermalModel) of the magnetometer of all recordings."""
     mag = np.concatenate([d.mag for d in datasets])
     temp = np.concatenate([d.temp for d in datasets])
-    fit = magnet.fit_magnetometer(mag, field_norm, temp, t0, ts, degree)
-    if fit.level == "nothing":
+    fit = magnet.fit_magnetometer(mag, field_norm, temp, t0, ts, degree, [len(d) for d in datasets])
+    if not np.isfinite(mag).all(axis=1).any():
         return fit, None, ThermalModel.identity(enabled=False)
     use = _undisturbed(windows, fit) & np.array([np.all(np.isfinite(w.acc)) for w in windows])
-    alignment = None
-    if use.any():
-        field = _unit(_field_means(windows, fit))
-        gravity = _unit(_rest_means(windows, "acc", acc_model))
-        use &= _consistent_dip(gravity, field, use)
-        alignment = magnet.fit_alignment(gravity[use], field[use])
-    return fit, alignment, fit.model(alignment.R if alignment is not None else None)
+    if not use.any():
+        return fit, None, fit.model()
+    field = _unit(_field_means(windows, fit))
+    gravity = _unit(_rest_means(windows, "acc", acc_model))
+    use &= _consistent_dip(gravity, field, use)
+    if fit.level == "nothing":  # no calibration applied: the dip of the raw field, no rotation
+        return fit, _raw_dip(gravity[use], field[use]), ThermalModel.identity(enabled=False)
+    alignment = magnet.fit_alignment(gravity[use], field[use])
+    return fit, alignment, fit.model(alignment.R)
+
+
+def _raw_dip(gravity: np.ndarray, field: np.ndarray) -> magnet.Alignment:
+    """Alignment R = I with the dip [°] of unit specific-force and field directions (K, 3): the median
+    of asin(-f̂·ĥ) over the rests (no field calibration was applied, so no rotation either)."""
+    s = -np.sum(gravity * field, axis=1)
+    dip = float(np.degrees(np.arcsin(np.clip(np.median(s), -1.0, 1.0))))
+    rms = float(np.sqrt(np.mean((s - np.sin(np.radians(dip))) ** 2)))
+    return magnet.Alignment(np.eye(3), dip, False, len(s), rms, rms, None,
+                            "no field calibration applied: R = I, dip of the raw field")
 
 
 #: A rest whose dip (R = I) is further than DIP_OUTLIER_SIGMAS robust σ from the median dip of the

@@ -236,7 +236,44 @@ def _robust_ellipsoid(m: np.ndarray, inliers: np.ndarray,
 
 
 def fit_magnetometer(mag: np.ndarray, field_norm: float | None, temp: np.ndarray | None = None,
-                     t0: float = 25.0, ts: float = 1.0, degree: int = 0) -> MagFit:
+                     t0: float = 25.0, ts: float = 1.0, degree: int = 0,
+                     lengths: list[int] | None = None) -> MagFit:
+    """The field fit of `_candidate_fit`, applied only when it makes the field norm more constant than
+    the raw sensor does: robust spread 1.4826·MAD/median of |h| within each recording (`lengths`:
+    the rows of each concatenated recording, None = one), averaged with the sample counts as weights
+    (a disturbance is a minority of samples and moves neither median; recordings made at places of
+    different field strength are not compared with each other). A magnetometer that is already
+    calibrated inside the sensor, seen over a small part of the sphere, can be fitted by a smaller
+    sphere about a shifted centre that scatters the norm more than the raw readings: that fit is
+    refused (identity, said in `reason`), never applied silently."""
+    fit = _candidate_fit(mag, field_norm, temp, t0, ts, degree)
+    if fit.level == "nothing":
+        return fit
+    finite = np.all(np.isfinite(mag), axis=1)
+    calibrated = apply_field(fit, mag, temp)
+    raw, cal = (_spread_within(np.linalg.norm(x, axis=1), finite, lengths) for x in (mag, calibrated))
+    if cal < raw:
+        return fit
+    return _nothing(mag, finite, field_norm, f"the {fit.level} fit makes the field norm less constant than the "
+                    f"raw sensor (robust spread {raw:.2%} -> {cal:.2%}): not applied")
+
+
+def _spread_within(norms: np.ndarray, finite: np.ndarray, lengths: list[int] | None) -> float:
+    """Sample-weighted mean of `robust_spread` over the recordings (rows split by `lengths`)."""
+    edges = np.cumsum([0] + list(lengths if lengths else [len(norms)]))
+    parts = [norms[a:b][finite[a:b]] for a, b in zip(edges[:-1], edges[1:])]
+    parts = [p for p in parts if p.size]
+    return float(np.average([robust_spread(p) for p in parts], weights=[p.size for p in parts]))
+
+
+def robust_spread(norms: np.ndarray) -> float:
+    """Relative robust spread 1.4826 · MAD / median of norms (N,) [1]."""
+    median = float(np.median(norms))
+    return float(1.4826 * np.median(np.abs(norms - median)) / median)
+
+
+def _candidate_fit(mag: np.ndarray, field_norm: float | None, temp: np.ndarray | None = None,
+                   t0: float = 25.0, ts: float = 1.0, degree: int = 0) -> MagFit:
     """Hard/soft iron of mag (N, 3) µT (all samples of all recordings; NaN rows ignored), with
     temperature drift terms of degree <= `degree` when temp (N,) °C spans distinct temperatures
     (t0, ts: the runtime's normalisation).
@@ -361,8 +398,9 @@ def _nothing(mag: np.ndarray, finite: np.ndarray, field_norm: float | None, reas
     f = float(field_norm) if field_norm is not None else (float(np.median(raw)) if raw.size else np.nan)
     rms = float(np.sqrt(np.mean((raw - f) ** 2))) if raw.size else np.nan
     spread = _spread(raw) if raw.size else np.nan
+    sigma = float(1.4826 * np.median(np.abs(raw - np.median(raw)))) if raw.size else np.nan
     source = "passed by the caller" if field_norm is not None else "median raw norm"
-    return MagFit("nothing", np.zeros(3), np.eye(3), f, source, 0.0, finite.copy(), np.nan, rms, rms,
+    return MagFit("nothing", np.zeros(3), np.eye(3), f, source, 0.0, finite.copy(), sigma, rms, rms,
                   spread, spread, None, reason)
 
 
