@@ -133,9 +133,9 @@ def _magnetometer(datasets, windows, acc_model, field_norm, t0, ts, degree):
     mag = np.concatenate([d.mag for d in datasets])
     temp = np.concatenate([d.temp for d in datasets])
     fit = magnet.fit_magnetometer(mag, field_norm, temp, t0, ts, degree, [len(d) for d in datasets])
-    if not np.isfinite(mag).all(axis=1).any():
-        return fit, None, ThermalModel.identity(enabled=False)
-    use = _undisturbed(windows, fit) & np.array([np.all(np.isfinite(w.acc)) for w in windows])
+    if not np.isfinite(mag).all(axis=1).any() or not windows:
+        return fit, None, fit.model()
+    use = _undisturbed(windows, fit) & np.array([np.all(np.isfinite(w.acc)) for w in windows], dtype=bool)
     if not use.any():
         return fit, None, fit.model()
     field = _unit(_field_means(windows, fit))
