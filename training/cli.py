@@ -156,7 +156,8 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--degree", type=int, default=2, choices=(0, 1, 2, 3),
                    help="largest polynomial degree of G(T) and B(T) (lower when the data span fewer temperatures)")
     s.add_argument("--allow-identity", action="store_true",
-                   help="write an identity model instead of failing when nothing can be calibrated")
+                   help="write the model anyway when nothing can be calibrated (identity) or a log without "
+                        "reference shows no motion (gyro bias only), instead of failing")
     s.set_defaults(func=cmd_train)
     s = sub.add_parser("build-fmu", help="write the trained model into the FMU sources and build it")
     s.add_argument("--model", required=True, help="model.json from 'imufmu train'")
