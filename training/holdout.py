@@ -52,10 +52,8 @@ def _rest_means(d: ImuData, triad: str, model: ThermalModel) -> tuple[np.ndarray
         windows = detect_rest(d).windows
     except ValueError:
         windows = ()
-    raw = np.array([getattr(d, triad)[w.start:w.stop].mean(axis=0) for w in windows]).reshape(-1, 3)
-    temp = np.array([np.nanmean(d.temp[w.start:w.stop]) if np.isfinite(d.temp[w.start:w.stop]).any()
-                     else np.nan for w in windows])
-    return raw, apply_thermal(model, raw, temp)
+    raw = np.array([getattr(w, triad) for w in windows]).reshape(-1, 3)
+    return raw, apply_thermal(model, raw, np.array([w.temp for w in windows], dtype=float))
 
 
 def invariant_error(model: ThermalModel, tails: list[ImuData], triad: str, field_norm: float | None,

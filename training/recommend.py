@@ -12,6 +12,7 @@ import numpy as np
 from .dataset import ImuData
 from .errors import ModelError
 from .layout import settings_defaults
+from .reference import true_runs
 from .reference_source import TriadReference
 from .thermal import ThermalModel, apply_thermal
 
@@ -72,19 +73,15 @@ def _rest_masks(refs: dict[str, TriadReference], selfcal) -> list[tuple[ImuData,
     return [(d, np.zeros_like(d.gyr), mask) for d, mask in zip(ref.datasets, selfcal.rest_masks)]
 
 
-def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
-    """[start, stop) of the True runs of a boolean array at least MIN_REST_RUN samples long."""
-    edges = np.flatnonzero(np.diff(np.concatenate([[0], mask.astype(int), [0]])))
-    return [(a, b) for a, b in zip(edges[::2], edges[1::2]) if b - a >= MIN_REST_RUN]
-
-
 def _rest_residuals(recordings, model: ThermalModel):
     """[(per-run mean residual (3,), per-run variance (3,), rate_hz)] over the rest runs; residual =
     compensated gyro − true rate [rad/s], finite rows."""
     out = []
     for d, truth, mask in recordings:
         residual = apply_thermal(model, d.gyr, d.temp) - truth
-        for a, b in _runs(mask & np.all(np.isfinite(residual), axis=1)):
+        for a, b in true_runs(mask & np.all(np.isfinite(residual), axis=1)):
+            if b - a < MIN_REST_RUN:
+                continue
             out.append((residual[a:b].mean(axis=0), residual[a:b].var(axis=0), _rate_hz(d), b - a))
     return out
 
@@ -164,10 +161,11 @@ def recommended_settings(datasets: list[ImuData], refs: dict[str, TriadReference
     otherwise); appends a note for each value left at its default or taken from inconsistent data."""
     settings = settings_defaults()
     settings.update(_field_settings(datasets, selfcal, notes))
-    runs = _rest_residuals(_rest_masks(refs, selfcal), thermal["gyr"]) if thermal["gyr"].enabled else []
+    recordings = _rest_masks(refs, selfcal)
+    runs = _rest_residuals(recordings, thermal["gyr"]) if thermal["gyr"].enabled else []
     if runs:
         settings.update(gyro_rest_settings(runs))
-        if len({id(d) for d, *_ in _rest_masks(refs, selfcal)}) < 2:
+        if len(recordings) < 2:
             notes.append("rest_gyro_threshold: one recording shows only this power-up's bias; record a "
                          "second session (power-cycled) so that train sees the run-to-run bias change")
     else:

@@ -29,17 +29,17 @@ POLYORDER = 2
 POSITION_COLUMNS = ("aux_pos_x", "aux_pos_y", "aux_pos_z")
 
 
-def _runs(ok: np.ndarray) -> list[tuple[int, int]]:
+def true_runs(ok: np.ndarray) -> list[tuple[int, int]]:
     """[start, stop) index ranges of the True runs of a boolean array."""
     edges = np.flatnonzero(np.diff(np.concatenate([[0], ok.astype(int), [0]])))
-    return list(zip(edges[::2], edges[1::2]))
+    return [(int(a), int(b)) for a, b in zip(edges[::2], edges[1::2])]
 
 
 def _derivative(x: np.ndarray, t: np.ndarray, window_s: float, order: int) -> np.ndarray:
     """Savitzky-Golay derivative of `order` of x (N, k) over finite runs; NaN elsewhere.
     Assumes a near-uniform sample rate within a run (the median step is used)."""
     out = np.full_like(x, np.nan, dtype=np.float64)
-    for a, b in _runs(np.all(np.isfinite(x), axis=1)):
+    for a, b in true_runs(np.all(np.isfinite(x), axis=1)):
         dt = float(np.median(np.diff(t[a:b]))) if b - a > 1 else 0.0
         window = max(POLYORDER + 2 + order, int(round(window_s / dt)) | 1) if dt > 0 else 0
         if window % 2 == 0:
@@ -53,7 +53,7 @@ def _derivative(x: np.ndarray, t: np.ndarray, window_s: float, order: int) -> np
 def rate_from_attitude(t: np.ndarray, q: np.ndarray) -> np.ndarray:
     """Body rate (N, 3) [rad/s] from the attitude q (N, 4) [w, x, y, z] body -> nav; NaN gaps kept."""
     q = np.array(q, dtype=np.float64)
-    for a, b in _runs(np.all(np.isfinite(q), axis=1)):
+    for a, b in true_runs(np.all(np.isfinite(q), axis=1)):
         q[a:b] = make_continuous(q[a:b] / np.linalg.norm(q[a:b], axis=1, keepdims=True))
     dq = _derivative(q, t, RATE_WINDOW_S, 1)
     w, x, y, z = q.T

@@ -505,7 +505,7 @@ def summarise(fit: MagFit, alignment: Alignment | None) -> dict:
     out.update(gain_summary(R @ fit.matrix) if fit.level != "nothing" else gain_summary(np.eye(3)))
     notes = [f"{fit.level}: field-norm RMS {fit.rms_before:.2f} -> {fit.rms_after:.2f} µT over the "
              f"undisturbed samples, directions cover {fit.coverage:.0%} of the sphere; F = "
-             f"{fit.field_norm:.2f} µT ({fit.field_norm_source})"]
+             f"{fit.field_norm:.2f} µT ({fit.field_norm_source})"] if np.isfinite(fit.rms_before) else []
     if alignment is not None:
         out["alignment_rests"] = alignment.rests
         out["residual"]["dip_invariant_rms"] = {"before": alignment.rms_before, "after": alignment.rms_after}

@@ -26,6 +26,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from ..dataset import TRIADS, ImuData
+from ..reference import true_runs
 
 #: Length of the sliding window [s]: long enough that its std estimates the noise to ~15 %
 #: (25 samples at 100 Hz, 12 at 50 Hz), short against a held pose of a few seconds.
@@ -204,12 +205,7 @@ def _still_mask(n: int, starts: np.ndarray, still: np.ndarray, w: int) -> np.nda
 
 def _runs(mask: np.ndarray, blocks) -> list[tuple[int, int]]:
     """[start, stop) of the True runs of mask (N,), cut at block boundaries."""
-    out = []
-    for a, b in blocks:
-        m = np.concatenate([[False], mask[a:b], [False]]).astype(int)
-        edges = np.flatnonzero(np.diff(m))
-        out += [(a + int(s), a + int(e)) for s, e in zip(edges[::2], edges[1::2])]
-    return out
+    return [(a + s, a + e) for a, b in blocks for s, e in true_runs(mask[a:b])]
 
 
 def _split_by_temperature(a: int, b: int, t: np.ndarray, temp: np.ndarray) -> list[tuple[int, int]]:
