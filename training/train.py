@@ -26,6 +26,9 @@ from .thermal import (GainBiasFitter, ThermalFit, ThermalModel, apply_thermal, n
 ELM_MIN_GAIN = 0.10
 #: Share of a single calibration recording (its end, in time) held out to decide on the ELM.
 ELM_HOLDOUT_FRACTION = 0.25
+#: Field directions covering this share of the sphere's cells prove that a recording moved (a
+#: still sensor's field stays in one cell whatever its noise).
+MOTION_COVERAGE = 0.1
 #: Rows of the calibration data the ELM sees (every n-th sample): neighbouring samples at 100 Hz
 #: carry the same field direction, so thinning loses nothing but training time.
 ELM_STRIDE = 8
@@ -310,19 +313,26 @@ def _held_out(datasets: list[ImuData], refs: dict[str, TriadReference], degree: 
 def _refuse_identity(thermal: dict[str, ThermalModel], refs: dict[str, TriadReference], selfcal,
                      notes: list[str]) -> None:
     """ModelError naming what is missing when no triad could be calibrated, or when nothing carries a
-    reference and the self-calibration identified only the gyro bias at rest (no accelerometer poses,
-    no field ellipsoid, no rotation: no motion — a still log, which calibrates the gyro bias only and
-    must then say so with "reference": "static" in its sidecar)."""
+    reference and the recordings show no motion (`_moved`): a still log calibrates the gyro bias only
+    and must then say so with "reference": "static" in its sidecar — a constant rotation could not
+    be told from a bias."""
     hint = " — record the protocol of docs/calibration.md, or pass --allow-identity"
     if not any(m.enabled for m in thermal.values()):
         raise ModelError("nothing could be calibrated: " + "; ".join(
             n for n in notes if any(n.startswith(f"{t}:") for t in TRIAD_ORDER)) + hint)
-    moved = thermal["acc"].enabled or thermal["mag"].enabled or not np.array_equal(thermal["gyr"].A, np.eye(3))
-    if all(r.source == "none" for r in refs.values()) and not moved:
+    if all(r.source == "none" for r in refs.values()) and not _moved(selfcal.report):
         names = ", ".join(d.name for d in refs["gyr"].datasets)
-        raise ModelError(f"no reference and too little motion in {names}: only the gyro bias at rest is "
-                         "identifiable (no accelerometer poses, no field ellipsoid, no rotation between "
-                         "rests); a still log must say \"reference\": \"static\" in its sidecar" + hint)
+        raise ModelError(f"no reference and no motion in {names}: one pose, the field never turns, no "
+                         "rotation between rests — only a gyro bias could be fitted; a still log must say "
+                         "\"reference\": \"static\" in its sidecar" + hint)
+
+
+def _moved(report: dict) -> bool:
+    """True when the self-calibration saw motion: two poses or more, field directions over at least
+    MOTION_COVERAGE of the sphere, or a rotation between two rests."""
+    return (int(report.get("acc", {}).get("poses") or 0) >= 2
+            or float(report.get("mag", {}).get("coverage") or 0.0) >= MOTION_COVERAGE
+            or int(report.get("gyr", {}).get("segments") or 0) >= 1)
 
 
 def train(datasets: list[ImuData], seed: int = 0, degree: int = 2,

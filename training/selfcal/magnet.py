@@ -76,6 +76,13 @@ MAX_MATRIX_STD = 1e-2
 #: drift dimensionless, per unit of Tn): 0.2 %. Drifts over a calibration's temperature range are
 #: ~1 % of F (a few tenths of a µT per 10 °C), so one pinned worse than 0.2 % is not worth fitting.
 MAX_DRIFT_STD = 2e-3
+#: A field fit is applied only when it leaves at most this share of the raw sensor's robust norm
+#: spread: hard or soft iron worth correcting (a few µT and more) makes the raw norm vary with
+#: orientation far more than field non-uniformity and noise do, and its fit removes most of that
+#: (simulated unit: 34 % -> 0.4 %). A fit that removes less is absorbing the place — BROAD's lab
+#: field varies by 41-45 µT across the room, which a sphere fit turns into a ~1 µT "hard iron" that
+#: cost 0.3-0.9° of heading on single-trial calibrations; xio_handheld's fit even raised the spread.
+MIN_SPREAD_REDUCTION = 0.5
 #: Largest standard error of the alignment rotation R [deg] for it to be accepted: well below the
 #: ~1-2° heading accuracy of a calibrated MEMS compass, above what a dozen well-spread poses give.
 MAX_ALIGN_STD_DEG = 0.5
@@ -252,10 +259,13 @@ def fit_magnetometer(mag: np.ndarray, field_norm: float | None, temp: np.ndarray
     finite = np.all(np.isfinite(mag), axis=1)
     calibrated = apply_field(fit, mag, temp)
     raw, cal = (_spread_within(np.linalg.norm(x, axis=1), finite, lengths) for x in (mag, calibrated))
-    if cal < raw:
+    if cal <= MIN_SPREAD_REDUCTION * raw:
         return fit
-    return _nothing(mag, finite, field_norm, f"the {fit.level} fit makes the field norm less constant than the "
-                    f"raw sensor (robust spread {raw:.2%} -> {cal:.2%}): not applied")
+    return replace(_nothing(mag, finite, field_norm, f"the {fit.level} fit does not make the field norm clearly more "
+                    f"constant than the raw sensor (robust spread {raw:.2%} -> {cal:.2%}, needs at most "
+                    f"{MIN_SPREAD_REDUCTION:.0%} of it): the raw magnetometer is calibrated as far as this "
+                    "recording can tell, and the fit would mostly absorb the place (a non-uniform field, a "
+                    "nearby disturbance); not applied"), coverage=fit.coverage)
 
 
 def _spread_within(norms: np.ndarray, finite: np.ndarray, lengths: list[int] | None) -> float:
