@@ -57,8 +57,8 @@ class _Log:
 
 
 class Stepper:
-    """Raw per-sample FMI calls on an initialised FMU2Slave or FMU3Slave: set the 10 inputs,
-    doStep, get the 20 outputs (training.layout order)."""
+    """Raw per-sample FMI calls on an initialised FMU2Slave or FMU3Slave: set the inputs,
+    doStep, get the outputs (training.layout INPUTS / OUTPUTS order)."""
 
     def __init__(self, fmu: FMU2Slave | FMU3Slave) -> None:
         self.fmu = fmu
@@ -72,7 +72,8 @@ class Stepper:
         self._last_time = fmi3Float64()
 
     def set_inputs(self, values) -> None:
-        """Set the raw inputs: (10,) rad/s, m/s², µT, °C (NaN and Inf are passed as they are)."""
+        """Set the raw inputs: (len(INPUTS),) rad/s, m/s², µT, °C, auxiliary inputs (NaN and Inf
+        are passed as they are)."""
         self.values_in[:] = [float(v) for v in values]
         n = len(INPUTS)
         if self.fmi3:
@@ -93,7 +94,7 @@ class Stepper:
             raise
 
     def get_outputs(self) -> np.ndarray:
-        """(20,) current outputs."""
+        """(len(OUTPUTS),) current outputs."""
         n = len(OUTPUTS)
         if self.fmi3:
             self.fmu.fmi3GetFloat64(self.fmu.component, self.vr_out, n, self.values_out, n)
@@ -103,7 +104,7 @@ class Stepper:
 
 
 def _check_arrays(t: np.ndarray, inputs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """t as (N,) strictly increasing float64, inputs as (N, 10) float64; FmuError otherwise."""
+    """t as (N,) strictly increasing float64, inputs as (N, len(INPUTS)) float64; FmuError otherwise."""
     t = np.asarray(t, dtype=float)
     inputs = np.asarray(inputs, dtype=float)
     if t.ndim != 1 or t.size == 0:
@@ -147,7 +148,7 @@ def step_samples(fmu: FMU2Slave | FMU3Slave, t: np.ndarray, inputs: np.ndarray, 
                  progress: bool = False, statuses: list[int] | None = None) -> np.ndarray:
     """Per sample k: set inputs[k], doStep(t[k], h[k]), get the outputs; returns (N, len(OUTPUTS)).
 
-    fmu: an initialised FMU (see `initialised_fmu`); t, h: (N,) [s]; inputs: (N, 10). The doStep
+    fmu: an initialised FMU (see `initialised_fmu`); t, h: (N,) [s]; inputs: (N, len(INPUTS)). The doStep
     status of each sample (OK, WARNING or DISCARD) is appended to `statuses` when given.
     """
     stepper = Stepper(fmu)
@@ -216,8 +217,9 @@ def run_fmu(fmu_path: str | Path, t: np.ndarray, inputs: np.ndarray, parameters:
             progress: bool = False, log: list[str] | None = None) -> np.ndarray:
     """Run the FMU (FMI 2 or 3) over a recording and return its outputs.
 
-    t: (N,) sample times [s], strictly increasing (steps may vary); inputs: (N, 10) raw samples in
-    training.layout.INPUTS order (rad/s, m/s², µT, °C; NaN allowed); parameters: start values by
+    t: (N,) sample times [s], strictly increasing (steps may vary); inputs: (N, len(INPUTS)) raw
+    samples in training.layout.INPUTS order (rad/s, m/s², µT, °C, auxiliary inputs; NaN allowed;
+    ImuData.inputs(aux_columns=fmu.packer.fmu_aux_columns(fmu_path))); parameters: start values by
     name. Each sample is set, then doStep(t_k, t_{k+1} - t_k) consumes it (the last step repeats
     the previous step size). Returns (N, len(OUTPUTS)) outputs in training.layout.OUTPUTS order; row k is the
     estimate for sample k. Raises FmuError carrying the FMU's log when an FMI call fails. When `log`

@@ -2,10 +2,11 @@
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from xml.sax.saxutils import quoteattr
 
 from fmu.compiler import check_fmi_version, fmu_source_files
-from fmu.variables import VARIABLES, Variable
+from fmu.variables import Variable, variable_table
 from training.layout import settings_defaults
 
 MODEL_NAME = "ImuFusion"
@@ -99,30 +100,30 @@ def _variable_xml(variable: Variable, settings: dict) -> str:
             f'    </ScalarVariable>')
 
 
-def _initial_dependencies(variable: Variable) -> list[Variable]:
+def _initial_dependencies(variable: Variable, variables: tuple[Variable, ...]) -> list[Variable]:
     """What an output depends on before the first sample: heading = declination, the rest constant."""
-    return [v for v in VARIABLES if v.name == "declination"] if variable.name == "heading" else []
+    return [v for v in variables if v.name == "declination"] if variable.name == "heading" else []
 
 
-def _model_structure_xml(fmi_version: int) -> str:
+def _model_structure_xml(fmi_version: int, variables: tuple[Variable, ...]) -> str:
     """Outputs (no direct feedthrough in co-simulation) and InitialUnknowns (every output).
 
     FMI 2 refers to variables by their 1-based index, FMI 3 by value reference.
     """
-    index = {v.name: i + 1 for i, v in enumerate(VARIABLES)}
-    outputs = [v for v in VARIABLES if v.causality == "output"]
+    index = {v.name: i + 1 for i, v in enumerate(variables)}
+    outputs = [v for v in variables if v.causality == "output"]
     if fmi_version == 3:
         lines = ["  <ModelStructure>"]
         lines += [f'    <Output valueReference="{v.value_reference}" dependencies=""/>' for v in outputs]
         for v in outputs:
-            dependencies = " ".join(str(d.value_reference) for d in _initial_dependencies(v))
+            dependencies = " ".join(str(d.value_reference) for d in _initial_dependencies(v, variables))
             lines.append(f'    <InitialUnknown valueReference="{v.value_reference}" dependencies="{dependencies}"/>')
         return "\n".join(lines + ["  </ModelStructure>"])
     lines = ["  <ModelStructure>", "    <Outputs>"]
     lines += [f'      <Unknown index="{index[v.name]}" dependencies=""/>' for v in outputs]
     lines += ["    </Outputs>", "    <InitialUnknowns>"]
     for v in outputs:
-        dependencies = " ".join(str(index[d.name]) for d in _initial_dependencies(v))
+        dependencies = " ".join(str(index[d.name]) for d in _initial_dependencies(v, variables))
         lines.append(f'      <Unknown index="{index[v.name]}" dependencies="{dependencies}"/>')
     lines += ["    </InitialUnknowns>", "  </ModelStructure>"]
     return "\n".join(lines)
@@ -153,9 +154,9 @@ def _shared_sections(values: dict) -> str:
   <DefaultExperiment {experiment}/>"""
 
 
-def _fmi3_xml(values: dict, guid: str, description: str) -> str:
+def _fmi3_xml(values: dict, guid: str, description: str, table: tuple[Variable, ...]) -> str:
     """Text of an FMI 3.0 modelDescription.xml (sources are listed in buildDescription.xml)."""
-    variables = "\n".join([_TIME_XML] + [_variable_xml3(v, values) for v in VARIABLES])
+    variables = "\n".join([_TIME_XML] + [_variable_xml3(v, values) for v in table])
     return f"""<?xml version="1.0" encoding="UTF-8"?>
 <fmiModelDescription
   fmiVersion="3.0"
@@ -177,28 +178,31 @@ def _fmi3_xml(values: dict, guid: str, description: str) -> str:
   <ModelVariables>
 {variables}
   </ModelVariables>
-{_model_structure_xml(3)}
+{_model_structure_xml(3, table)}
 </fmiModelDescription>
 """
 
 
 def model_description_xml(settings: dict, guid: str, description: str,
-                          source_files: list[str] | None = None, fmi_version: int = 2) -> str:
+                          source_files: list[str] | None = None, fmi_version: int = 2,
+                          aux_inputs: Sequence[dict] = ()) -> str:
     """Text of modelDescription.xml for FMI `fmi_version` (2 or 3).
 
     settings: parameter start values by name (missing names take training.layout defaults);
     guid: the GUID (FMI 3: instantiation token) also compiled into the binary; description: the
     model's one-line description; source_files: the .c files to list under SourceFiles (FMI 2
-    only; default: those of fmu.compiler; FMI 3 lists them in buildDescription.xml).
+    only; default: those of fmu.compiler; FMI 3 lists them in buildDescription.xml); aux_inputs:
+    the model's ModelArtefact.aux_inputs, which describe the auxiliary inputs.
     Raises KeyError for an unknown setting name, BuildError for another FMI version.
     """
     values = _settings_values(settings)
+    table = variable_table(aux_inputs)
     if check_fmi_version(fmi_version) == 3:
-        return _fmi3_xml(values, guid, description)
+        return _fmi3_xml(values, guid, description, table)
     if source_files is None:
         source_files = [p.name for p in fmu_source_files(fmi_version=2) if p.suffix == ".c"]
     files = "\n".join(f"      <File name={quoteattr(name)}/>" for name in source_files)
-    variables = "\n".join(_variable_xml(v, values) for v in VARIABLES)
+    variables = "\n".join(_variable_xml(v, values) for v in table)
     return f"""<?xml version="1.0" encoding="UTF-8"?>
 <fmiModelDescription
   fmiVersion="2.0"
@@ -224,6 +228,6 @@ def model_description_xml(settings: dict, guid: str, description: str,
   <ModelVariables>
 {variables}
   </ModelVariables>
-{_model_structure_xml(2)}
+{_model_structure_xml(2, table)}
 </fmiModelDescription>
 """

@@ -2,15 +2,19 @@
 
 Every FMU ships a reference result: extra/imufusion/reference_input.csv (a short built-in
 recording) and reference_output.csv (the batch runtime's outputs for it, written at build time),
-which tests and `fmu.validator` reproduce through the FMU.
+which tests and `fmu.validator` reproduce through the FMU, and extra/imufusion/aux_inputs.json:
+which recording column each auxiliary input carries (the model's ModelArtefact.aux_inputs), so
+that `imufmu run` feeds a recording's aux_* columns into the right inputs.
 """
 from __future__ import annotations
 
 import hashlib
 import html
+import json
 import shutil
 import tempfile
 import zipfile
+from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
@@ -19,9 +23,9 @@ from fmu.build_description import BUILD_DESCRIPTION, build_description_xml
 from fmu.compiler import check_fmi_version, compile_binary, fmu_source_files
 from fmu.header import HEADER_NAME, coefficient_header
 from fmu.model_description import MODEL_NAME, model_description_xml
-from fmu.variables import VARIABLES, Variable
+from fmu.variables import Variable, variable_table
 from training.errors import ModelError
-from training.layout import INPUTS, OUTPUTS, SETTINGS, settings_array
+from training.layout import AUX_INPUTS, INPUTS, OUTPUTS, SETTINGS, settings_array
 from training.runtime import run_batch
 
 DEFAULT_DESCRIPTION = ("IMU calibration and attitude: temperature-compensated gyro, accelerometer and "
@@ -33,6 +37,8 @@ _ZIP_DATE = (1980, 1, 1, 0, 0, 0)
 #: The reference input/output pair inside the FMU.
 REFERENCE_INPUT = "extra/imufusion/reference_input.csv"
 REFERENCE_OUTPUT = "extra/imufusion/reference_output.csv"
+#: The model's auxiliary-input mapping inside the FMU (JSON list, ModelArtefact.aux_inputs).
+AUX_INPUTS_FILE = "extra/imufusion/aux_inputs.json"
 
 #: The built-in reference recording: 2 s at 100 Hz.
 _REFERENCE_SAMPLES = 200
@@ -42,9 +48,9 @@ _REFERENCE_RATE_HZ = 100.0
 def reference_recording() -> tuple[np.ndarray, np.ndarray]:
     """(t, inputs): the built-in reference recording, closed form (no random numbers).
 
-    t: (200,) s at 100 Hz from 0; inputs: (200, 10) in training.layout.INPUTS order — a sensor
-    rocking in roll and pitch and turning in yaw, gravity and a 20/40 µT field rotated into the
-    body frame, temperature rising from 20 to 30 °C.
+    t: (200,) s at 100 Hz from 0; inputs: (200, len(INPUTS)) in training.layout.INPUTS order — a
+    sensor rocking in roll and pitch and turning in yaw, gravity and a 20/40 µT field rotated into
+    the body frame, temperature rising from 20 to 30 °C, auxiliary input k = sin(k t) (unit-free).
     """
     t = np.arange(_REFERENCE_SAMPLES) / _REFERENCE_RATE_HZ
     roll, pitch, yaw = 0.3 * np.sin(1.3 * t), 0.2 * np.sin(0.9 * t + 0.5), 0.8 * t
@@ -58,7 +64,8 @@ def reference_recording() -> tuple[np.ndarray, np.ndarray]:
     acc = ned_to_body @ np.array([0.0, 0.0, -9.80665])   # specific force at rest
     mag = ned_to_body @ np.array([20.0, 0.0, 40.0])      # µT, magnetic north and down
     temp = 20.0 + 5.0 * t
-    return t, np.column_stack([gyr, acc, mag, temp])
+    aux = np.column_stack([np.sin(k * t) for k in range(1, len(AUX_INPUTS) + 1)])
+    return t, np.column_stack([gyr, acc, mag, temp, aux])
 
 
 def _csv_text(t: np.ndarray, values: np.ndarray, names: tuple[str, ...]) -> str:
@@ -94,12 +101,13 @@ def _settings_dict(settings: dict) -> dict[str, float]:
     return {name: value for (name, _), value in zip(SETTINGS, values)}
 
 
-def model_guid(coefficients: np.ndarray, settings: dict[str, float], sources: list[Path]) -> str:
+def model_guid(coefficients: np.ndarray, settings: dict[str, float], sources: list[Path],
+               variables: tuple[Variable, ...]) -> str:
     """GUID = SHA-256 of coefficients, settings, variable table and FMU sources, as {8-4-4-4-12} hex."""
     digest = hashlib.sha256()
     digest.update(repr([float(v) for v in np.asarray(coefficients, dtype=float)]).encode())
     digest.update(repr(sorted(settings.items())).encode())
-    digest.update(repr(VARIABLES).encode())
+    digest.update(repr(variables).encode())
     for path in sources:
         digest.update(path.name.encode() + b"\0" + path.read_bytes() + b"\0")
     h = digest.hexdigest()
@@ -121,10 +129,11 @@ def _table_html(title: str, variables: tuple[Variable, ...], settings: dict[str,
             + "\n".join(rows) + "\n</table>")
 
 
-def documentation_html(settings: dict[str, float], description: str, fmi_version: int = 2) -> str:
+def documentation_html(settings: dict[str, float], description: str, fmi_version: int,
+                       variables: tuple[Variable, ...]) -> str:
     """documentation/index.html: what the FMU is, its conventions, bad-input handling, the
-    reference result and its variables with units."""
-    by_causality = {c: tuple(v for v in VARIABLES if v.causality == c) for c in ("input", "output", "parameter")}
+    reference result and its variables (the model's `variable_table`) with units."""
+    by_causality = {c: tuple(v for v in variables if v.causality == c) for c in ("input", "output", "parameter")}
     return f"""<!DOCTYPE html>
 <html lang="en">
 <head><meta charset="utf-8"><title>{MODEL_NAME}</title></head>
@@ -165,27 +174,36 @@ def _zip_directory(directory: Path, out_path: Path) -> None:
 
 def build_fmu(coefficients: np.ndarray, settings: dict, out_path: str | Path,
               description: str = DEFAULT_DESCRIPTION,
-              provenance: str = "untrained identity coefficients", fmi_version: int = 2) -> Path:
+              provenance: str = "untrained identity coefficients", fmi_version: int = 2,
+              aux_inputs: Sequence[dict] = ()) -> Path:
     """Build ImuFusion.fmu for FMI `fmi_version` (2 or 3) at out_path and return its path.
 
     coefficients: (N_COEFFICIENTS,) flat array (training/layout.py); settings: parameter start
     values by name (missing names take the defaults); provenance goes into the coefficient
-    header's comment. The FMU holds modelDescription.xml, sources/ (runtime + the version's FMI
+    header's comment; aux_inputs: the model's ModelArtefact.aux_inputs (what aux_1.. carry).
+    The FMU holds modelDescription.xml, sources/ (runtime + the version's FMI
     wrapper + the generated ImuCoefficientsData.h; FMI 3 also buildDescription.xml),
-    documentation/index.html, the reference pair in extra/imufusion/ and the compiled binary.
-    Raises ModelError for bad coefficients or settings, BuildError when compilation fails or the
-    FMI version is not 2 or 3.
+    documentation/index.html, the reference pair and aux_inputs.json in extra/imufusion/ and the
+    compiled binary.
+    Raises ModelError for bad coefficients, settings or aux_inputs, BuildError when compilation
+    fails or the FMI version is not 2 or 3.
     """
     out_path = Path(out_path)
     check_fmi_version(fmi_version)
     values = _settings_dict(settings)
+    try:
+        variables = variable_table(aux_inputs)
+    except ValueError as e:
+        raise ModelError(str(e)) from e
     sources = fmu_source_files(fmi_version=fmi_version)
-    guid = model_guid(coefficients, values, sources)
+    guid = model_guid(coefficients, values, sources, variables)
     header = coefficient_header(coefficients, values, guid, provenance)
     c_files = [p.name for p in sources if p.suffix == ".c"]
-    files = {"modelDescription.xml": model_description_xml(values, guid, description, c_files, fmi_version),
+    files = {"modelDescription.xml": model_description_xml(values, guid, description, c_files, fmi_version,
+                                                           aux_inputs),
              f"sources/{HEADER_NAME}": header,
-             "documentation/index.html": documentation_html(values, description, fmi_version),
+             "documentation/index.html": documentation_html(values, description, fmi_version, variables),
+             AUX_INPUTS_FILE: json.dumps([dict(a) for a in aux_inputs], indent=2, ensure_ascii=False) + "\n",
              **reference_files(np.asarray(coefficients, dtype=float), values)}
     if fmi_version == 3:
         files[BUILD_DESCRIPTION] = build_description_xml(c_files)
@@ -203,3 +221,14 @@ def build_fmu(coefficients: np.ndarray, settings: dict, out_path: str | Path,
         _zip_directory(stage, partial)
         partial.replace(out_path)
     return out_path
+
+
+def fmu_aux_columns(fmu_path: str | Path) -> list[str]:
+    """The recording column each auxiliary input of the FMU at fmu_path carries, aux_1 first
+    (extra/imufusion/aux_inputs.json); pass it to ImuData.inputs(aux_columns=...)."""
+    try:
+        with zipfile.ZipFile(fmu_path) as zf:
+            return [entry["column"] for entry in json.loads(zf.read(AUX_INPUTS_FILE).decode())]
+    except (KeyError, zipfile.BadZipFile) as e:
+        raise ModelError(f"{fmu_path}: not an ImuFusion FMU with auxiliary inputs ({e}); rebuild it "
+                         "with imufmu build-fmu") from e

@@ -3,13 +3,16 @@
 Every model variable with its value reference (pinned to the `ValueReference` enum of
 sources/config.h by tests/test_fmu.py), causality, variability, type, unit, display unit,
 description and start value. modelDescription.xml, the documentation and the co-simulation
-driver are all generated from this table.
+driver are all generated from this table. Variables added by a later layout version get value
+references after the last existing one. The descriptions of the auxiliary inputs depend on the
+model (`variable_table(artefact.aux_inputs)`); `VARIABLES` is the table of a model that maps none.
 """
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 
-from training.layout import INPUTS, OUTPUTS, SETTINGS
+from training.layout import AUX_INPUTS, INPUTS, OUTPUTS, SETTINGS
 
 
 @dataclass(frozen=True)
@@ -30,7 +33,7 @@ class Variable:
 _NED = "body -> magnetic NED, ZYX Euler angles"
 
 
-def _input(name: str, vr: int, unit: str, description: str, start: float) -> Variable:
+def _input(name: str, vr: int, unit: str | None, description: str, start: float) -> Variable:
     """A continuous Real input."""
     return Variable(name, vr, "input", "continuous", "Real", unit, None, description, start)
 
@@ -48,7 +51,7 @@ def _parameter(name: str, vr: int, unit: str | None, description: str, start: fl
 
 _DEFAULTS = dict(SETTINGS)
 
-VARIABLES: tuple[Variable, ...] = (
+_LAYOUT_2: tuple[Variable, ...] = (
     _input("gyr_x", 0, "rad/s", "Raw angular rate about body x (sensor axes)", 0.0),
     _input("gyr_y", 1, "rad/s", "Raw angular rate about body y (sensor axes)", 0.0),
     _input("gyr_z", 2, "rad/s", "Raw angular rate about body z (sensor axes)", 0.0),
@@ -156,6 +159,48 @@ VARIABLES: tuple[Variable, ...] = (
     _parameter("pf_settle_spread", 69, "uT", "The attitude filter ignores the magnetometer while the particle "
                "filter's hard-iron standard deviation exceeds this (0: never)", _DEFAULTS["pf_settle_spread"]),
 )
+
+#: Value reference of aux_1 (the auxiliary inputs are contiguous, in training.layout.AUX_INPUTS order).
+_FIRST_AUX_VR = 70
+
+_LAGS: tuple[Variable, ...] = (
+    _parameter("lag_gyr", 74, "s", "How long the gyro input lags true time (negative: it leads, within [-1, 1] s); "
+               "the compensated rates are aligned to true time before the correction terms", _DEFAULTS["lag_gyr"]),
+    _parameter("lag_acc", 75, "s", "How long the accelerometer input lags true time (negative: it leads, within "
+               "[-1, 1] s); the compensated specific force is aligned to true time before the correction terms",
+               _DEFAULTS["lag_acc"]),
+    _parameter("lag_mag", 76, "s", "How long the magnetometer input lags true time (negative: it leads, within "
+               "[-1, 1] s); the compensated field is aligned to true time before the correction terms",
+               _DEFAULTS["lag_mag"]),
+)
+
+
+def aux_description(k: int, entry: dict | None) -> str:
+    """Description of input aux_k (k from 1): the recording column, unit and meaning a model's
+    aux_inputs entry maps to it, or that the model leaves it unused."""
+    if entry is None:
+        return f"Auxiliary input {k}: unused by this model (0)"
+    unit = f" [{entry['unit']}]" if entry.get("unit") else ""
+    meaning = f" ({entry['meaning']})" if entry.get("meaning") else ""
+    return f"Auxiliary input {k}: recording column {entry['column']}{unit}{meaning}; used by diagnosed correction terms"
+
+
+def _aux_inputs(aux_inputs: Sequence[dict]) -> tuple[Variable, ...]:
+    """The auxiliary inputs (dimensionless to the FMU, start 0), described from a model's aux_inputs."""
+    entries = list(aux_inputs) + [None] * (len(AUX_INPUTS) - len(aux_inputs))
+    return tuple(_input(name, _FIRST_AUX_VR + k, None, aux_description(k + 1, entry), 0.0)
+                 for k, (name, entry) in enumerate(zip(AUX_INPUTS, entries)))
+
+
+def variable_table(aux_inputs: Sequence[dict] = ()) -> tuple[Variable, ...]:
+    """Every variable in value-reference order; aux_inputs: the model's ModelArtefact.aux_inputs
+    (entry k describes input aux_{k+1})."""
+    if len(aux_inputs) > len(AUX_INPUTS):
+        raise ValueError(f"{len(aux_inputs)} auxiliary inputs mapped, the FMU has {len(AUX_INPUTS)}")
+    return _LAYOUT_2 + _aux_inputs(aux_inputs) + _LAGS
+
+
+VARIABLES: tuple[Variable, ...] = variable_table()
 
 
 def inputs() -> tuple[Variable, ...]:

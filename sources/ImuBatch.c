@@ -91,12 +91,13 @@ void ImuBatchLayout(int *version, int *nCoefficients, int *nSettings, int *nInpu
 }
 
 void ImuBatchTermSignals(size_t nSamples, const double *t, const double *components,
-                         const double *temperature, double *signals)
+                         const double *temperature, const double *aux, double *signals)
 {
     ImuTermsState state;
     size_t k;
     ImuTermsReset(&state);
     for (k = 0; k < nSamples; k++) {
-        ImuTermsSignals(&state, t[k], components + 9 * k, temperature[k], signals + IMU_TERM_SIGNAL_COUNT * k);
+        ImuTermsSignals(&state, t[k], components + 9 * k, temperature[k], aux + IMU_TERMS_AUX_COUNT * k,
+                        signals + IMU_TERM_SIGNAL_COUNT * k);
     }
 }

@@ -25,7 +25,7 @@ typedef enum {
  * @brief Run the pipeline over nSamples samples behind the FMU's input/time/output guard
  *        (ImuGuard.h), so the outputs equal the FMU's on any input (and are always finite).
  * @param t nSamples times [s]; inputs nSamples x IMU_INPUT_COUNT row-major (rad/s, m/s^2, uT,
- *        degC); outputs nSamples x IMU_OUTPUT_COUNT row-major (ImuLayout.h).
+ *        degC, auxiliary inputs); outputs nSamples x IMU_OUTPUT_COUNT row-major (ImuLayout.h).
  * @return ImuBatchOk, or a negative ImuBatchResult (outputs untouched).
  */
 IMU_EXPORT int ImuBatchRun(const double *coefficients, size_t nCoefficients, const double *settings,
@@ -39,10 +39,11 @@ IMU_EXPORT int ImuBatchCheckSettings(const double *settings, size_t nSettings, c
 /**
  * @brief The correction-term signals (ImuTerms.h) of a series, exactly as the pipeline forms them.
  * @param t nSamples times [s]; components nSamples x 9 compensated gyr, acc, mag; temperature
- *        nSamples [degC]; signals nSamples x IMU_TERM_SIGNAL_COUNT row-major.
+ *        nSamples [degC]; aux nSamples x IMU_TERMS_AUX_COUNT auxiliary inputs (their own units);
+ *        signals nSamples x IMU_TERM_SIGNAL_COUNT row-major.
  */
 IMU_EXPORT void ImuBatchTermSignals(size_t nSamples, const double *t, const double *components,
-                                    const double *temperature, double *signals);
+                                    const double *temperature, const double *aux, double *signals);
 /** @brief Layout version and the lengths of the coefficient, settings, input and output arrays. */
 IMU_EXPORT void ImuBatchLayout(int *version, int *nCoefficients, int *nSettings, int *nInputs, int *nOutputs);
 

@@ -11,16 +11,20 @@
 #include "ImuElm.h"
 #include "ImuPsoBp.h"
 
-#define IMU_LAYOUT_VERSION 2
+#define IMU_LAYOUT_VERSION 3
 
-/** Runtime inputs per sample (rad/s, m/s^2, uT, degC). */
+/** Runtime inputs per sample (rad/s, m/s^2, uT, degC; auxiliary inputs in their own units). */
 typedef enum {
     ImuInGyrX, ImuInGyrY, ImuInGyrZ,
     ImuInAccX, ImuInAccY, ImuInAccZ,
     ImuInMagX, ImuInMagY, ImuInMagZ,
     ImuInTemp,
+    ImuInAux1, ImuInAux2, ImuInAux3, ImuInAux4, /* signals from outside the IMU for the correction terms */
     IMU_INPUT_COUNT
 } ImuInput;
+
+/* The auxiliary inputs are the last IMU_TERMS_AUX_COUNT inputs. */
+typedef char ImuLayoutCheckAux[(IMU_INPUT_COUNT - ImuInAux1 == IMU_TERMS_AUX_COUNT) ? 1 : -1];
 
 /** Runtime outputs per sample. */
 typedef enum {
@@ -72,6 +76,9 @@ typedef enum {
     ImuSetPfChangeSpreadHard, /* uT */
     ImuSetPfHoldPrior,       /* 0 or 1 */
     ImuSetPfSettleSpread,    /* uT */
+    ImuSetLagGyr,            /* s, how long the gyro input lags true time (ImuAlign.h) */
+    ImuSetLagAcc,            /* s */
+    ImuSetLagMag,            /* s */
     IMU_SETTING_COUNT
 } ImuSetting;
 

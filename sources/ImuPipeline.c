@@ -1,6 +1,7 @@
 /**
  * @file ImuPipeline.c
- * @brief The per-sample processing chain: thermal compensation -> attitude fusion.
+ * @brief The per-sample processing chain: thermal compensation -> time alignment -> correction
+ *        terms -> magnetometer stages -> attitude fusion.
  */
 #include <math.h>
 #include "ImuPipeline.h"
@@ -84,6 +85,9 @@ int ImuPipelineSettingsFromArray(ImuPipelineSettings *s, const double *a, size_t
     s->enablePf = ImuPipelineFlag(a[ImuSetEnablePf]);
     s->pfSeed = ImuPipelineInteger(a[ImuSetPfSeed]);
     s->enablePsoBp = ImuPipelineFlag(a[ImuSetEnablePsoBp]);
+    s->align.lag[0] = a[ImuSetLagGyr];
+    s->align.lag[1] = a[ImuSetLagAcc];
+    s->align.lag[2] = a[ImuSetLagMag];
     ImuPipelinePfSettings(&s->pf, a);
     return 0;
 }
@@ -143,6 +147,8 @@ int ImuPipelineSettingsCheck(const ImuPipelineSettings *s, const char **message)
         problem = "pf_seed must be a whole number in [0, 2147483647]";
     } else if (ImuMagPfSettingsCheck(&s->pf, &problem) != 0) {
         /* problem names the particle-filter setting and its range */
+    } else if (ImuAlignSettingsCheck(&s->align, &problem) != 0) {
+        /* problem names the lag setting and its range */
     } else {
         problem = ImuPipelineCheckAttitude(s);
     }
@@ -181,6 +187,7 @@ void ImuPipelineInitialise(ImuPipeline *p, const ImuPipelineSettings *s, const I
 void ImuPipelineReset(ImuPipeline *p)
 {
     ImuAttitudeReset(&p->attitude);
+    ImuAlignReset(&p->align);
     ImuTermsReset(&p->terms);
     ImuPsoBpInitialise(&p->psobp, &p->coefficients.psobp);
     if (p->settings.enablePf) {
@@ -225,11 +232,13 @@ static void ImuPipelineThermal(const ImuPipeline *p, const double in[IMU_INPUT_C
     }
 }
 
-/** @brief Subtract the diagnosed correction terms from the compensated triads out[rate..field]. */
-static void ImuPipelineTerms(ImuPipeline *p, double t, double temperature, double out[IMU_OUTPUT_COUNT])
+/** @brief Subtract the diagnosed correction terms from the compensated triads out[rate..field];
+ *         aux are the sample's auxiliary inputs. */
+static void ImuPipelineTerms(ImuPipeline *p, double t, double temperature, const double aux[IMU_TERMS_AUX_COUNT],
+                             double out[IMU_OUTPUT_COUNT])
 {
     double signals[IMU_TERM_SIGNAL_COUNT];
-    ImuTermsSignals(&p->terms, t, &out[ImuOutRateX], temperature, signals);
+    ImuTermsSignals(&p->terms, t, &out[ImuOutRateX], temperature, aux, signals);
     ImuTermsApply(&p->coefficients.terms, signals, &out[ImuOutRateX]);
 }
 
@@ -273,7 +282,8 @@ void ImuPipelineUpdate(ImuPipeline *p, double t, const double in[IMU_INPUT_COUNT
     if (p->settings.enablePsoBp) {
         ImuPsoBpCorrect(&p->coefficients.psobp, &p->psobp, &out[ImuOutRateX]);
     }
-    ImuPipelineTerms(p, t, temperature, out);
+    ImuAlignUpdate(&p->align, &p->settings.align, t, &out[ImuOutRateX]);
+    ImuPipelineTerms(p, t, temperature, &in[ImuInAux1], out);
     ImuPipelineMagPf(p, out);
     if (p->settings.enableElm) {
         ImuElmApply(&p->coefficients.elm, &out[ImuOutFieldX], &out[ImuOutFieldX]);

@@ -1,6 +1,7 @@
 /**
  * @file ImuPipeline.h
- * @brief The per-sample processing chain: thermal compensation -> attitude fusion.
+ * @brief The per-sample processing chain: thermal compensation -> time alignment -> correction
+ *        terms -> magnetometer stages -> attitude fusion.
  *
  * Knows nothing of FMI. The FMU (model.c) and the batch library (ImuBatch.c) both drive it
  * through these verbs, so both give bit-identical outputs for the same inputs.
@@ -12,6 +13,7 @@
 #include "ImuCommon.h"
 #include "ImuLayout.h"
 #include "ImuThermal.h"
+#include "ImuAlign.h"
 #include "ImuAttitude.h"
 #include "ImuTerms.h"
 #include "ImuElm.h"
@@ -47,6 +49,7 @@ typedef struct {
     int pfSeed;              /* particle-filter seed, -1 marks an invalid value for the check */
     int enablePsoBp;         /* 0 or 1: PSO-BP gyro bias network (mode of its block) */
     ImuMagPfSettings pf;     /* particle-filter settings (defaults + the FMU parameters) */
+    ImuAlignSettings align;  /* lags [s] of the gyr, acc, mag inputs behind true time */
 } ImuPipelineSettings;
 
 /** Whole pipeline: settings, coefficients and evolving state in one plain struct (copyable). */
@@ -54,6 +57,7 @@ typedef struct {
     ImuPipelineSettings settings;
     ImuCoefficients coefficients;
     ImuAttitude attitude;
+    ImuAlignState align; /* buffer of the compensated triads for their time alignment */
     ImuTermsState terms;
     ImuMagPf pf;       /* used when settings.enablePf */
     ImuPsoBpState psobp; /* causal temperature-rate estimate of the PSO-BP model */
@@ -74,7 +78,7 @@ IMU_HIDDEN void ImuPipelineReset(ImuPipeline *p);
 /**
  * @brief Process one sample.
  * @param t time of the sample [s]; the integration step is t minus the previous sample's time.
- * @param in IMU_INPUT_COUNT raw inputs (rad/s, m/s^2, uT, degC).
+ * @param in IMU_INPUT_COUNT raw inputs (rad/s, m/s^2, uT, degC, then the auxiliary inputs).
  * @param out IMU_OUTPUT_COUNT outputs (see ImuLayout.h).
  */
 IMU_HIDDEN void ImuPipelineUpdate(ImuPipeline *p, double t, const double in[IMU_INPUT_COUNT], double out[IMU_OUTPUT_COUNT]);

@@ -4,7 +4,9 @@
  *
  * The value references mirror the variable table in fmu/variables.py (tests/test_fmu.py pins
  * the two together). Each group is contiguous and in the order of ImuLayout.h, so model.c maps
- * a value reference to an array index by subtracting the group's first value reference.
+ * a value reference to an array index by subtracting the group's first value reference and adding
+ * the group's first array index. Variables added by later layout versions form new groups after
+ * the last value reference, so existing value references never change.
  */
 #ifndef IMU_CONFIG_H
 #define IMU_CONFIG_H
@@ -85,7 +87,16 @@ typedef enum {
     vr_pf_min_rotation = 66,
     vr_pf_change_spread_hard = 67,
     vr_pf_hold_prior = 68,
-    vr_pf_settle_spread = 69
+    vr_pf_settle_spread = 69,
+    /* inputs (layout version 3): auxiliary inputs (ImuInAux1..) */
+    vr_aux_1 = 70,
+    vr_aux_2 = 71,
+    vr_aux_3 = 72,
+    vr_aux_4 = 73,
+    /* parameters (layout version 3): triad lags (ImuSetLagGyr..) */
+    vr_lag_gyr = 74,
+    vr_lag_acc = 75,
+    vr_lag_mag = 76
 } ValueReference;
 
 /** Parameters of type Boolean; every other variable is Real (FMI 3: Float64) unless VR_IS_INTEGER. */
@@ -99,6 +110,8 @@ typedef enum {
 #define VR_FIRST_INPUT vr_gyr_x
 #define VR_FIRST_OUTPUT vr_rate_x
 #define VR_FIRST_SETTING vr_declination
-#define VR_COUNT (vr_pf_settle_spread + 1)
+#define VR_FIRST_AUX vr_aux_1
+#define VR_FIRST_LAG vr_lag_gyr
+#define VR_COUNT (vr_lag_mag + 1)
 
 #endif

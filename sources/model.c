@@ -11,10 +11,29 @@
 
 #include "ImuCoefficientsData.h"
 
-/* The value-reference groups of config.h must match the array sizes of ImuLayout.h. */
-typedef char ModelCheckInputs[(VR_FIRST_OUTPUT - VR_FIRST_INPUT == IMU_INPUT_COUNT) ? 1 : -1];
+/** Where a contiguous group of value references (config.h) lives in ModelData. */
+typedef struct {
+    unsigned int firstVr; /* value reference of the group's first variable */
+    int count;            /* variables in the group */
+    char causality;       /* 'i' inputs[], 'o' outputs[], 's' settings[] */
+    int firstIndex;       /* array index of the group's first variable (ImuLayout.h order) */
+} VariableGroup;
+
+/** The value-reference groups in value-reference order; together they cover 0..VR_COUNT - 1. */
+static const VariableGroup variableGroups[] = {
+    {VR_FIRST_INPUT, ImuInAux1, 'i', 0},
+    {VR_FIRST_OUTPUT, IMU_OUTPUT_COUNT, 'o', 0},
+    {VR_FIRST_SETTING, ImuSetLagGyr, 's', 0},
+    {VR_FIRST_AUX, IMU_INPUT_COUNT - ImuInAux1, 'i', ImuInAux1},
+    {VR_FIRST_LAG, IMU_SETTING_COUNT - ImuSetLagGyr, 's', ImuSetLagGyr}
+};
+
+/* The groups of config.h must be contiguous and match the array sizes of ImuLayout.h. */
+typedef char ModelCheckInputs[(VR_FIRST_OUTPUT - VR_FIRST_INPUT == ImuInAux1) ? 1 : -1];
 typedef char ModelCheckOutputs[(VR_FIRST_SETTING - VR_FIRST_OUTPUT == IMU_OUTPUT_COUNT) ? 1 : -1];
-typedef char ModelCheckSettings[(VR_COUNT - VR_FIRST_SETTING == IMU_SETTING_COUNT) ? 1 : -1];
+typedef char ModelCheckSettings[(VR_FIRST_AUX - VR_FIRST_SETTING == ImuSetLagGyr) ? 1 : -1];
+typedef char ModelCheckAux[(VR_FIRST_LAG - VR_FIRST_AUX == IMU_INPUT_COUNT - ImuInAux1) ? 1 : -1];
+typedef char ModelCheckLags[(VR_COUNT - VR_FIRST_LAG == IMU_SETTING_COUNT - ImuSetLagGyr) ? 1 : -1];
 
 #define MODEL_STATE_MAGIC 0x494D5546u /* "IMUF" */
 #define MODEL_LOG_BUFFER_SIZE 640
@@ -52,13 +71,35 @@ static void setStartValues(ModelData *m) {
         0.0, 0.0, 0.0,        /* rad/s */
         0.0, 0.0, -9.80665,   /* m/s^2: at rest and level */
         20.0, 0.0, 40.0,      /* uT: mid-latitude field, north and down */
-        25.0                  /* degC */
+        25.0,                 /* degC */
+        0.0, 0.0, 0.0, 0.0    /* auxiliary inputs */
     };
     memset(m, 0, sizeof *m);
     memcpy(m->inputs, startInputs, sizeof startInputs);
     memcpy(m->settings, IMU_SETTING_DEFAULTS, sizeof m->settings);
     ImuGuardReset(&m->guard, m->settings[ImuSetDeclination]);
     setInitialOutputs(m);
+}
+
+/** @brief Array of vr ('i' inputs, 'o' outputs, 's' settings; 0 for an unknown vr) and its index there. */
+static char locate(unsigned int vr, int *index) {
+    size_t g;
+    for (g = 0; g < sizeof variableGroups / sizeof variableGroups[0]; g++) {
+        const VariableGroup *group = &variableGroups[g];
+        if (vr >= group->firstVr && vr - group->firstVr < (unsigned int)group->count) {
+            *index = group->firstIndex + (int)(vr - group->firstVr);
+            return group->causality;
+        }
+    }
+    *index = -1;
+    return 0;
+}
+
+/** @brief Index of the parameter vr in the settings array (vr must be a parameter). */
+static int settingIndex(unsigned int vr) {
+    int index;
+    (void)locate(vr, &index);
+    return index;
 }
 
 /** @brief Kind of variable vr: 'R' Real, 'B' Boolean, 'I' Integer, 0 unknown. */
@@ -85,7 +126,8 @@ static ModelStatus badReference(const ModelInstance *mi, const char *function, u
 /** @brief Store parameter vr (any type, as double) if parameters may still change. */
 static ModelStatus setParameter(ModelInstance *mi, const char *function, unsigned int vr, double value) {
     ModelData *m = &mi->state.model;
-    if (vr < VR_FIRST_SETTING) {
+    int index;
+    if (locate(vr, &index) != 's') {
         return ModelFail(mi, function, "outputs cannot be set");
     }
     if (m->initialised) {
@@ -93,13 +135,15 @@ static ModelStatus setParameter(ModelInstance *mi, const char *function, unsigne
                  "%s: parameters are fixed after initialisation (value reference %u)", function, vr);
         return ModelError;
     }
-    m->settings[vr - VR_FIRST_SETTING] = value;
+    m->settings[index] = value;
     setInitialOutputs(m);
     return ModelOk;
 }
 
 ModelStatus ModelGetReal(const ModelInstance *mi, const char *function, unsigned int vr, double *value) {
     const ModelData *m = &mi->state.model;
+    int index;
+    char causality;
     if (vr == VR_TIME) {
         *value = mi->state.time;
         return ModelOk;
@@ -107,12 +151,13 @@ ModelStatus ModelGetReal(const ModelInstance *mi, const char *function, unsigned
     if (variableType(vr) != 'R') {
         return badReference(mi, function, vr, "Real/Float64");
     }
-    if (vr < VR_FIRST_OUTPUT) {
-        *value = m->inputs[vr - VR_FIRST_INPUT];
-    } else if (vr < VR_FIRST_SETTING) {
-        *value = m->outputs[vr - VR_FIRST_OUTPUT];
+    causality = locate(vr, &index);
+    if (causality == 'i') {
+        *value = m->inputs[index];
+    } else if (causality == 'o') {
+        *value = m->outputs[index];
     } else {
-        *value = m->settings[vr - VR_FIRST_SETTING];
+        *value = m->settings[index];
     }
     return ModelOk;
 }
@@ -121,11 +166,12 @@ ModelStatus ModelSetReal(ModelInstance *mi, const char *function, unsigned int v
     if (vr == VR_TIME) {
         return ModelFail(mi, function, "time is the independent variable: it cannot be set");
     }
+    int index;
     if (variableType(vr) != 'R') {
         return badReference(mi, function, vr, "Real/Float64");
     }
-    if (vr < VR_FIRST_OUTPUT) {
-        mi->state.model.inputs[vr - VR_FIRST_INPUT] = value;
+    if (locate(vr, &index) == 'i') {
+        mi->state.model.inputs[index] = value;
         return ModelOk;
     }
     return setParameter(mi, function, vr, value);
@@ -135,7 +181,7 @@ ModelStatus ModelGetBoolean(const ModelInstance *mi, const char *function, unsig
     if (variableType(vr) != 'B') {
         return badReference(mi, function, vr, "Boolean");
     }
-    *value = mi->state.model.settings[vr - VR_FIRST_SETTING] != 0.0;
+    *value = mi->state.model.settings[settingIndex(vr)] != 0.0;
     return ModelOk;
 }
 
@@ -150,7 +196,7 @@ ModelStatus ModelGetInteger(const ModelInstance *mi, const char *function, unsig
     if (variableType(vr) != 'I') {
         return badReference(mi, function, vr, "Integer/Int32");
     }
-    *value = (int)mi->state.model.settings[vr - VR_FIRST_SETTING];
+    *value = (int)mi->state.model.settings[settingIndex(vr)];
     return ModelOk;
 }
 

@@ -65,7 +65,7 @@ typedef enum {
 
 /** Every value of the model and the pipeline that produces the outputs. */
 typedef struct {
-    double inputs[IMU_INPUT_COUNT];     /* raw sample as set: rad/s, m/s^2, uT, degC */
+    double inputs[IMU_INPUT_COUNT];     /* raw sample as set: rad/s, m/s^2, uT, degC, auxiliary inputs */
     double outputs[IMU_OUTPUT_COUNT];   /* estimate for the last consumed sample, always finite */
     double settings[IMU_SETTING_COUNT]; /* parameters in user units (ImuLayout.h order) */
     int issues;                         /* ModelIssue bits of the last step */

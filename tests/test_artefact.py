@@ -8,8 +8,8 @@ from training.artefact import (FORMAT_VERSION, ModelArtefact, coefficients_array
                                settings_dict)
 from training.dataset import ImuData
 from training.errors import ModelError
-from training.layout import (LAYOUT_VERSION, N_COEFFICIENTS, SETTINGS, identity_coefficients,
-                             settings_defaults)
+from training.layout import (LAYOUT_VERSION, N_COEFFICIENTS, OFFSET_TERMS, SETTINGS, TERM_SIGNALS, TERMS_BLOCK,
+                             identity_coefficients, settings_defaults)
 from training.thermal import ThermalModel, apply_thermal
 from training.recommend import GYRO_BIAS_RESIDUAL_FLOOR
 from training.train import train
@@ -192,6 +192,22 @@ def test_settings_dict_fills_defaults_in_layout_order():
     assert values["field_norm"] == 47.0 and values["declination"] == 0.0
 
 
+_TERM = {"name": "motor current -> gyr", "target": "gyr_z", "a": "aux_1", "b": None, "coefficient": 2e-3,
+         "lo": -1.0, "hi": 1.5}
+_AUX = {"column": "aux_motor_current", "unit": "A", "meaning": "motor current"}
+
+
+def test_terms_and_aux_inputs_round_trip_into_the_terms_block(tmp_path, artefact):
+    art = ModelArtefact(seed=0, thermal=artefact.thermal, settings={}, terms=[_TERM, {**_TERM, "b": "abs_acc_z"}],
+                        aux_inputs=[_AUX])
+    loaded = load_artefact(art.save(tmp_path / "model.json"))
+    assert loaded.terms == art.terms and loaded.aux_inputs == [_AUX]
+    block = coefficients_array(loaded)[OFFSET_TERMS:OFFSET_TERMS + TERMS_BLOCK]
+    aux_1, abs_acc_z = TERM_SIGNALS.index("aux_1"), TERM_SIGNALS.index("abs_acc_z")
+    assert block[:13].tolist() == [2.0, 2.0, aux_1, -1.0, 2e-3, -1.0, 1.5, 2.0, aux_1, abs_acc_z, 2e-3, -1.0, 1.5]
+    assert ModelArtefact(seed=0, thermal={}, settings={}).aux_inputs == []
+
+
 def _edit_doc(artefact, tmp_path, edit):
     """Save the artefact, apply `edit` to its JSON document, write it back; return the path."""
     doc = artefact.to_json_dict()
@@ -213,6 +229,14 @@ def _edit_doc(artefact, tmp_path, edit):
     (lambda d: d["thermal"]["acc"].update(degree="2"), "'thermal.acc.degree'"),
     (lambda d: d["settings"].update(gain=1.0), "unknown setting 'settings.gain'"),
     (lambda d: d.update(seed="3"), "'seed' is str"),
+    (lambda d: d.update(terms=[{k: v for k, v in _TERM.items() if k != "hi"}]),
+     "has no regressor bounds 'lo' and 'hi' (an artefact from before layout version 3): re-run imufmu diagnose"),
+    (lambda d: d.update(terms=[{**_TERM, "lo": None}]), "finite regressor bounds lo <= hi, got lo = None"),
+    (lambda d: d.update(terms=[{**_TERM, "lo": 2.0, "hi": 1.0}]), "got lo = 2.0, hi = 1.0: re-run imufmu diagnose"),
+    (lambda d: d.update(aux_inputs=[_AUX] * 5), "at most 4 entries"),
+    (lambda d: d.update(aux_inputs=[{"column": "motor", "unit": "A", "meaning": ""}]), "aux_inputs[0] must be"),
+    (lambda d: d.update(aux_inputs=[_AUX, _AUX]), "maps a recording column twice"),
+    (lambda d: d.update(terms=[{**_TERM, "b": "aux_2"}], aux_inputs=[_AUX]), "uses aux_2, which aux_inputs"),
 ])
 def test_load_rejects_malformed_documents(tmp_path, artefact, edit, problem):
     path = _edit_doc(artefact, tmp_path, edit)

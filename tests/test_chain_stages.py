@@ -69,7 +69,7 @@ def test_heading_ignores_the_field_until_the_particle_filter_settles(tumbling):
 def test_invalid_stage_settings_name_the_parameter(name, value, word):
     settings = np.array(layout.settings_array({name: value}))
     with pytest.raises(ValueError, match=word):
-        runtime.run_batch(np.array(layout.identity_coefficients()), settings, [0.0], np.zeros((1, 10)))
+        runtime.run_batch(np.array(layout.identity_coefficients()), settings, [0.0], np.zeros((1, len(layout.INPUTS))))
 
 
 def test_elm_stage_switch_uses_the_trained_block():
@@ -82,7 +82,7 @@ def test_elm_stage_switch_uses_the_trained_block():
     c = np.array(layout.pack_coefficients(blocks, elm=list(elm.to_block(model))))
     t = np.arange(len(x)) * 0.01
     inputs = np.column_stack([np.zeros((len(x), 3)), np.tile([0, 0, -9.81], (len(x), 1)), x,
-                              np.full(len(x), 25.0)])
+                              np.full(len(x), 25.0), np.zeros((len(x), len(layout.AUX_INPUTS)))])
     field = [layout.OUTPUTS.index(c) for c in ("field_x", "field_y", "field_z")]
     on = runtime.run_batch(c, np.array(layout.settings_array({"enable_elm": 1.0})), t, inputs)
     off = runtime.run_batch(c, np.array(layout.settings_array()), t, inputs)

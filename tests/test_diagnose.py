@@ -73,7 +73,9 @@ def test_new_artefact_carries_the_terms_into_the_runtime(gsens):
     assert not np.array_equal(c, base)
 
 
-@pytest.mark.parametrize("case,target,regressor", [("acc_temp_rate", "acc", "temp_rate"),
+# The simulated bias follows the instantaneous temperature rate: the runtime's 1 s low-pass of it
+# (temp_rate_fast) is its reading, the 10 s one lags each rate reversal.
+@pytest.mark.parametrize("case,target,regressor", [("acc_temp_rate", "acc", "temp_rate_fast"),
                                                     ("mag_drift", "mag", "time")])
 def test_other_effects_are_found(case, target, regressor, tmp_path):
     result = run_case(case, tmp_path)

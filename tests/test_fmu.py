@@ -18,7 +18,7 @@ from fmu.packer import build_fmu
 from fmu.validator import FMI2_CS_FUNCTIONS, exported_symbols, fmutool_problems, validate_fmu
 from fmu.variables import VARIABLES, by_name, inputs, outputs, parameters
 from training.errors import BuildError, ModelError
-from training.layout import (INPUTS, MAX_DEGREE, N_COEFFICIENTS, OUTPUTS, SETTINGS, TRIAD_BLOCK,
+from training.layout import (AUX_INPUTS, INPUTS, MAX_DEGREE, N_COEFFICIENTS, OUTPUTS, SETTINGS, TRIAD_BLOCK,
                              identity_coefficients, settings_array, settings_defaults)
 from training.runtime import run_batch
 
@@ -26,10 +26,11 @@ from training.runtime import run_batch
 #: compiler's instruction choice may differ, far below this bound.
 GOLDEN_TOLERANCE = 1e-12
 
-#: Settings of the "trained" FMU: every parameter differs from its default.
+#: Settings of the "trained" FMU: every parameter differs from its default. The lags make the
+#: time-alignment buffer (sources/ImuAlign.h) part of every FMU-state and golden check.
 TRAINED_SETTINGS = {"declination": 0.05, "field_norm": 48.0, "gyro_noise": 5e-4,
                     "gyro_bias_residual": 2e-4, "mse_time_constant": 0.5, "angle_noise": 0.02,
-                    "enable_thermal": 1.0}
+                    "enable_thermal": 1.0, "lag_gyr": -0.015, "lag_mag": 0.02}
 
 
 def trained_coefficients() -> np.ndarray:
@@ -49,8 +50,8 @@ def trained_coefficients() -> np.ndarray:
 
 
 def synthetic_recording(n: int = 600) -> tuple[np.ndarray, np.ndarray]:
-    """(t, inputs): a rotating, noisy sensor with jittered 50–200 Hz steps, a 120 s gap and a
-    stretch of unknown (NaN) temperature."""
+    """(t, inputs): a rotating, noisy sensor with jittered 50–200 Hz steps, a 120 s gap, a
+    stretch of unknown (NaN) temperature and slow sines on the auxiliary inputs."""
     rng = np.random.default_rng(1)
     dt = rng.uniform(0.005, 0.02, n)
     dt[n // 2] = 120.0
@@ -63,7 +64,8 @@ def synthetic_recording(n: int = 600) -> tuple[np.ndarray, np.ndarray]:
     mag = np.stack([20.0 * np.cos(0.3 * s), -20.0 * np.sin(0.3 * s), np.full(n, 40.0)], axis=1)
     temp = 20.0 + 10.0 * s / s[-1]
     temp[n // 4:n // 4 + 20] = np.nan
-    raw = np.column_stack([gyr, acc, mag, temp])
+    aux = np.column_stack([np.cos(k * s) for k in range(1, len(AUX_INPUTS) + 1)])
+    raw = np.column_stack([gyr, acc, mag, temp, aux])
     raw[:, :9] += 0.01 * rng.standard_normal((n, 9))
     return t, raw
 
@@ -117,7 +119,7 @@ def test_model_description_follows_table_and_settings(trained_fmu):
 
 def test_fmu_without_thermal_model_passes_raw_signals_through(trained_fmu):
     t, raw = synthetic_recording(200)
-    out = run_fmu(trained_fmu, t, raw, parameters={"enable_thermal": False})
+    out = run_fmu(trained_fmu, t, raw, parameters={"enable_thermal": False, "lag_gyr": 0.0, "lag_mag": 0.0})
     np.testing.assert_allclose(out[:, :9], raw[:, :9], rtol=0, atol=1e-12)
 
 
@@ -126,7 +128,7 @@ def test_fmu_equals_batch_runtime_on_variable_steps(trained_fmu):
     fmu_out = run_fmu(trained_fmu, t, raw)
     # Both run the same guard (sources/ImuGuard.c): the batch gets the RAW recording, NaN stretch
     # of the temperature included, and holds the last valid temperature through it as the FMU does.
-    assert np.isnan(raw[:, -1]).any()
+    assert np.isnan(raw[:, INPUTS.index("temp")]).any()
     batch_out = run_batch(trained_coefficients(), settings_array(TRAINED_SETTINGS), t, raw)
     assert fmu_out.shape == (t.size, len(OUTPUTS))
     np.testing.assert_allclose(fmu_out, batch_out, rtol=0, atol=GOLDEN_TOLERANCE, equal_nan=True)

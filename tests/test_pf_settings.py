@@ -155,7 +155,7 @@ def test_derived_settings_are_fmu_settings_the_runtime_accepts():
     names = {name for name, _ in layout.SETTINGS}
     assert set(s) <= names
     inputs = np.column_stack([np.zeros((len(t), 3)), np.tile([0.0, 0.0, -9.81], (len(t), 1)), field,
-                              np.full(len(t), 25.0)])
+                              np.full(len(t), 25.0), np.zeros((len(t), len(layout.AUX_INPUTS)))])
     out = runtime.run_batch(layout.identity_coefficients(),
                             layout.settings_array({"enable_pf": 1.0, "field_norm": FIELD_NORM_UT, **s}), t, inputs)
     assert np.all(np.isfinite(out[:, layout.OUTPUTS.index("field_x")]))

@@ -34,6 +34,12 @@ THERMAL_RTOL = 1e-12
 EULER_METHOD = {"attitude_mode": 0.0, "rest_gyro_threshold": 0.0}
 
 
+def runtime_inputs(*sensor_columns) -> np.ndarray:
+    """Inputs in layout.INPUTS order from the gyr, acc, mag, temp columns; auxiliary inputs 0."""
+    x = np.column_stack(sensor_columns)
+    return np.column_stack([x, np.zeros((len(x), len(layout.AUX_INPUTS)))])
+
+
 def settings(**overrides) -> np.ndarray:
     return np.array(layout.settings_array({**EULER_METHOD, **overrides}))
 
@@ -118,7 +124,7 @@ def handheld(seed: int, duration: float = 105.0):
         + np.radians(0.03) * rng.normal(size=gyr.shape)
     acc = acc + 0.02 * unit() + 0.02 * rng.normal(size=acc.shape)
     mag = mag + 0.5 * unit() + 0.5 * rng.normal(size=mag.shape)
-    inputs = np.column_stack([gyr, acc, mag, np.full(len(t), np.nan)])
+    inputs = runtime_inputs(gyr, acc, mag, np.full(len(t), np.nan))
     return t, inputs, np.stack([roll, pitch, wrap(yaw)], axis=1)
 
 
@@ -132,8 +138,8 @@ def test_layout_matches_python():
 
 
 def random_inputs(rng, n=200):
-    x = np.column_stack([rng.normal(0, 1, (n, 3)), rng.normal(0, 5, (n, 3)) + [0, 0, -G],
-                         rng.normal(0, 30, (n, 3)), rng.uniform(-40, 85, n)])
+    x = runtime_inputs(rng.normal(0, 1, (n, 3)), rng.normal(0, 5, (n, 3)) + [0, 0, -G],
+                       rng.normal(0, 30, (n, 3)), rng.uniform(-40, 85, n))
     x[::7, 9] = np.nan  # bad temperature: the guard holds the last valid one (Tn = 0 before it)
     return x
 
@@ -201,7 +207,7 @@ def test_invalid_thermal_block_is_rejected(index, value):
     c = identity()
     c[1 + index] = value
     with pytest.raises(ValueError, match="code -4"):
-        runtime.run_batch(c, settings(), [0.0], np.zeros((1, 10)))
+        runtime.run_batch(c, settings(), [0.0], np.zeros((1, len(layout.INPUTS))))
 
 
 # ---------------------------------------------------------------- attitude: closed forms
@@ -209,7 +215,7 @@ def test_invalid_thermal_block_is_rejected(index, value):
 def static_run(roll, pitch, yaw, n=50, **overrides):
     r = euler_to_matrix(np.full(n, roll), np.full(n, pitch), np.full(n, yaw))
     acc, mag = sensors(r)
-    x = np.column_stack([np.zeros((n, 3)), acc, mag, np.full(n, 25.0)])
+    x = runtime_inputs(np.zeros((n, 3)), acc, mag, np.full(n, 25.0))
     return runtime.run_batch(identity(), settings(**overrides), np.arange(n) / FS, x)
 
 
@@ -242,7 +248,7 @@ def test_constant_rotation_about_z_follows_closed_form(with_magnetometer):
     acc, mag = sensors(euler_to_matrix(np.zeros(n), np.zeros(n), yaw))
     if not with_magnetometer:
         mag[1:] = np.nan  # yaw from the gyro alone after the initial fix
-    x = np.column_stack([np.tile([0.0, 0.0, rate], (n, 1)), acc, mag, np.full(n, np.nan)])
+    x = runtime_inputs(np.tile([0.0, 0.0, rate], (n, 1)), acc, mag, np.full(n, np.nan))
     out = runtime.run_batch(identity(), settings(), t, x)
     assert np.abs(wrap(out[:, YAW] - yaw)).max() < EXACT_BOUND_RAD
     assert np.abs(out[:, ROLL:PITCH + 1]).max() < EXACT_BOUND_RAD
@@ -251,7 +257,7 @@ def test_constant_rotation_about_z_follows_closed_form(with_magnetometer):
 
 def test_time_not_increasing_does_not_propagate():
     n = 6
-    x = np.column_stack([np.tile([0.0, 0.0, 1.0], (n, 1)), np.full((n, 6), np.nan), np.zeros(n)])
+    x = runtime_inputs(np.tile([0.0, 0.0, 1.0], (n, 1)), np.full((n, 6), np.nan), np.zeros(n))
     x[0, 3:9] = [0.0, 0.0, -G, FIELD_NORM * np.cos(DIP), 0.0, FIELD_NORM * np.sin(DIP)]
     out = runtime.run_batch(identity(), settings(), [0.0, 0.1, 0.1, 0.05, 0.2, 0.3], x)
     np.testing.assert_allclose(out[:, YAW], [0.0, 0.1, 0.1, 0.1, 0.2, 0.3], atol=EXACT_BOUND_RAD)
@@ -300,7 +306,7 @@ def test_sensors_missing_from_the_start():
     r = euler_to_matrix(np.full(n, 0.3), np.full(n, -0.2), np.full(n, 1.0))
     acc, mag = sensors(r)
     acc[:5], mag[:10] = np.nan, np.nan
-    x = np.column_stack([np.zeros((n, 3)), acc, mag, np.full(n, 20.0)])
+    x = runtime_inputs(np.zeros((n, 3)), acc, mag, np.full(n, 20.0))
     out = runtime.run_batch(identity(), settings(), np.arange(n) / FS, x)
     assert np.all(np.isfinite(out[:, ROLL:]))
     np.testing.assert_array_equal(out[:5, ROLL:YAW + 1], 0.0)
@@ -320,7 +326,7 @@ def call_batch(c, s, n=3, t=None, x=None):
     lib = runtime.load_runtime()
     c, s = np.ascontiguousarray(c, float), np.ascontiguousarray(s, float)
     t = np.arange(n, dtype=float) if t is None else t
-    x = np.zeros((n, 10)) if x is None else x
+    x = np.zeros((n, len(layout.INPUTS))) if x is None else x
     out = np.zeros((n, len(layout.OUTPUTS)))
     ptr = runtime._pointer
     return lib.ImuBatchRun(ptr(c), c.size, ptr(s), s.size, n, ptr(t) if t.size else None,
@@ -339,7 +345,7 @@ def test_bad_sizes_give_error_codes():
     assert call_batch(c, s, t=np.zeros(0)) == -1
     assert call_batch(c, s, n=0, t=np.zeros(0)) == 0
     with pytest.raises(ValueError, match="wrong number of coefficients"):
-        runtime.run_batch(c[:-1], s, [0.0], np.zeros((1, 10)))
+        runtime.run_batch(c[:-1], s, [0.0], np.zeros((1, len(layout.INPUTS))))
     with pytest.raises(ValueError, match="shape"):
         runtime.run_batch(c, s, [0.0, 1.0], np.zeros((2, 9)))
 
@@ -350,7 +356,7 @@ def test_bad_sizes_give_error_codes():
     ("declination", np.nan)])
 def test_bad_setting_is_named(name, value):
     with pytest.raises(ValueError, match=f"code -6.*{name} must be"):
-        runtime.run_batch(identity(), settings(**{name: value}), [0.0], np.zeros((1, 10)))
+        runtime.run_batch(identity(), settings(**{name: value}), [0.0], np.zeros((1, len(layout.INPUTS))))
 
 
 # ---------------------------------------------------------------- build

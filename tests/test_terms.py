@@ -1,6 +1,9 @@
 """Diagnosed correction terms (sources/ImuTerms.c): signals and corrections against closed forms."""
 from __future__ import annotations
 
+import re
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -9,6 +12,9 @@ from training import layout, runtime
 #: The runtime evaluates the same double expressions as the closed forms below; only the order of
 #: additions can differ, so agreement is to a few ulps of the magnitudes involved (≤ 1e-12).
 CLOSED_FORM_TOLERANCE = 1e-12
+#: Regressor bounds that no signal of these recordings reaches: the term is never clamped.
+UNBOUNDED = (-1e300, 1e300)
+SOURCES = Path(__file__).resolve().parents[1] / "sources"
 
 
 def _settings():
@@ -16,16 +22,24 @@ def _settings():
 
 
 def _coefficients(terms):
+    """Identity thermal blocks and the terms: (target, a, b, coefficient) unbounded, or with (lo, hi)."""
     blocks = [layout.identity_block()] * 3
-    return np.array(layout.pack_coefficients(blocks, layout.terms_block(terms)))
+    full = [term if len(term) == 6 else (*term, *UNBOUNDED) for term in terms]
+    return np.array(layout.pack_coefficients(blocks, layout.terms_block(full)))
 
 
 def _recording(n=500, seed=1):
+    """(t, inputs): random triads, a temperature ramp and random auxiliary inputs (INPUTS order)."""
     rng = np.random.default_rng(seed)
     t = np.cumsum(rng.uniform(0.005, 0.02, n))
     x = np.column_stack([rng.normal(0, 0.3, (n, 3)), rng.normal([0, 0, -9.8], 1.0, (n, 3)),
-                         rng.normal([20, 0, 40], 2.0, (n, 3)), 20 + 0.05 * t])
+                         rng.normal([20, 0, 40], 2.0, (n, 3)), 20 + 0.05 * t,
+                         rng.normal(0, 2.0, (n, len(layout.AUX_INPUTS)))])
     return t, x
+
+
+def _column(name):
+    return layout.INPUTS.index(name)
 
 
 def test_no_terms_change_nothing():
@@ -51,9 +65,15 @@ def test_g_sensitivity_and_product_terms_match_closed_form():
 
 def test_signals_closed_form():
     t, x = _recording()
-    s = runtime.term_signals(t, x[:, :9], x[:, 9])
+    aux = x[:, _column("aux_1"):]
+    s = runtime.term_signals(t, x[:, :9], x[:, 9], aux)
     names = {n: i for i, n in enumerate(layout.TERM_SIGNALS)}
+    assert s.shape == (t.size, len(layout.TERM_SIGNALS))
     assert np.array_equal(s[:, :9], x[:, :9])
+    assert np.array_equal(s[:, [names[f"abs_{n}"] for n in layout.TERM_TARGETS]], np.abs(x[:, :9]))
+    assert np.all(s[:, names["one"]] == 1.0)
+    assert np.array_equal(s[:, [names[n] for n in layout.AUX_INPUTS]], aux)
+    assert np.all(runtime.term_signals(t, x[:, :9], x[:, 9])[:, [names[n] for n in layout.AUX_INPUTS]] == 0.0)
     assert np.allclose(s[:, names["time"]], t - t[0], rtol=0, atol=1e-12)
     d = np.diff(x[:, 3]) / np.diff(t)
     assert np.allclose(s[1:, names["d_acc_x"]], d, rtol=1e-12, atol=1e-9)
@@ -84,16 +104,70 @@ def test_nan_regressor_skips_the_term():
     assert np.max(np.abs(out[20:30, 2] - (x[20:30, 2] - 1e-3 * x[19, 9]))) < CLOSED_FORM_TOLERANCE
 
 
+def test_regressor_is_clamped_to_its_bounds():
+    # A regressor beyond hi contributes coefficient·hi, below lo coefficient·lo, between them itself.
+    t, x = _recording()
+    lo, hi = -0.2, 0.1
+    out = runtime.run_batch(_coefficients([("gyr_z", "gyr_x", None, 0.5, lo, hi)]), _settings(), t, x)
+    gx = x[:, 0]
+    assert (gx > hi).any() and (gx < lo).any() and ((gx > lo) & (gx < hi)).any()
+    expected = x[:, 2] - 0.5 * np.clip(gx, lo, hi)
+    assert np.max(np.abs(out[:, 2] - expected)) < CLOSED_FORM_TOLERANCE
+    beyond = gx > hi
+    assert np.array_equal(out[beyond, 2], x[beyond, 2] - 0.5 * hi)
+
+
+def test_one_is_an_offset_and_abs_makes_a_signed_power():
+    t, x = _recording()
+    terms = [("acc_y", "one", None, 0.25, 0.0, 2.0), ("gyr_x", "gyr_x", "abs_gyr_x", 0.1, *UNBOUNDED)]
+    out = runtime.run_batch(_coefficients(terms), _settings(), t, x)
+    assert np.max(np.abs(out[:, 4] - (x[:, 4] - 0.25))) < CLOSED_FORM_TOLERANCE
+    assert np.max(np.abs(out[:, 0] - (x[:, 0] - 0.1 * x[:, 0] * np.abs(x[:, 0])))) < CLOSED_FORM_TOLERANCE
+
+
+def test_aux_terms_read_the_auxiliary_inputs():
+    # A term on aux_k reads input aux_k of the same sample; a NaN aux cell skips the term.
+    t, x = _recording()
+    x[5:9, _column("aux_3")] = np.nan
+    terms = [("mag_x", "aux_3", None, 0.7), ("gyr_y", "aux_1", "acc_z", 1e-3)]
+    out = runtime.run_batch(_coefficients(terms), _settings(), t, x)
+    aux3 = np.nan_to_num(x[:, _column("aux_3")])
+    assert np.max(np.abs(out[:, 6] - (x[:, 6] - 0.7 * aux3))) < CLOSED_FORM_TOLERANCE * 100
+    assert np.array_equal(out[5:9, 6], x[5:9, 6])
+    expected_gy = x[:, 1] - 1e-3 * x[:, _column("aux_1")] * x[:, 5]
+    assert np.max(np.abs(out[:, 1] - expected_gy)) < CLOSED_FORM_TOLERANCE
+
+
+def test_signal_vocabulary_matches_the_c_enum():
+    # ImuSigAbsGyrX <-> abs_gyr_x: the C enum of ImuTerms.h and layout.TERM_SIGNALS, same order.
+    body = re.search(r"typedef enum \{(.*?)IMU_TERM_SIGNAL_COUNT", (SOURCES / "ImuTerms.h").read_text(), re.S)
+    names = re.findall(r"ImuSig(\w+)", re.sub(r"/\*.*?\*/", "", body.group(1)))
+    snake = [re.sub(r"(?<=[a-z0-9])(?=[A-Z0-9])|(?<=[A-Z])(?=[A-Z][a-z])", "_", n).lower() for n in names]
+    assert tuple(snake) == layout.TERM_SIGNALS
+
+
+N_SIGNALS = len(layout.TERM_SIGNALS)
+
+
 @pytest.mark.parametrize("bad", [
-    [17.0], [1.0, 9.0, 0.0, -1.0, 1.0], [1.0, 0.0, 21.0, -1.0, 1.0], [1.0, 0.0, 0.0, -2.0, 1.0],
-    [1.0, 0.0, 0.0, -1.0, np.nan]])
+    [layout.TERMS_MAX + 1.0], [1.0, 9.0, 0.0, -1.0, 1.0, 0.0, 1.0], [1.0, 0.0, N_SIGNALS, -1.0, 1.0, 0.0, 1.0],
+    [1.0, 0.0, 0.0, -2.0, 1.0, 0.0, 1.0], [1.0, 0.0, 0.0, -1.0, np.nan, 0.0, 1.0],
+    [1.0, 0.0, 0.0, -1.0, 1.0, np.nan, 1.0], [1.0, 0.0, 0.0, -1.0, 1.0, 0.0, np.inf],
+    [1.0, 0.0, 0.0, -1.0, 1.0, 1.0, 0.0]])
 def test_invalid_terms_block_rejected(bad):
     block = bad + [0.0] * (layout.TERMS_BLOCK - len(bad))
     c = np.array(layout.pack_coefficients([layout.identity_block()] * 3, block))
     with pytest.raises(ValueError, match="code -4"):
-        runtime.run_batch(c, _settings(), [0.0], np.zeros((1, 10)))
+        runtime.run_batch(c, _settings(), [0.0], np.zeros((1, len(layout.INPUTS))))
 
 
 def test_too_many_terms_rejected_in_python():
     with pytest.raises(ValueError, match="at most"):
-        layout.terms_block([("gyr_x", "acc_z", None, 1.0)] * (layout.TERMS_MAX + 1))
+        layout.terms_block([("gyr_x", "acc_z", None, 1.0, *UNBOUNDED)] * (layout.TERMS_MAX + 1))
+
+
+def test_the_most_terms_fit_the_runtime():
+    t, x = _recording(50)
+    terms = [("gyr_x", "one", None, 1e-3, 0.0, 1.0)] * layout.TERMS_MAX
+    out = runtime.run_batch(_coefficients(terms), _settings(), t, x)
+    assert np.max(np.abs(out[:, 0] - (x[:, 0] - layout.TERMS_MAX * 1e-3))) < CLOSED_FORM_TOLERANCE

@@ -16,8 +16,8 @@ from pathlib import Path
 import numpy as np
 
 from .errors import ModelError
-from .layout import (MAX_DEGREE, STAGE_BLOCKS, TERM_SIGNALS, TERM_TARGETS, TERMS_MAX, TRIAD_ORDER,
-                     pack_coefficients, settings_defaults, terms_block)
+from .layout import (AUX_INPUTS, MAX_DEGREE, STAGE_BLOCKS, TERM_SIGNALS, TERM_TARGETS, TERMS_MAX,
+                     TRIAD_ORDER, pack_coefficients, settings_defaults, terms_block)
 from .thermal import ThermalModel
 
 FORMAT = "imufusion-model"
@@ -54,8 +54,12 @@ class ModelArtefact:
     blocks: flat coefficient blocks of the neural stages by name ('elm', 'psobp'; layouts in
     sources/ImuElm.h, sources/ImuPsoBp.h); an absent stage is disabled.
     terms: additive correction terms added by `imufmu diagnose`, each {'name', 'target', 'a', 'b',
-    'coefficient'} with target/a/b names from training.layout.TERM_TARGETS / TERM_SIGNALS (b may be
-    None); the runtime subtracts coefficient·a·b from the target component (sources/ImuTerms.h).
+    'coefficient', 'lo', 'hi'} with target/a/b names from training.layout.TERM_TARGETS / TERM_SIGNALS
+    (b may be None) and finite bounds lo <= hi of the regressor a·b; the runtime subtracts
+    coefficient·clamp(a·b, lo, hi) from the target component (sources/ImuTerms.h).
+    aux_inputs: what the FMU inputs aux_1.. carry, entry k for aux_{k+1} (at most
+    len(training.layout.AUX_INPUTS)): {'column': recording column 'aux_…', 'unit': unit text or '',
+    'meaning': free text}. A term on signal aux_k needs entry k.
     """
 
     seed: int
@@ -65,6 +69,7 @@ class ModelArtefact:
     fit_stats: dict[str, dict] = field(default_factory=dict)
     notes: list[str] = field(default_factory=list)
     terms: list[dict] = field(default_factory=list)
+    aux_inputs: list[dict] = field(default_factory=list)
     blocks: dict[str, list[float]] = field(default_factory=dict)
     units: dict[str, str] = field(default_factory=lambda: dict(UNITS))
     libraries: dict[str, str] = field(default_factory=library_versions)
@@ -82,6 +87,7 @@ class ModelArtefact:
                 "thermal": {k: _thermal_to_json(self.thermal[k]) for k in TRIAD_ORDER},
                 "fit_stats": dict(self.fit_stats), "settings": dict(self.settings),
                 "notes": list(self.notes), "terms": [dict(t) for t in self.terms],
+                "aux_inputs": [dict(a) for a in self.aux_inputs],
                 "blocks": {k: list(v) for k, v in self.blocks.items()}}
 
     def to_json(self) -> str:
@@ -207,9 +213,15 @@ def load_artefact(path) -> ModelArtefact:
         seed=doc["seed"], thermal=thermal, settings=_settings_from_json(doc["settings"], path),
         training_data=doc["training_data"], fit_stats=doc["fit_stats"], notes=doc["notes"],
         terms=_terms_from_json(doc.get("terms", []), path),
+        aux_inputs=_aux_inputs_from_json(doc.get("aux_inputs", []), doc.get("terms", []), path),
         blocks=_blocks_from_json(doc.get("blocks", {}), path),
         units=doc["units"], libraries=doc["libraries"], created=doc["created"],
         format=doc["format"], format_version=doc["format_version"], model_type=doc["model_type"])
+
+
+def _is_number(value) -> bool:
+    """True for a finite JSON number (not a bool)."""
+    return isinstance(value, (int, float)) and not isinstance(value, bool) and bool(np.isfinite(value))
 
 
 def _terms_from_json(terms, path) -> list[dict]:
@@ -219,11 +231,39 @@ def _terms_from_json(terms, path) -> list[dict]:
     for k, term in enumerate(terms):
         ok = (isinstance(term, dict) and term.get("target") in TERM_TARGETS
               and term.get("a") in TERM_SIGNALS and (term.get("b") is None or term.get("b") in TERM_SIGNALS)
-              and isinstance(term.get("coefficient"), (int, float)) and np.isfinite(term["coefficient"]))
+              and _is_number(term.get("coefficient")))
         if not ok:
             _fail(path, f"terms[{k}] must have target in {TERM_TARGETS}, a and b (or null) in "
                         f"TERM_SIGNALS and a finite coefficient")
+        name = term.get("name", "unnamed")
+        if "lo" not in term or "hi" not in term:
+            _fail(path, f"terms[{k}] ({name}) has no regressor bounds 'lo' and 'hi' (an artefact from before "
+                        f"layout version 3): re-run imufmu diagnose")
+        if not (_is_number(term["lo"]) and _is_number(term["hi"]) and term["lo"] <= term["hi"]):
+            _fail(path, f"terms[{k}] ({name}) needs finite regressor bounds lo <= hi, got lo = {term['lo']!r}, "
+                        f"hi = {term['hi']!r}: re-run imufmu diagnose")
     return [dict(t) for t in terms]
+
+
+def _aux_inputs_from_json(aux_inputs, terms, path) -> list[dict]:
+    """Validated auxiliary-input mapping (ModelError naming the file and the bad entry); `terms`
+    (already validated) may use signal aux_k only when entry k exists."""
+    if not isinstance(aux_inputs, list) or len(aux_inputs) > len(AUX_INPUTS):
+        _fail(path, f"'aux_inputs' must be a list of at most {len(AUX_INPUTS)} entries")
+    for k, entry in enumerate(aux_inputs):
+        ok = (isinstance(entry, dict) and set(entry) == {"column", "unit", "meaning"}
+              and isinstance(entry["column"], str) and entry["column"].startswith("aux_")
+              and isinstance(entry["unit"], str) and isinstance(entry["meaning"], str))
+        if not ok:
+            _fail(path, f"aux_inputs[{k}] must be {{'column': 'aux_…', 'unit': text, 'meaning': text}}")
+    columns = [a["column"] for a in aux_inputs]
+    if len(set(columns)) != len(columns):
+        _fail(path, f"aux_inputs maps a recording column twice ({', '.join(columns)})")
+    for k, term in enumerate(terms):
+        unmapped = [s for s in (term["a"], term.get("b")) if s in AUX_INPUTS[len(aux_inputs):]]
+        if unmapped:
+            _fail(path, f"terms[{k}] uses {unmapped[0]}, which aux_inputs does not map to a recording column")
+    return [dict(a) for a in aux_inputs]
 
 
 def _blocks_from_json(blocks, path) -> dict[str, list[float]]:
@@ -241,8 +281,9 @@ def _blocks_from_json(blocks, path) -> dict[str, list[float]]:
 
 def coefficients_array(artefact: ModelArtefact) -> np.ndarray:
     """The flat coefficient array of training.layout, (N_COEFFICIENTS,) float64:
-    [LAYOUT_VERSION, gyr, acc, mag thermal blocks, terms block]."""
-    terms = terms_block([(t["target"], t["a"], t.get("b"), t["coefficient"]) for t in artefact.terms])
+    [LAYOUT_VERSION, gyr, acc, mag thermal blocks, terms block, stage blocks]."""
+    terms = terms_block([(t["target"], t["a"], t.get("b"), t["coefficient"], t["lo"], t["hi"])
+                         for t in artefact.terms])
     blocks = [artefact.thermal[triad].to_block() for triad in TRIAD_ORDER]
     return np.array(pack_coefficients(blocks, terms, **artefact.blocks), dtype=np.float64)
 

@@ -71,8 +71,9 @@ def imufusion_settings(data: ImuData, overrides: dict | None = None) -> list[flo
 
 
 def _inputs(data: ImuData) -> np.ndarray:
-    """(N, 10) runtime inputs: gyr [rad/s], acc [m/s²], mag [µT], temp [°C]."""
-    return np.column_stack([data.gyr, data.acc, data.mag, data.temp])
+    """(N, len(INPUTS)) runtime inputs of a BROAD trial: its triads and temperature, no auxiliary
+    signals (benchmarks/bench_magpf.py runs the chain on the same inputs)."""
+    return data.inputs()
 
 
 def run_imufusion(data: ImuData, overrides: dict | None = None) -> np.ndarray:

@@ -60,15 +60,17 @@ def _train_and_build(datasets: list[ImuData], out: Path, seed: int) -> Path:
     artefact.save(out / "model.json")
     write_calibration_report(artefact, datasets, out)
     return build_fmu(coefficients_array(artefact), settings_dict(artefact), out / "ImuFusion.fmu",
-                     provenance=f"BROAD trials {', '.join(d.name for d in datasets)}")
+                     provenance=f"BROAD trials {', '.join(d.name for d in datasets)}",
+                     aux_inputs=artefact.aux_inputs)
 
 
 def _run(fmu_path: Path, data: ImuData, extra: dict | None = None) -> np.ndarray:
     """(N, len(OUTPUTS)) FMU outputs through fmpy with the recording's sidecar parameters + extra."""
     from fmu.cosim import run_fmu
+    from fmu.packer import fmu_aux_columns
     from .pipeline import recording_parameters
     params = {**recording_parameters(data), **(extra or {})}
-    return run_fmu(fmu_path, data.t - data.t[0], data.inputs(), parameters=params)
+    return run_fmu(fmu_path, data.t - data.t[0], data.inputs(fmu_aux_columns(fmu_path)), parameters=params)
 
 
 def _rows(fmus: dict[str, Path], datas: list[ImuData]) -> tuple[list[dict], list[dict]]:

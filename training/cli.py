@@ -61,7 +61,7 @@ def cmd_build_fmu(args) -> None:
     from .artefact import coefficients_array, load_artefact, settings_dict
     artefact = load_artefact(_existing_file(args.model, "model artefact"))
     path = build_fmu(coefficients_array(artefact), settings_dict(artefact), args.out,
-                     provenance=f"model {args.model}", fmi_version=args.fmi)
+                     provenance=f"model {args.model}", fmi_version=args.fmi, aux_inputs=artefact.aux_inputs)
     print(f"wrote {path} (FMI {args.fmi}.0 co-simulation)")
 
 
@@ -77,15 +77,21 @@ def cmd_validate(args) -> None:
 
 
 def cmd_run(args) -> None:
-    """imufmu run FILE.fmu DATA --out OUT.csv [--param NAME=VALUE ...]."""
+    """imufmu run FILE.fmu DATA --out OUT.csv [--param NAME=VALUE ...]: the recording's aux_*
+    columns go into the auxiliary inputs the FMU's model maps them to."""
     from fmu.cosim import run_fmu
+    from fmu.packer import fmu_aux_columns
     from .io import read_imu_csv
     from .pipeline import recording_parameters, write_outputs_csv
     fmu_path = _existing_file(args.fmu, "FMU")
     data = read_imu_csv(_existing_file(args.data, "data file"))
     params = recording_parameters(data) | dict(args.param or [])
+    try:
+        inputs = data.inputs(aux_columns=fmu_aux_columns(fmu_path))
+    except ValueError as e:
+        raise ImuFusionError(str(e)) from e
     log: list[str] = []
-    out = run_fmu(fmu_path, data.t, data.inputs(), parameters=params, progress=True, log=log)
+    out = run_fmu(fmu_path, data.t, inputs, parameters=params, progress=True, log=log)
     for message in log:
         print(f"FMU: {message}")
     print(f"wrote {write_outputs_csv(args.out, data.t, out)} ({len(data)} samples)")

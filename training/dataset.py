@@ -4,9 +4,12 @@
 """
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
+
+from .layout import AUX_INPUTS
 
 TRIADS = ("gyr", "acc", "mag")
 AXES = ("x", "y", "z")
@@ -60,9 +63,23 @@ class ImuData:
         """True when the raw triad ('gyr', 'acc', 'mag') has at least one finite sample."""
         return bool(np.isfinite(getattr(self, triad)).any())
 
-    def inputs(self) -> np.ndarray:
-        """(N, 10) array in runtime input order: gyr xyz, acc xyz, mag xyz, temp."""
-        return np.column_stack([self.gyr, self.acc, self.mag, self.temp]).astype(np.float64)
+    def inputs(self, aux_columns: Sequence[str] = ()) -> np.ndarray:
+        """(N, len(training.layout.INPUTS)) array in runtime input order: gyr xyz, acc xyz, mag xyz,
+        temp, then aux_1..aux_4. aux_k is this recording's column aux_columns[k-1] (NaN cells stay
+        NaN), 0 where not mapped; pass a model's `[a["column"] for a in artefact.aux_inputs]`.
+        Raises ValueError naming the recording and the column when a mapped column is missing.
+        """
+        if len(aux_columns) > len(AUX_INPUTS):
+            raise ValueError(f"{self.name}: {len(aux_columns)} auxiliary columns, the runtime has "
+                             f"{len(AUX_INPUTS)} auxiliary inputs")
+        aux = np.zeros((len(self), len(AUX_INPUTS)))
+        for k, column in enumerate(aux_columns):
+            if column not in self.aux:
+                raise ValueError(f"{self.name}: the model reads column '{column}' into input {AUX_INPUTS[k]}, "
+                                 f"but the recording has no such column (aux columns: "
+                                 f"{', '.join(self.aux) or 'none'})")
+            aux[:, k] = self.aux[column]
+        return np.column_stack([self.gyr, self.acc, self.mag, self.temp, aux]).astype(np.float64)
 
     def slice(self, sel) -> "ImuData":
         """A new ImuData with the rows `sel` (slice, index array or boolean mask)."""

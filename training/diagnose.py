@@ -1,89 +1,69 @@
-"""`imufmu diagnose`: find the effect a trained model lacks, add it as correction terms, report.
+"""`imufmu diagnose`: find the effect a trained model lacks, add it to the model, report before/after.
 
 1. Run the model through the batch runtime (the FMU's C code) and form residuals of the
    compensated triads against the reference the data has (ref_gyr/acc/mag, or derived from ref_q
    by training.reference), or against an invariant without a reference: the field norm (sidecar
-   norm, else the median on the training part) and the gravity norm at rest.
-2. Fit every candidate of training.candidates on the first part of each recording in time
-   (least squares with a per-component offset) and rank by the share of the held-out residual it
-   explains beyond an offset-only fit. Significance is a one-sided batch-means test of predictive
-   accuracy (Diebold & Mariano 1995, J. Bus. Econ. Stat. 13(3); batch means: Schmeiser 1982,
-   Oper. Res. 30(3)): the held-out rows of each recording are cut into BATCHES contiguous batches,
-   d_b = mean over the batch of (e_offset² − e_candidate²), and t = mean(d)/(sd(d)/√K) has a
-   Student t distribution with K − 1 degrees of freedom when the candidate does not predict
-   better. Batches tens of seconds long are nearly independent even when the residual varies
-   slowly, so the test neither inflates significance for autocorrelated noise nor collapses for
-   a slow drift (an AR(1) effective-sample-size correction does the latter: ρ → 1 gives n_eff → 1).
-   Bonferroni over the candidates. Norm invariants are linearised: |x − δ| − n ≈ r − u·δ, u = x/|x|.
-3. Add the best significant candidate that the FMU can carry as terms of the artefact and refit:
-   the term coefficients and the offset by least squares on the training part; the offset goes
-   into the constant bias coefficient b[:, 0] of the triad's thermal model (as A⁻¹·c, exact where
-   the gain polynomial G = 1, within |G − 1| ≈ 10⁻³ elsewhere; the runtime rerun measures the
-   result). The thermal gains and temperature polynomials are not refitted. Rerun the runtime,
-   measure before/after on the held-out part, iterate.
+   norm, else the median on the training blocks) and the gravity norm at rest.
+2. Split every recording into 3·BLOCKS contiguous blocks; every third is held out. Interleaved
+   blocks keep the held-out rows inside the ranges the fit saw (a temperature ramp, a drift), so
+   the bounded terms (training.diagnose_export) are judged where they are valid.
+3. Fit every candidate family of training.candidates on the training blocks and score it on the
+   held-out blocks (training.diagnose_fit: least squares, instruments for the target's own signal,
+   a batch-means test with Bonferroni over the candidates). The best significant family is grown by
+   forward selection: every other family of the same target is fitted jointly with the selected
+   ones and the one that improves the held-out residual most is added while it is significant and
+   explains at least MIN_EXPLAINED of what is left — so a lever arm with its centripetal part, or a
+   g-sensitivity with a lag, is found as one effect.
+4. Carry the effect (training.diagnose_export), rerun the runtime, measure before/after on the
+   held-out blocks, iterate.
 """
 from __future__ import annotations
 
 import json
-from dataclasses import dataclass, replace
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
-from scipy import stats
 
 from .artefact import ModelArtefact, coefficients_array, load_artefact, settings_dict
-from .thermal import ThermalModel
-from .candidates import Candidate, build_candidates, regressor_matrix
+from .candidates import TRIAD_NAMES, build_candidates, central_differences, instrument_signals
 from .dataset import ImuData
+from .diagnose_export import add_effect, aux_slots_needed, term_count
+from .diagnose_fit import Fit, Residuals, fit_candidates, offset_fit, predict
+from .effect_readings import DISPLAY, readings
 from .io import read_imu_csv
-from .layout import TERM_SIGNALS, TERMS_MAX, TRIAD_ORDER, settings_array
+from .layout import INPUTS, TERM_SIGNALS, TERMS_MAX, TRIAD_ORDER, settings_array
 from .pipeline import recording_parameters
 from .reference import derive_references
 from .runtime import run_batch, term_signals
 
-#: Share of each recording (the end, in time) held out for ranking and for before/after.
-HOLDOUT_FRACTION = 0.3
-#: Regression rows are decimated to at most this rate [Hz] (BROAD is 286 Hz): the effects sought
-#: are slow next to 50 Hz, and the batch-means test does not count rows as independent anyway.
+#: Held-out blocks per recording; each recording is cut into 3·BLOCKS blocks and every third is held
+#: out (a third of the rows). 16 blocks of a 150 s recording are ~3 s long, longer than the ~1 s
+#: correlation time of handheld motion (0.1-1 Hz); 15 degrees of freedom keep the Bonferroni-
+#: corrected t quantile moderate.
+BLOCKS = 16
+HOLDOUT_EVERY = 3
+#: Regression rows are decimated to at most this rate [Hz] (BROAD is 286 Hz): the batch-means test
+#: does not count rows as independent anyway.
 REGRESSION_RATE_HZ = 50.0
 #: Significance level after Bonferroni correction over the candidate count.
 ALPHA = 0.01
-#: Contiguous batches per recording's held-out part for the batch-means test. 16 batches of a
-#: 37 s held-out part are ~2.3 s long, longer than the ~1 s correlation time of handheld motion
-#: (0.1-1 Hz) and far longer than that of the sensor noise; 15 degrees of freedom keep the
-#: Bonferroni-corrected t quantile moderate (t_0.9998,15 ≈ 4.6 for ~45 candidates).
-BATCHES = 16
-#: A candidate must explain at least this share of the held-out residual: below it, a
-#: "significant" fit on tens of thousands of rows is too small to matter for any metric.
+#: A family must explain at least this share of the held-out residual it is compared with: below
+#: it, a "significant" fit on tens of thousands of rows is too small to matter for any metric.
 MIN_EXPLAINED = 0.05
 #: Time is a last-resort regressor (a drift with time since power-on does not transfer between
-#: power cycles): a candidate without `time` within this explained share of the best wins.
+#: power cycles): a family without `time` within this explained share of the best wins, and time
+#: never joins a combination.
 TIME_TIE = 0.02
-#: Relative singular-value cut of the column-scaled least squares: a combination of regressors
-#: (with the offset) that varies by less than 1 % of the strongest one — e.g. mag_x²+mag_y²+mag_z²
-#: at a constant field norm — would need coefficients ≥ 100× the effect it explains and would
-#: amplify noise, so it is dropped (truncated SVD) instead of fitted.
-RCOND = 0.01
-#: Iterations of select -> add -> refit.
+#: Iterations of select -> grow -> add -> rerun.
 MAX_ITERATIONS = 4
+#: Families one effect may combine.
+MAX_FAMILIES = 4
 #: Rest detection for the gravity-norm invariant [rad/s].
 REST_RATE = 0.05
 _SLICES = {"gyr": slice(0, 3), "acc": slice(3, 6), "mag": slice(6, 9)}
-_METRICS = {"gyr": ("rate error RMS", "°/s", np.rad2deg(1.0)), "acc": ("specific-force error RMS", "m/s²", 1.0),
-            "mag": ("field error RMS", "µT", 1.0)}
-
-
-@dataclass
-class Residuals:
-    """Stacked over recordings: per target (N, m) residuals and, for norms, unit vectors (N, 3)."""
-
-    t: np.ndarray                          # (N,) s, per recording time
-    signals: dict[str, np.ndarray]         # name -> (N,)
-    residual: dict[str, np.ndarray]        # target -> (N, 3) triad or (N, 1) norm
-    direction: dict[str, np.ndarray]       # norm target -> (N, 3) unit vectors
-    train: np.ndarray                      # (N,) bool, regression rows of the training part
-    test: np.ndarray                       # (N,) bool, regression rows of the held-out part
-    holdout: np.ndarray                    # (N,) bool, every held-out row counted by the metric
+_METRIC_NAMES = {"gyr": "rate error RMS", "acc": "specific-force error RMS", "mag": "field error RMS"}
+_AUX_SLOTS = [n for n in INPUTS if n.startswith("aux_")]
 
 
 def _targets(data: ImuData) -> dict[str, str]:
@@ -101,7 +81,7 @@ def _targets(data: ImuData) -> dict[str, str]:
 
 
 def _reference_norm(target: str, data: ImuData, comp: np.ndarray, rows: np.ndarray) -> float:
-    """Invariant magnitude: sidecar field norm / standard gravity, else the training-part median."""
+    """Invariant magnitude: sidecar field norm / standard gravity, else the training-block median."""
     if target == "mag_norm" and data.field_norm_ut is not None:
         return data.field_norm_ut
     if target == "acc_norm":
@@ -110,240 +90,186 @@ def _reference_norm(target: str, data: ImuData, comp: np.ndarray, rows: np.ndarr
 
 
 def _run(artefact: ModelArtefact, data: ImuData, terms: bool = True) -> np.ndarray:
-    """Runtime outputs (N, 20) of `data` with the artefact (without its terms when terms=False)."""
+    """Runtime outputs of `data` with the artefact (without its terms when terms=False)."""
     art = artefact if terms else replace(artefact, terms=[])
     values = settings_dict(art)
     values.update(recording_parameters(data))
-    return run_batch(coefficients_array(art), np.asarray(settings_array(values)), data.t, data.inputs())
+    inputs = data.inputs([a["column"] for a in art.aux_inputs])
+    return run_batch(coefficients_array(art), np.asarray(settings_array(values)), data.t, inputs)
+
+
+def _blocks(t: np.ndarray) -> np.ndarray:
+    """(N,) block index 0..3·BLOCKS−1 of every row by time."""
+    span = max(t[-1] - t[0], 1e-9)
+    return np.minimum((HOLDOUT_EVERY * BLOCKS * (t - t[0]) / span).astype(int), HOLDOUT_EVERY * BLOCKS - 1)
+
+
+def holdout_rows(t: np.ndarray) -> np.ndarray:
+    """(N,) bool: the rows of the held-out blocks of a recording with sample times t [s]."""
+    return _blocks(t) % HOLDOUT_EVERY == HOLDOUT_EVERY - 1
+
+
+def _signals(d: ImuData, out0: np.ndarray) -> dict[str, np.ndarray]:
+    """Candidate signals of one recording: the runtime's term signals (from the compensated triads
+    before the terms), the recording's aux columns and the central differences of the triads."""
+    sig = term_signals(d.t, out0[:, :9], d.temp)
+    signals = {name: sig[:, k] for k, name in enumerate(TERM_SIGNALS) if name not in _AUX_SLOTS}
+    signals.update(d.aux)
+    for triad, cols in _SLICES.items():
+        dc = central_differences(out0[:, cols], d.t)
+        signals.update({f"dc_{triad}_{a}": dc[:, k] for k, a in enumerate("xyz")})
+    return signals
+
+
+def _residual(target: str, kind: str, d: ImuData, out: np.ndarray, fitted: np.ndarray):
+    """(residual (N, m), unit vectors (N, 3) or None) of one target."""
+    triad = target.split("_")[0]
+    comp = out[:, _SLICES[triad]]
+    if kind == "triad":
+        return comp - getattr(d, f"ref_{triad}"), None
+    norm = np.linalg.norm(comp, axis=1)
+    r = norm - _reference_norm(target, d, comp, fitted)
+    if triad == "acc":
+        r = np.where(np.linalg.norm(out[:, 0:3], axis=1) < REST_RATE, r, np.nan)
+    return r[:, None], comp / norm[:, None]
 
 
 def residuals(artefact: ModelArtefact, datasets: list[ImuData], targets: dict[str, str]) -> Residuals:
     """Residuals of every target and the candidate signals, stacked over the recordings."""
     parts = []
-    for d in datasets:
+    for k, d in enumerate(datasets):
         out, out0 = _run(artefact, d), _run(artefact, d, terms=False)
-        sig = term_signals(d.t, out0[:, :9], d.temp)
-        signals = {name: sig[:, k] for k, name in enumerate(TERM_SIGNALS)}
-        signals.update(d.aux)
-        n = len(d)
-        holdout = d.t >= d.t[0] + (1.0 - HOLDOUT_FRACTION) * (d.t[-1] - d.t[0])
+        block, held = _blocks(d.t), holdout_rows(d.t)
         step = max(1, int(round(float(1.0 / np.median(np.diff(d.t))) / REGRESSION_RATE_HZ)))
-        sampled = np.zeros(n, bool)
+        sampled = np.zeros(len(d), bool)
         sampled[::step] = True
-        mask = np.ones(n, bool) if d.eval_mask is None else d.eval_mask.astype(bool)
-        res, direction = {}, {}
-        for target, kind in targets.items():
-            triad = target.split("_")[0]
-            comp = out[:, _SLICES[triad]]
-            if kind == "triad":
-                ref = getattr(d, f"ref_{triad}")
-                res[target] = comp - (ref if ref is not None else np.nan)
-                continue
-            norm = np.linalg.norm(comp, axis=1)
-            r = norm - _reference_norm(target, d, comp, ~holdout)
-            if triad == "acc":
-                r = np.where(np.linalg.norm(out[:, 0:3], axis=1) < REST_RATE, r, np.nan)
-            res[target], direction[target] = r[:, None], comp / norm[:, None]
-        parts.append((d.t, signals, res, direction, sampled & ~holdout, sampled & holdout, holdout & mask))
-    keys = set.intersection(*(set(p[1]) for p in parts))
+        mask = np.ones(len(d), bool) if d.eval_mask is None else d.eval_mask.astype(bool)
+        res = {t: _residual(t, kind, d, out, ~held) for t, kind in targets.items()}
+        parts.append(dict(t=d.t, signals=_signals(d, out0), res=res, train=sampled & ~held, test=sampled & held,
+                          holdout=held & mask, fitted=~held,
+                          block=np.where(held, k * HOLDOUT_EVERY * BLOCKS + block, -1)))
+    keys = set.intersection(*(set(p["signals"]) for p in parts))
+    signals = {k: np.concatenate([p["signals"][k] for p in parts]) for k in sorted(keys)}
+    starts = np.cumsum([0] + [len(d) for d in datasets[:-1]])
     return Residuals(
-        np.concatenate([p[0] for p in parts]),
-        {k: np.concatenate([p[1][k] for p in parts]) for k in sorted(keys)},
-        {k: np.concatenate([p[2][k] for p in parts]) for k in targets},
-        {k: np.concatenate([p[3][k] for p in parts]) for k in targets if targets[k] == "norm"},
-        np.concatenate([p[4] for p in parts]), np.concatenate([p[5] for p in parts]),
-        np.concatenate([p[6] for p in parts]))
-
-
-@dataclass
-class Fit:
-    """One candidate fitted on the training part and scored on the held-out part."""
-
-    candidate: Candidate
-    explained_fraction: float
-    p_value: float
-    terms: list[tuple[str, str, str | None, float]]   # (target component, a, b, coefficient)
-    offset: np.ndarray                                # (3,) offset of the compensated triad refitted with it
-    prediction: np.ndarray                            # (N, m) fitted effect on every row (NaN if not computable)
-    offset_only: float                                # held-out metric with the offset-only fit, display unit
-
-
-def _design(candidate: Candidate, r: Residuals, rows: np.ndarray):
-    """Blocks of the stacked regression: for a triad one block per axis with columns [1, R], for a
-    norm one block with columns [u_i, u_i·R] (an offset vector δ changes the norm by −u·δ).
-    Each block: (y (n,), X (n, q), number of offset columns, names [(component, a, b)])."""
-    R = regressor_matrix(candidate, r.signals, rows)
-    y = r.residual[candidate.target][rows]
-    triad = candidate.target.split("_")[0]
-    comps = [f"{triad}_{a}" for a in "xyz"]
-    if y.shape[1] == 3:
-        X = np.column_stack([np.ones(len(y)), R])
-        return [(y[:, i], X, 1, [(comps[i], a, b) for a, b in candidate.regressors]) for i in range(3)]
-    u = r.direction[candidate.target][rows]
-    X = np.column_stack([u] + [u[:, [i]] * R for i in range(3)])
-    return [(y[:, 0], X, 3, [(comps[i], a, b) for i in range(3) for a, b in candidate.regressors])]
-
-
-def _batches(r: Residuals) -> np.ndarray:
-    """(N,) batch index of every held-out regression row (−1 elsewhere): each recording's held-out
-    regression rows cut into BATCHES contiguous runs of equal count."""
-    out = np.full(len(r.t), -1)
-    starts = np.flatnonzero(np.concatenate([[True], np.diff(r.t) < 0]))
-    for k, (a, b) in enumerate(zip(starts, list(starts[1:]) + [len(r.t)])):
-        idx = a + np.flatnonzero(r.test[a:b])
-        for j, chunk in enumerate(np.array_split(idx, BATCHES)):
-            out[chunk] = k * BATCHES + j
-    return out
-
-
-def batch_means_p(d: np.ndarray, batch: np.ndarray) -> float:
-    """One-sided p of mean(d) > 0 from the batch means of d (n,) over the batch labels (n,) ≥ 0:
-    t = mean/(sd/√K), Student t with K − 1 degrees of freedom (K non-empty batches)."""
-    means = np.array([d[batch == b].mean() for b in np.unique(batch)])
-    if means.size < 2:
-        return 1.0
-    sd = float(np.std(means, ddof=1))
-    if sd == 0.0:
-        return 0.0 if means.mean() > 0 else 1.0
-    return float(stats.t.sf(means.mean() / (sd / np.sqrt(means.size)), means.size - 1))
-
-
-def _lstsq(X: np.ndarray, y: np.ndarray) -> np.ndarray:
-    """Least squares of y on the columns of X, scaled to unit RMS, by SVD truncated at RCOND."""
-    scale = np.sqrt(np.mean(X * X, axis=0))
-    scale[scale == 0] = 1.0
-    return np.linalg.lstsq(X / scale, y, rcond=RCOND)[0] / scale
-
-
-def fit_candidate(candidate: Candidate, r: Residuals, n_candidates: int) -> Fit | None:
-    """Least squares (offset + candidate) on the training rows; on the held-out rows the share of
-    the offset-only residual it explains and the batch-means p-value (Bonferroni-corrected)."""
-    train, test = _design(candidate, r, r.train), _design(candidate, r, r.test)
-    batch = _batches(r)[r.test]
-    d = np.zeros(len(batch))
-    sse0 = sse1 = 0.0
-    terms, offset = [], np.zeros(3)
-    for i, ((y, X, m, names), (yt, Xt, _, _)) in enumerate(zip(train, test)):
-        ok, okt = np.isfinite(y) & np.all(np.isfinite(X), axis=1), np.isfinite(yt) & np.all(np.isfinite(Xt), axis=1)
-        if ok.sum() < 2 * X.shape[1] or okt.sum() < 2 * X.shape[1]:
-            return None
-        beta, beta0 = _lstsq(X[ok], y[ok]), _lstsq(X[ok, :m], y[ok])
-        e0 = np.where(okt, yt - np.where(okt[:, None], Xt[:, :m], 0.0) @ beta0, 0.0)
-        e1 = np.where(okt, yt - np.where(okt[:, None], Xt, 0.0) @ beta, 0.0)
-        d += e0 * e0 - e1 * e1
-        sse0, sse1 = sse0 + e0 @ e0, sse1 + e1 @ e1
-        offset[slice(i, i + 1) if m == 1 else slice(0, 3)] = beta[:m]
-        terms += [(c, a, b, float(v)) for (c, a, b), v in zip(names, beta[m:])]
-    explained = 1.0 - sse1 / sse0 if sse0 > 0 else 0.0
-    p_value = batch_means_p(d, batch) if explained > 0 else 1.0
-    scale = _METRICS[candidate.target.split("_")[0]][2]
-    res = r.residual[candidate.target] - _offset_effect(candidate.target, r, offset_only_fit(candidate.target, r))
-    e = res[r.holdout] * scale
-    e = e[np.isfinite(e)]
-    return Fit(candidate, float(explained), min(1.0, p_value * n_candidates), terms, offset,
-               predict(candidate, r, terms), float(np.sqrt(np.mean(e * e))) if e.size else float("nan"))
-
-
-def offset_only_fit(target: str, r: Residuals) -> np.ndarray:
-    """(3,) offset of the compensated triad fitted alone (least squares on the training rows)."""
-    y = r.residual[target][r.train]
-    if y.shape[1] == 3:
-        return np.nanmean(y, axis=0)
-    u = r.direction[target][r.train]
-    ok = np.isfinite(y[:, 0]) & np.all(np.isfinite(u), axis=1)
-    return np.linalg.lstsq(u[ok], y[ok, 0], rcond=None)[0]
-
-
-def _offset_effect(target: str, r: Residuals, offset: np.ndarray) -> np.ndarray:
-    """Effect of a compensated-triad offset (3,) on the target's residual, (N, m)."""
-    if target in r.direction:
-        return np.sum(r.direction[target] * offset, axis=1, keepdims=True)
-    return np.broadcast_to(offset, (len(r.t), 3))
-
-
-def predict(candidate: Candidate, r: Residuals, terms) -> np.ndarray:
-    """Fitted effect of the candidate's terms on every row, in the target's residual shape."""
-    rows = np.ones(len(r.t), bool)
-    R = regressor_matrix(candidate, r.signals, rows)
-    k = len(candidate.regressors)
-    coef = np.array([c for _, _, _, c in terms]).reshape(3, k)
-    effect = R @ coef.T
-    if candidate.target in r.direction:
-        return np.sum(r.direction[candidate.target] * effect, axis=1, keepdims=True)
-    return effect
+        t=np.concatenate([p["t"] for p in parts]), starts=starts, signals=signals,
+        instruments={triad: instrument_signals(signals, triad, starts) for triad in TRIAD_NAMES},
+        residual={t: np.concatenate([p["res"][t][0] for p in parts]) for t in targets},
+        direction={t: np.concatenate([p["res"][t][1] for p in parts]) for t in targets if targets[t] == "norm"},
+        **{k: np.concatenate([p[k] for p in parts]) for k in ("train", "test", "holdout", "fitted", "block")})
 
 
 def metric(r: Residuals, target: str) -> float:
     """Held-out RMS of a target's residual in its display unit (°/s, m/s², µT)."""
-    scale = _METRICS[target.split("_")[0]][2]
-    e = r.residual[target][r.holdout] * scale
+    e = r.residual[target][r.holdout] * DISPLAY[target.split("_")[0]][1]
     e = e[np.isfinite(e)]
     return float(np.sqrt(np.mean(e * e))) if e.size else float("nan")
 
 
 def metric_name(target: str) -> str:
-    """'rate error RMS, °/s' style name of the target's metric."""
-    name, unit, _ = _METRICS[target.split("_")[0]]
-    return f"{'norm ' if target.endswith('_norm') else ''}{name} (held-out), {unit}"
+    """'rate error RMS (held-out), °/s' style name of the target's metric."""
+    triad = target.split("_")[0]
+    return f"{'norm ' if target.endswith('_norm') else ''}{_METRIC_NAMES[triad]} (held-out), {DISPLAY[triad][0]}"
 
 
-def _select(fits: list[Fit], n_terms: int) -> tuple[Fit | None, list[str]]:
-    """Best significant carriable fit that fits the term budget, and notes on what was passed over."""
+def _uses_time(fit: Fit) -> bool:
+    return any("time" in c.signals() for c in fit.candidates)
+
+
+def _carriable(fit: Fit, r: Residuals, artefact: ModelArtefact) -> bool:
+    """The artefact has room for the fit's terms and aux inputs."""
+    aux_free = len(_AUX_SLOTS) - len(artefact.aux_inputs)
+    return term_count(fit, r, artefact) <= TERMS_MAX and len(aux_slots_needed(fit, artefact)) <= aux_free
+
+
+def _select(fits: list[Fit], r: Residuals, artefact: ModelArtefact) -> tuple[Fit | None, list[str]]:
+    """Best significant fit the FMU has room for, and notes on what was passed over."""
     notes = []
     ok = [f for f in fits if f.explained_fraction >= MIN_EXPLAINED and f.p_value < ALPHA]
-    for f in ok:
-        if not f.candidate.carriable:
-            notes.append(f"'{f.candidate.name}' on {f.candidate.target} explains {f.explained_fraction:.1%} "
-                         "but uses aux_* columns the FMU has no inputs for: reported, not added")
-    fitting = [f for f in ok if f.candidate.carriable and n_terms + len(f.terms) <= TERMS_MAX]
-    if len(fitting) < len([f for f in ok if f.candidate.carriable]):
-        notes.append(f"significant candidates needing more than the {TERMS_MAX - n_terms} free term slots were skipped")
+    fitting = [f for f in ok if _carriable(f, r, artefact)]
+    if len(fitting) < len(ok):
+        notes.append(f"significant candidates needing more than the free {TERMS_MAX} term slots or "
+                     f"{len(_AUX_SLOTS)} aux inputs were skipped")
     if not fitting:
         return None, notes
     best = max(fitting, key=lambda f: f.explained_fraction)
-    if any(a == "time" for a, _ in best.candidate.regressors):
-        others = [f for f in fitting if all(a != "time" for a, _ in f.candidate.regressors)
-                  and f.explained_fraction >= best.explained_fraction - TIME_TIE]
+    if _uses_time(best):
+        others = [f for f in fitting if not _uses_time(f) and f.explained_fraction >= best.explained_fraction - TIME_TIE]
         if others:
             alt = max(others, key=lambda f: f.explained_fraction)
-            notes.append(f"'{alt.candidate.name}' chosen over 'time' ({alt.explained_fraction:.1%} vs "
+            notes.append(f"'{_label(alt)}' chosen over 'time' ({alt.explained_fraction:.1%} vs "
                          f"{best.explained_fraction:.1%}): time is the last-resort regressor")
             best = alt
     return best, notes
 
 
-def shift_bias(model: ThermalModel, offset: np.ndarray) -> ThermalModel:
-    """The thermal model whose output is lower by `offset` (3,) [triad unit]: b[:, 0] += A⁻¹·offset
-    (exact where the gain polynomial is 1). A disabled model becomes the enabled identity + offset."""
-    if not model.enabled:
-        model = ThermalModel.identity()
-    b = np.array(model.b)
-    b[:, 0] += np.linalg.solve(model.A, offset)
-    return replace(model, b=b)
+def _grow(best: Fit, candidates, r: Residuals, base0: Fit, artefact: ModelArtefact) -> Fit:
+    """Forward selection: add the family of the same target that improves the held-out residual
+    most, while significant (Bonferroni over the families tried) and explaining ≥ MIN_EXPLAINED.
+    A time shift stands alone: its fit is linear in the lag, the runtime's shift is not
+    (training.diagnose.refine_lag), so a family grown on its linearisation would fit the difference."""
+    combo = best
+    while len(combo.candidates) < MAX_FAMILIES and best.candidates[0].kind != "lag":
+        others = [c for c in candidates if c.target == combo.target and c not in combo.candidates
+                  and "time" not in c.signals() and c.kind != "lag"]
+        tries = [fit_candidates(combo.candidates + (c,), r, combo, base0, len(others)) for c in others]
+        ok = [f for f in tries if f is not None and f.p_value < ALPHA and f.gain >= MIN_EXPLAINED
+              and _carriable(f, r, artefact)]
+        if not ok:
+            return combo
+        combo = max(ok, key=lambda f: f.gain)
+    return combo
 
 
-def _add(artefact: ModelArtefact, fit: Fit) -> ModelArtefact:
-    """A new artefact with the fit's terms appended and its offset moved into the thermal bias."""
-    triad = fit.candidate.target.split("_")[0]
-    name = f"diagnose: {fit.candidate.name} -> {fit.candidate.target}"
-    terms = list(artefact.terms) + [{"name": name, "target": c, "a": a, "b": b, "coefficient": v}
-                                    for c, a, b, v in fit.terms]
-    notes = list(artefact.notes) + [f"{name}: {len(fit.terms)} terms; {triad} bias offset refitted by "
-                                    f"{np.round(fit.offset, 6).tolist()} {_METRICS[triad][1] if triad != 'gyr' else 'rad/s'}"]
-    thermal = {**artefact.thermal, triad: shift_bias(artefact.thermal[triad], fit.offset)}
-    return replace(artefact, terms=terms, notes=notes, thermal=thermal)
+def _fitted_rms(artefact: ModelArtefact, datasets: list[ImuData], triad: str) -> float:
+    """RMS of a triad's residual against its reference over the training blocks of every recording."""
+    sq, n = 0.0, 0
+    for d in datasets:
+        e = (_run(artefact, d)[:, _SLICES[triad]] - getattr(d, f"ref_{triad}"))[~holdout_rows(d.t)]
+        e = e[np.all(np.isfinite(e), axis=1)]
+        sq, n = sq + float(np.sum(e * e)), n + e.size
+    return np.sqrt(sq / max(n, 1))
+
+
+def refine_lag(new: ModelArtefact, old: ModelArtefact, effect: Fit, datasets: list[ImuData]) -> ModelArtefact:
+    """For a time shift, the lag that minimises the training-block residual through the runtime,
+    searched within ±50 % of the linearised estimate's step (bounded Brent, to 0.01 sample)."""
+    if effect.candidates[0].kind != "lag":
+        return new
+    from scipy.optimize import minimize_scalar
+    name = f"lag_{effect.target}"
+    start, step = old.settings.get(name, 0.0), new.settings[name] - old.settings.get(name, 0.0)
+    lo, hi = sorted((start + 0.5 * step, start + 1.5 * step))
+
+    def with_lag(tau: float) -> ModelArtefact:
+        return replace(new, settings={**new.settings, name: float(tau)})
+
+    best = minimize_scalar(lambda tau: _fitted_rms(with_lag(tau), datasets, effect.target), bounds=(lo, hi),
+                           method="bounded", options={"xatol": 0.01 / _rate(datasets)})
+    return with_lag(best.x)
+
+
+def _lag_changes(old: ModelArtefact, new: ModelArtefact) -> dict[str, float]:
+    """triad -> lag [s] added between two artefacts (triads whose lag changed)."""
+    out = {}
+    for triad in TRIAD_NAMES:
+        step = new.settings.get(f"lag_{triad}", 0.0) - old.settings.get(f"lag_{triad}", 0.0)
+        if step != 0.0:
+            out[triad] = step
+    return out
+
+
+def _label(fit: Fit) -> str:
+    return " + ".join(c.name for c in fit.candidates)
 
 
 def _candidate_json(f: Fit) -> dict:
-    return {"name": f.candidate.name, "target": f.candidate.target, "regressors": f.candidate.labels(),
-            "explained_fraction": f.explained_fraction, "p_value": f.p_value,
-            "carriable": f.candidate.carriable}
+    return {"name": _label(f), "target": f.target, "regressors": [x for c in f.candidates for x in c.labels()],
+            "explained_fraction": f.explained_fraction, "p_value": f.p_value}
 
 
-def _selected_json(f: Fit) -> dict:
-    """The selected candidate with its term count, refitted offset and offset-only metric."""
-    return {**_candidate_json(f), "terms": len(f.terms), "offset": f.offset.tolist(),
-            "after_offset_only": f.offset_only}
+def _rate(datasets: list[ImuData]) -> float:
+    return float(1.0 / np.median(np.concatenate([np.diff(d.t) for d in datasets])))
 
 
 def load_recordings(paths: list[Path]) -> tuple[list[ImuData], list[str]]:
@@ -356,10 +282,58 @@ def load_recordings(paths: list[Path]) -> tuple[list[ImuData], list[str]]:
     return datasets, notes
 
 
+def _aux_units(datasets: list[ImuData]) -> dict[str, str]:
+    """Units of aux columns from the sidecars' optional {"aux": {column: {"unit": ...}}}."""
+    out = {}
+    for d in datasets:
+        for column, info in (d.meta.get("aux") or {}).items():
+            if isinstance(info, dict) and isinstance(info.get("unit"), str):
+                out[column] = info["unit"]
+    return out
+
+
+def _iterate(artefact: ModelArtefact, datasets: list[ImuData], targets: dict[str, str], max_iterations: int):
+    """Select, grow, add, rerun; returns (artefact, residuals, iterations, first ranking, plot data, notes)."""
+    r = residuals(artefact, datasets, targets)
+    current, iterations, first, plot_data, notes = artefact, [], None, None, []
+    rate, units = _rate(datasets), _aux_units(datasets)
+    rejected: set[tuple[str, str]] = set()
+    for _ in range(max_iterations):
+        candidates = [c for c in build_candidates(r.signals, list(targets)) if (c.target, c.name) not in rejected]
+        base = {t: offset_fit(t, r) for t in targets}
+        fits = [f for f in (fit_candidates((c,), r, base[c.target], base[c.target], len(candidates))
+                            for c in candidates) if f is not None]
+        fits.sort(key=lambda f: -f.explained_fraction)
+        first = fits if first is None else first
+        best, why = _select(fits, r, current)
+        notes += why
+        if best is None:
+            break
+        effect = _grow(best, candidates, r, base[best.target], current)
+        new = refine_lag(add_effect(current, effect, r, _label(effect), units), current, effect, datasets)
+        r_new = residuals(new, datasets, targets)
+        if not metric(r_new, effect.target) < metric(r, effect.target):
+            notes.append(f"'{_label(effect)}' on {effect.target} explained {effect.explained_fraction:.1%} in the fit "
+                         f"but did not lower the held-out error through the runtime ({metric(r, effect.target):.4g} → "
+                         f"{metric(r_new, effect.target):.4g}): not added")
+            rejected |= {(c.target, c.name) for c in effect.candidates}
+            continue
+        iterations.append({"selected": {**_candidate_json(effect), "families": [c.name for c in effect.candidates],
+                                        "terms": term_count(effect, r, current) - len(current.terms),
+                                        "offset": effect.offset.tolist(),
+                                        "readings": readings(effect, rate, units, _lag_changes(current, new))},
+                           "target": effect.target, "metric": metric_name(effect.target),
+                           "before": metric(r, effect.target), "after": metric(r_new, effect.target),
+                           "candidates": [_candidate_json(f) for f in fits[:10]]})
+        plot_data = plot_data or (r, r_new, effect, predict(effect, r))
+        current, r = new, r_new
+    return current, r, iterations, first or [], plot_data, notes
+
+
 def diagnose(paths: list[Path], model_path: Path, out_dir: Path, seed: int = 0,
              max_iterations: int = MAX_ITERATIONS, plots: bool = True) -> dict:
     """Diagnose recordings `paths` with the artefact `model_path`; write out_dir/diagnosis.json,
-    out_dir/model.json (the artefact with the added terms) and out_dir/report.md (+ PNG plots).
+    out_dir/model.json (the artefact carrying the effects found) and out_dir/report.md (+ PNG plots).
 
     Returns the diagnosis.json document. Deterministic: least squares and fixed splits only; `seed`
     is recorded in the new artefact's provenance (nothing is drawn at random).
@@ -374,44 +348,27 @@ def diagnose(paths: list[Path], model_path: Path, out_dir: Path, seed: int = 0,
         targets.update(_targets(d))
     r0 = residuals(artefact, datasets, targets)
     start = {t: metric(r0, t) for t in targets}
-    current, r, iterations, first_fits, plot_data = artefact, r0, [], None, None
-    for _ in range(max_iterations):
-        candidates = build_candidates(r.signals, list(targets))
-        fits = [f for f in (fit_candidate(c, r, len(candidates)) for c in candidates) if f is not None]
-        fits.sort(key=lambda f: -f.explained_fraction)
-        first_fits = fits if first_fits is None else first_fits
-        best, why = _select(fits, len(current.terms))
-        notes += why
-        if best is None:
-            break
-        target = best.candidate.target
-        new = _add(current, best)
-        r_new = residuals(new, datasets, targets)
-        step = {"selected": _selected_json(best),
-                "target": target, "metric": metric_name(target),
-                "before": metric(r, target), "after": metric(r_new, target),
-                "candidates": [_candidate_json(f) for f in fits[:10]]}
-        iterations.append(step)
-        if plot_data is None:
-            plot_data = (r, r_new, best)
-        current, r = new, r_new
+    current, r, iterations, first_fits, plot_data, why = _iterate(artefact, datasets, targets, max_iterations)
     first = iterations[0] if iterations else None
-    target = first["target"] if first else (first_fits[0].candidate.target if first_fits else next(iter(targets)))
+    target = first["target"] if first else (first_fits[0].target if first_fits else next(iter(targets)))
     before, after = start[target], metric(r, target)
     result = {
         "target": target, "metric": metric_name(target),
-        "candidates": [_candidate_json(f) for f in (first_fits or [])],
-        "selected": ({k: first["selected"][k] for k in ("name", "target", "regressors")} if first else None),
+        "candidates": [_candidate_json(f) for f in first_fits],
+        "selected": ({k: first["selected"][k] for k in ("name", "target", "regressors", "families", "readings")}
+                     if first else None),
         "before": before, "after": after,
         "improvement_pct": 100.0 * (before - after) / before if first and before > 0 else 0.0,
         "iterations": iterations,
         "metrics_before": {t: start[t] for t in targets},
         "metrics_after": {t: metric(r, t) for t in targets},
         "recordings": [{"name": d.name, "samples": len(d)} for d in datasets],
-        "holdout_fraction": HOLDOUT_FRACTION, "alpha_bonferroni": ALPHA, "min_explained": MIN_EXPLAINED,
-        "regression_rate_hz": REGRESSION_RATE_HZ, "thermal_refitted": "bias offset only (b[:, 0] += A⁻¹·offset of the selected fit; gains and temperature polynomials kept)",
-        "test": f"one-sided batch-means test of held-out predictive accuracy, {BATCHES} batches per recording",
-        "model_in": str(model_path), "seed": seed, "notes": notes,
+        "holdout": f"every {HOLDOUT_EVERY}rd of {HOLDOUT_EVERY * BLOCKS} contiguous blocks of each recording",
+        "alpha_bonferroni": ALPHA, "min_explained": MIN_EXPLAINED,
+        "regression_rate_hz": REGRESSION_RATE_HZ,
+        "thermal_refitted": "no (each effect's offset is a constant correction term of its triad)",
+        "test": f"one-sided batch-means test of held-out predictive accuracy over {BLOCKS} held-out blocks per recording",
+        "model_in": str(model_path), "seed": seed, "notes": notes + why,
         "conclusion": ("nothing significant left" if not iterations else
                        f"added: {', '.join(s['selected']['name'] + ' -> ' + s['target'] for s in iterations)}"),
     }

@@ -7,11 +7,14 @@ through `ImuBatchLayout()`.
 """
 from __future__ import annotations
 
-LAYOUT_VERSION = 2
+LAYOUT_VERSION = 3
 
-#: Runtime inputs per sample, in order (units: rad/s, m/s², µT, °C).
+#: Auxiliary inputs: signals from outside the IMU (motor current, heater power, supply voltage, …)
+#: that diagnosed correction terms may use, in their own units; 0 where a model maps none.
+AUX_INPUTS = ("aux_1", "aux_2", "aux_3", "aux_4")
+#: Runtime inputs per sample, in order (units: rad/s, m/s², µT, °C, then the auxiliary inputs).
 INPUTS = ("gyr_x", "gyr_y", "gyr_z", "acc_x", "acc_y", "acc_z",
-          "mag_x", "mag_y", "mag_z", "temp")
+          "mag_x", "mag_y", "mag_z", "temp") + AUX_INPUTS
 
 #: Runtime outputs per sample, in order.
 OUTPUTS = (
@@ -62,6 +65,9 @@ SETTINGS = (
     ("pf_change_spread_hard", 30.0),  # µT, hard-iron prior spread after a change of environment
     ("pf_hold_prior", 1.0),           # 1 = the prior calibration is held until the first declared change
     ("pf_settle_spread", 1.0),        # µT, the attitude filter ignores the field while the hard-iron cloud sigma exceeds it (0 = never)
+    ("lag_gyr", 0.0),                 # s, how long the gyro input lags true time (< 0: it leads; sources/ImuAlign.h)
+    ("lag_acc", 0.0),                 # s, how long the accelerometer input lags true time
+    ("lag_mag", 0.0),                 # s, how long the magnetometer input lags true time
 )
 
 TRIAD_ORDER = ("gyr", "acc", "mag")
@@ -69,19 +75,22 @@ MAX_DEGREE = 3
 #: One triad block: enabled, t0 [°C], ts [°C], degree, A (3x3 row-major),
 #: g[axis][k-1] for k = 1..MAX_DEGREE, b[axis][k] for k = 0..MAX_DEGREE.
 TRIAD_BLOCK = 4 + 9 + 3 * MAX_DEGREE + 3 * (MAX_DEGREE + 1)
+#: Components a term may correct (index = target in the terms block): the compensated triads.
+TERM_TARGETS = INPUTS[:9]
 #: Signals that diagnosed correction terms may use (sources/ImuTerms.h ImuTermSignal, same order):
-#: compensated triads, temperature [°C], its low-passed rate [°C/s], time since the first sample [s]
-#: and the time derivatives of the compensated triads.
-TERM_SIGNALS = (
-    "gyr_x", "gyr_y", "gyr_z", "acc_x", "acc_y", "acc_z", "mag_x", "mag_y", "mag_z",
-    "temp", "temp_rate", "time",
-    "d_gyr_x", "d_gyr_y", "d_gyr_z", "d_acc_x", "d_acc_y", "d_acc_z", "d_mag_x", "d_mag_y", "d_mag_z",
-)
-#: Components a term may correct (index = target in the terms block).
-TERM_TARGETS = TERM_SIGNALS[:9]
-TERMS_MAX = 16
-#: Terms block: [count, then TERMS_MAX x (target, signal a, signal b or -1, coefficient)].
-TERMS_BLOCK = 1 + 4 * TERMS_MAX
+#: compensated triads, temperature [°C], its low-passed rate [°C/s], time since the first sample [s],
+#: the time derivatives of the compensated triads, their absolute values (a signed power x·|x| is
+#: the product x * abs_x), the constant 1 (a term on `one` alone is an offset), the raw
+#: auxiliary inputs and the temperature rate low-passed over 1 s instead of 10 s.
+TERM_SIGNALS = (TERM_TARGETS + ("temp", "temp_rate", "time")
+                + tuple(f"d_{name}" for name in TERM_TARGETS)
+                + tuple(f"abs_{name}" for name in TERM_TARGETS)
+                + ("one",) + AUX_INPUTS + ("temp_rate_fast",))
+TERMS_MAX = 64
+#: Terms block: [count, then TERMS_MAX x (target, signal a, signal b or -1, coefficient, lo, hi)];
+#: the runtime clamps the regressor s[a]·s[b] to [lo, hi].
+TERM_ENTRY = 6
+TERMS_BLOCK = 1 + TERM_ENTRY * TERMS_MAX
 #: Blocks of the neural stages (sources/ImuElm.h IMU_ELM_BLOCK; all zeros = disabled), in order.
 STAGE_BLOCKS = {"elm": 3 + 4 * 3 + 64 * (3 + 1 + 3),   # sources/ImuElm.h IMU_ELM_BLOCK
                 "psobp": 7 + 3 * (4 * 16 + 1)}         # sources/ImuPsoBp.h IMU_PSOBP_BLOCK
@@ -115,14 +124,16 @@ def identity_block() -> list[float]:
     return [1.0, 25.0, 1.0, 0.0] + a + [0.0] * (3 * MAX_DEGREE) + [0.0] * (3 * (MAX_DEGREE + 1))
 
 
-def terms_block(terms: list[tuple[str, str, str | None, float]]) -> list[float]:
-    """Terms block from (target, signal a, signal b or None, coefficient) tuples, by name."""
+def terms_block(terms: list[tuple[str, str, str | None, float, float, float]]) -> list[float]:
+    """Terms block from (target, signal a, signal b or None, coefficient, lo, hi) tuples, by name;
+    lo and hi [unit of s[a]·s[b]] bound the regressor (the runtime rejects lo > hi or non-finite)."""
     if len(terms) > TERMS_MAX:
         raise ValueError(f"{len(terms)} correction terms, at most {TERMS_MAX} fit in the runtime")
     block = [float(len(terms))]
-    for target, a, b, coefficient in terms:
+    for target, a, b, coefficient, lo, hi in terms:
         block += [float(TERM_TARGETS.index(target)), float(TERM_SIGNALS.index(a)),
-                  -1.0 if b is None else float(TERM_SIGNALS.index(b)), float(coefficient)]
+                  -1.0 if b is None else float(TERM_SIGNALS.index(b)), float(coefficient),
+                  float(lo), float(hi)]
     return block + [0.0] * (TERMS_BLOCK - len(block))
 
 

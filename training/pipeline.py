@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import json
 import time
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -38,8 +39,8 @@ class ScenarioResult:
     fmu_vs_batch_max_diff: float
     outputs_csv: str
     data: ImuData = field(repr=False)           # the recording (for plots)
-    out: np.ndarray = field(repr=False)         # (N, 20) FMU outputs
-    out_raw: np.ndarray = field(repr=False)     # (N, 20) runtime outputs without compensation
+    out: np.ndarray = field(repr=False)         # (N, len(OUTPUTS)) FMU outputs
+    out_raw: np.ndarray = field(repr=False)     # (N, len(OUTPUTS)) runtime outputs without compensation
 
     def as_dict(self) -> dict:
         """JSON-ready figures (no arrays)."""
@@ -77,16 +78,18 @@ def uncompensated_settings(settings: np.ndarray) -> np.ndarray:
 
 
 def evaluate_recording(fmu_path: Path, coefficients: np.ndarray, settings: np.ndarray,
-                       data: ImuData, out_csv: Path) -> ScenarioResult:
-    """Co-simulate `data` through the FMU, compare with the batch runtime and with truth."""
+                       data: ImuData, out_csv: Path, aux_columns: Sequence[str] = ()) -> ScenarioResult:
+    """Co-simulate `data` through the FMU, compare with the batch runtime and with truth;
+    aux_columns: the model's auxiliary-input columns (`[a["column"] for a in artefact.aux_inputs]`)."""
     from fmu.cosim import run_fmu
     from .runtime import run_batch
     params = recording_parameters(data)
     s = settings_with(settings, params)
-    out_fmu = run_fmu(fmu_path, data.t, data.inputs(), parameters=params, progress=True)
-    out_batch = run_batch(coefficients, s, data.t, data.inputs())
+    inputs = data.inputs(aux_columns)
+    out_fmu = run_fmu(fmu_path, data.t, inputs, parameters=params, progress=True)
+    out_batch = run_batch(coefficients, s, data.t, inputs)
     diff = float(np.max(np.abs(out_fmu - out_batch)))
-    raw_out = run_batch(coefficients, uncompensated_settings(s), data.t, data.inputs())
+    raw_out = run_batch(coefficients, uncompensated_settings(s), data.t, inputs)
     raw = raw_sensor_metrics(data)
     raw_att = compute_metrics(raw_out, data)
     raw.update({k: v for k, v in raw_att.as_dict().items() if k.endswith("_deg")})
@@ -159,7 +162,7 @@ def run_pipeline(out_dir: Path, seed: int = 0, calibration: str = DEFAULT_CALIBR
     coefficients = coefficients_array(artefact)
     settings = settings_dict(artefact)
     fmu_path = build_fmu(coefficients, settings, out_dir / "ImuFusion.fmu",
-                         provenance=f"model {model_path.name}, seed {seed}")
+                         provenance=f"model {model_path.name}, seed {seed}", aux_inputs=artefact.aux_inputs)
     lap("build")
     print("[4/5] validating the FMU")
     problems = validate_fmu(fmu_path)
@@ -171,7 +174,8 @@ def run_pipeline(out_dir: Path, seed: int = 0, calibration: str = DEFAULT_CALIBR
         data = simulate(load_scenario(SCENARIO_DIR / name), seed=seed + 1 + k)
         write_imu_csv(data, out_dir / "data" / f"{data.name}.csv.gz")
         summary.scenarios.append(evaluate_recording(
-            fmu_path, coefficients, flat, data, out_dir / "runs" / f"{data.name}.csv"))
+            fmu_path, coefficients, flat, data, out_dir / "runs" / f"{data.name}.csv",
+            [a["column"] for a in artefact.aux_inputs]))
     lap("co-simulate")
     summary.timings_s = timings
     write_report(summary, out_dir)

@@ -101,7 +101,7 @@ def _load(path: str) -> ctypes.CDLL:
     lib.ImuBatchCheckSettings.restype = ctypes.c_int
     lib.ImuBatchLayout.argtypes = [ip] * 5
     lib.ImuBatchLayout.restype = None
-    lib.ImuBatchTermSignals.argtypes = [sz, dp, dp, dp, dp]
+    lib.ImuBatchTermSignals.argtypes = [sz, dp, dp, dp, dp, dp]
     lib.ImuBatchTermSignals.restype = None
     return lib
 
@@ -146,8 +146,8 @@ def run_batch(coefficients, settings, t, inputs) -> np.ndarray:
     """Run the C pipeline over a recording.
 
     coefficients: (N_COEFFICIENTS,) flat coefficient array (training.layout); settings: flat settings
-    array (training.layout.settings_array()); t: (N,) times [s]; inputs: (N, 10) raw
-    gyr [rad/s], acc [m/s²], mag [µT], temp [°C]. Returns (N, len(OUTPUTS)) outputs in the order of
+    array (training.layout.settings_array()); t: (N,) times [s]; inputs: (N, len(INPUTS)) raw
+    gyr [rad/s], acc [m/s²], mag [µT], temp [°C] and the auxiliary inputs (ImuData.inputs). Returns (N, len(OUTPUTS)) outputs in the order of
     training.layout.OUTPUTS. Raises ValueError on bad shapes or when the runtime rejects the
     coefficients or settings.
     """
@@ -164,16 +164,19 @@ def run_batch(coefficients, settings, t, inputs) -> np.ndarray:
     return out
 
 
-def term_signals(t, components, temperature) -> np.ndarray:
+def term_signals(t, components, temperature, aux=None) -> np.ndarray:
     """Correction-term signals of a series as the C pipeline forms them (sources/ImuTerms.h).
 
     t: (N,) s; components: (N, 9) compensated gyr [rad/s], acc [m/s²], mag [µT]; temperature:
-    (N,) °C. Returns (N, len(training.layout.TERM_SIGNALS)); NaN where a signal is not computable.
+    (N,) °C; aux: (N, len(training.layout.AUX_INPUTS)) auxiliary inputs (default zeros). Returns
+    (N, len(training.layout.TERM_SIGNALS)); NaN where a signal is not computable.
     """
     lib = load_runtime()
     tt = _as_array("t", t, (-1,))
-    x = _as_array("components", components, (tt.shape[0], 9))
-    temp = _as_array("temperature", temperature, (tt.shape[0],))
-    out = np.empty((tt.shape[0], len(layout.TERM_SIGNALS)), dtype=np.float64)
-    lib.ImuBatchTermSignals(tt.shape[0], _pointer(tt), _pointer(x), _pointer(temp), _pointer(out))
+    n = tt.shape[0]
+    x = _as_array("components", components, (n, 9))
+    temp = _as_array("temperature", temperature, (n,))
+    u = _as_array("aux", np.zeros((n, len(layout.AUX_INPUTS))) if aux is None else aux, (n, len(layout.AUX_INPUTS)))
+    out = np.empty((n, len(layout.TERM_SIGNALS)), dtype=np.float64)
+    lib.ImuBatchTermSignals(n, _pointer(tt), _pointer(x), _pointer(temp), _pointer(u), _pointer(out))
     return out

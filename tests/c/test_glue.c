@@ -47,8 +47,9 @@ static void countLog(fmi3InstanceEnvironment environment, fmi3Status status, fmi
     strncpy(log->last, message, sizeof log->last - 1);
 }
 
-/** @brief Sample k of a rocking, turning sensor: rad/s, m/s^2, uT, degC. */
+/** @brief Sample k of a rocking, turning sensor: rad/s, m/s^2, uT, degC, auxiliary inputs. */
 static void sample(int k, double x[IMU_INPUT_COUNT]) {
+    int i;
     const double t = k * STEP_SIZE;
     const double roll = 0.3 * sin(1.3 * t), pitch = 0.2 * sin(0.9 * t), yaw = 0.5 * t;
     x[0] = 0.39 * cos(1.3 * t);
@@ -61,10 +62,14 @@ static void sample(int k, double x[IMU_INPUT_COUNT]) {
     x[7] = -20.0 * sin(yaw);
     x[8] = 40.0;
     x[9] = 20.0 + 0.5 * t;
+    for (i = ImuInAux1; i < IMU_INPUT_COUNT; i++) {
+        x[i] = sin((i - ImuInAux1 + 1) * t); /* unused by the identity coefficients */
+    }
 }
 
 static const fmi3ValueReference inputVrs[IMU_INPUT_COUNT] = {
-    vr_gyr_x, vr_gyr_y, vr_gyr_z, vr_acc_x, vr_acc_y, vr_acc_z, vr_mag_x, vr_mag_y, vr_mag_z, vr_temp
+    vr_gyr_x, vr_gyr_y, vr_gyr_z, vr_acc_x, vr_acc_y, vr_acc_z, vr_mag_x, vr_mag_y, vr_mag_z, vr_temp,
+    vr_aux_1, vr_aux_2, vr_aux_3, vr_aux_4
 };
 
 /** @brief Instantiate and initialise an FMI 3 instance logging into log (field_norm [uT] set first). */
@@ -289,6 +294,7 @@ static void testInvalidParameters(void) {
         {vr_field_norm, 0.0, "field_norm"}, {vr_field_norm, NAN, "field_norm"},
         {vr_gyro_noise, -1.0, "gyro_noise"}, {vr_angle_noise, -0.1, "angle_noise"},
         {vr_mse_time_constant, 0.0, "mse_time_constant"}, {vr_declination, INFINITY, "declination"},
+        {vr_lag_gyr, 1.5, "lag_gyr"}, {vr_lag_mag, NAN, "lag_mag"},
     };
     size_t c;
     for (c = 0; c < sizeof cases / sizeof cases[0]; c++) {
