@@ -8,7 +8,8 @@ Orientation Estimation", Data 6(7), 2021, doi:10.3390/data6070072 (CC-BY-4.0).
 
 1. Per undisturbed trial (training.bench.GROUPS["undisturbed"]): the rate reference ref_gyr from
    ref_q (training.reference.derive_references, Savitzky-Golay derivative) and the IMU gyro passed
-   through the same filter; δ = argmin_s RMS(gyro(t) − ref_gyr(t − s) − b(s)) on the moving samples
+   through the same filter (training.reference.matched_raw, as `train` fits it);
+   δ = argmin_s RMS(gyro(t) − ref_gyr(t − s) − b(s)) on the moving samples
    (training.time_offset.estimate_offset: ±MAX_SHIFT whole samples, parabolic refinement, bias b
    fitted per shift, bootstrap over segments and split-half, seeded). δ > 0: the IMU lags.
 2. The model a user gets from `train` on BROAD with the optical reference (training.bench_trained:
@@ -40,7 +41,7 @@ from training.bench import BROAD_CITATION, GROUPS, broad_errors, trial_number, t
 from training.bench_trained import TRAIN_TRIALS  # noqa: E402
 from training.dataset import ImuData  # noqa: E402
 from training.io import read_imu_csv  # noqa: E402
-from training.reference import RATE_WINDOW_S, _derivative, derive_references, matched_raw  # noqa: E402
+from training.reference import RATE_WINDOW_S, derive_references, matched_raw  # noqa: E402
 from training.simulator.quaternion import make_continuous  # noqa: E402
 from training.time_offset import estimate_offset, refine_minimum, shift_series  # noqa: E402
 
@@ -65,31 +66,16 @@ COMMAND = ".venv/bin/python benchmarks/broad_time_offset.py --data ../shared/dat
 
 
 # ------------------------------------------------------------------------------------------ offsets
-def matched_gyro_trapezoid(data: ImuData) -> np.ndarray:
-    """The raw gyro through the filter of the rate reference (training.reference: Savitzky-Golay
-    derivative, RATE_WINDOW_S) after TRAPEZOIDAL integration. training.reference.matched_raw
-    integrates with the rectangle rule Σ ω_k·Δt, which puts ω_k at the end of its interval and
-    advances the filtered gyro by half a sample (tests/test_time_offset.py measures it); the
-    trapezoid has no such shift."""
-    gyr = np.asarray(data.gyr, dtype=float)
-    dt = np.diff(data.t)[:, None]
-    inc = 0.5 * (gyr[1:] + gyr[:-1]) * dt
-    angle = np.vstack([np.zeros((1, 3)), np.cumsum(np.nan_to_num(inc), axis=0)])
-    angle[~np.all(np.isfinite(gyr), axis=1)] = np.nan
-    return _derivative(angle, data.t, RATE_WINDOW_S, 1)
-
-
 def offsets_of(data: ImuData, ref_gyr: np.ndarray) -> dict:
-    """δ [samples] of one trial by three gyro paths against ref_gyr, on one mask of moving samples:
-    'trapezoid' (primary: same filter, no integration shift), 'matched_raw' (the project's helper as
-    is) and 'raw' (the unfiltered gyro against the filtered reference: a zero-phase filter on one side
-    only does not move the minimum in expectation, so it is an independent check)."""
-    primary = matched_gyro_trapezoid(data)
+    """δ [samples] of one trial against ref_gyr, on one mask of moving samples: primary, the gyro
+    through the reference's filter (training.reference.matched_raw); check 'raw', the unfiltered gyro
+    against the filtered reference (a zero-phase filter on one side only does not move the minimum
+    in expectation, so it is an independent check)."""
+    primary = matched_raw(data, "gyr")
     moving = np.linalg.norm(primary, axis=1) > MOVING_THRESHOLD
     est = estimate_offset(primary, ref_gyr, moving, MAX_SHIFT, N_SEGMENTS, N_BOOTSTRAP, SEED)
     lo, hi = est.bootstrap_interval(0.95)
-    checks = {name: estimate_offset(x, ref_gyr, moving, MAX_SHIFT, N_SEGMENTS, 0, SEED).delta
-              for name, x in (("matched_raw", matched_raw(data, "gyr")), ("raw", data.gyr))}
+    checks = {"raw": estimate_offset(data.gyr, ref_gyr, moving, MAX_SHIFT, N_SEGMENTS, 0, SEED).delta}
     speed = np.linalg.norm(ref_gyr, axis=1)
     scored = np.isfinite(speed) & (data.eval_mask.astype(bool) if data.eval_mask is not None else True)
     return {"delta": est.delta, "boot_std": est.bootstrap_std, "ci95": (lo, hi), "halves": est.halves,
@@ -160,7 +146,6 @@ def _summary(rows: list[dict], fs: float, common: float) -> dict:
            "median_ms": 1e3 * float(med) / fs, "iqr_ms": 1e3 * float(q3 - q1) / fs,
            "median_boot_std_samples": float(np.median([r["boot_std"] for r in rows])),
            "common_delta_samples": common, "common_delta_ms": 1e3 * common / fs,
-           "median_matched_raw": float(np.median([r["matched_raw"] for r in rows])),
            "median_raw": float(np.median([r["raw"] for r in rows])),
            "median_attitude_optimal": float(np.median([r["attitude_optimal"] for r in rows]))}
     sigma = np.array([r["boot_std"] for r in rows])
@@ -209,7 +194,6 @@ def _plot(rows: list[dict], fs: float, summary: dict, out: Path) -> list[Path]:
     hi = np.array([r["ci95"][1] for r in rows])
     ax.errorbar(x, d, yerr=[d - lo, hi - d], fmt="o", capsize=3, label="δ, 95 % bootstrap interval")
     ax.plot(x, [r["raw"] for r in rows], "x", label="check: unfiltered gyro vs ref_gyr")
-    ax.plot(x, [r["matched_raw"] for r in rows], "+", label="reference.matched_raw as is (−½ sample, see text)")
     ax.plot(x, [r["attitude_optimal"] for r in rows], "s", mfc="none", label="reference shift of least attitude error")
     ax.axhline(summary["median_samples"], color="k", lw=1, ls="--", label="median δ")
     ax.axhspan(summary["q1_samples"], summary["q3_samples"], color="k", alpha=0.08, label="IQR")
@@ -259,11 +243,11 @@ def _table(rows: list[dict], fs: float) -> list[str]:
 
 
 def _check_table(rows: list[dict], fs: float, common: float) -> list[str]:
-    lines = ["| trial | δ trapezoid-matched (primary) | δ unfiltered gyro | δ matched_raw as is "
+    lines = ["| trial | δ filtered gyro (primary) | δ unfiltered gyro "
              "| reference shift of least total error | RMS rate over eval_mask [rad/s] | δ·RMS rate [°] |",
-             "|---|---|---|---|---|---|---|"]
+             "|---|---|---|---|---|---|"]
     for r in rows:
-        lines.append(f"| {r['name']} | {r['delta']:.3f} | {r['raw']:.3f} | {r['matched_raw']:.3f} | "
+        lines.append(f"| {r['name']} | {r['delta']:.3f} | {r['raw']:.3f} | "
                      f"{r['attitude_optimal']:.2f} | {r['rms_rate_eval']:.2f} | "
                      f"{np.rad2deg(r['rms_rate_eval'] * common / fs):.2f} |")
     return lines
@@ -274,8 +258,8 @@ def _lag_lines(rows: list[dict], s: dict, fs: float) -> list[str]:
         c, b = s["lag_settings"], s["after_common"]
         lines = ["Row (c): the runtime carrying the offset, `lag_gyr = lag_acc = lag_mag = δ` "
                  f"({s['common_delta_ms']:.3f} ms, the median δ), scored against the reference as recorded. "
-                 "With a positive lag the runtime extrapolates the gyro to true time (2·ω(t) − ω(t − lag)) and "
-                 "advances the accelerometer and magnetometer vectors by the body rotation over the lag "
+                 "With a positive lag the runtime extrapolates the gyro and the accelerometer to true time "
+                 "(2·x(t) − x(t − lag)) and advances the magnetometer vector by the body rotation over the lag "
                  "(sources/ImuAlign.h), so its attitude refers to true time instead of the IMU's late time stamp. "
                  f"Mean over trials: **{_fmt3(c)} °** against {_fmt3(s['before'])} ° before and {_fmt3(b)} ° with "
                  f"the reference moved (b): total {c['total'] - s['before']['total']:+.3f}° against before, "
@@ -342,9 +326,9 @@ def _markdown(rows: list[dict], s: dict, fs: float, how: str, elapsed: float, ve
         "",
         f"Sample grid: BROAD's uniform Δt = {1e3 / fs:.2f} ms ({fs:.1f} Hz). Rate reference: `ref_gyr` from "
         "`training.reference.derive_references` (the project's code path), ω_ref = 2·vec(q* ⊗ q̇) with q̇ a centred "
-        f"Savitzky-Golay derivative over {RATE_WINDOW_S} s (order 2). Gyro: the raw gyro integrated to an angle and "
-        "differentiated by the same Savitzky-Golay filter, so both sides carry the same low-pass and the same "
-        "(zero) phase. Offset (`training.time_offset.estimate_offset`):",
+        f"Savitzky-Golay derivative over {RATE_WINDOW_S} s (order 2). Gyro: the raw gyro integrated to an angle "
+        "(trapezoidal rule) and differentiated by the same Savitzky-Golay filter (`training.reference.matched_raw`, "
+        "what `train` fits the gyro with), so both sides carry the same low-pass and the same (zero) phase. Offset (`training.time_offset.estimate_offset`):",
         "",
         "    r_k(s) = ω_gyr,k − ω_ref,k−s − b(s),   b(s) = mean_k(ω_gyr,k − ω_ref,k−s)  (per axis)",
         "    J(s)   = Σ_axes mean_k r_k(s)²,         s ∈ {−30 … 30} samples",
@@ -364,13 +348,11 @@ def _markdown(rows: list[dict], s: dict, fs: float, how: str, elapsed: float, ve
         f"{N_BOOTSTRAP} bootstrap draws of segments with replacement (numpy default_rng({SEED})) re-fit b(s) and δ; "
         "the 95 % percentile interval is given, and δ of the first and the second half of the segments "
         "(split-half).",
-        "- **Integration rule.** `training.reference.matched_raw` integrates the gyro with the rectangle rule "
-        "θ_k = Σ_{j≤k} ω_j·Δt, which credits ω_k to the interval that ends at t_k and so advances the filtered "
-        "gyro by half a sample (measured on an exact synthetic rate: −0.500 samples, "
-        "`tests/test_time_offset.py`). With it δ comes out ½ sample too small. The primary estimate here uses the "
-        "same Savitzky-Golay filter after trapezoidal integration (no shift); two checks are reported beside it: "
-        "`matched_raw` as is, and the unfiltered gyro against the filtered reference (a zero-phase filter on one "
-        "side does not move the minimum in expectation).",
+        "- **Integration rule.** The trapezoidal rule puts the integrated rate at the sample times: on an exact "
+        "synthetic rate the filtered gyro's offset is 0 within 0.01 samples (`tests/test_time_offset.py`). "
+        "The rectangle rule θ_k = Σ_{j≤k} ω_j·Δt, which `matched_raw` used before, credits ω_k to the interval "
+        "that ends at t_k and read −0.500 samples there. Check: the unfiltered gyro against the filtered "
+        "reference (a zero-phase filter on one side does not move the minimum in expectation).",
         "",
         "Attitude error: the model is `training.bench_trained`'s 'attitude reference' model — " + how + ". "
         "Every trial runs through the batch runtime `training.runtime.run_batch` (the FMU's C code compiled "
@@ -409,10 +391,7 @@ def _markdown(rows: list[dict], s: dict, fs: float, how: str, elapsed: float, ve
         "and are not measured here.",
         "",
         f"Checks: the unfiltered gyro against the filtered reference gives a median of {s['median_raw']:.3f} "
-        f"samples (agrees with the primary {med:.3f}); `training.reference.matched_raw` as is gives "
-        f"{s['median_matched_raw']:.3f}, {med - s['median_matched_raw']:.3f} samples less: its half-sample "
-        "integration shift. Had the estimate used `matched_raw` unchanged, δ would read "
-        f"{1e3 * s['median_matched_raw'] / fs:.2f} ms instead of {s['median_ms']:.2f} ms.",
+        f"samples (agrees with the primary {med:.3f}).",
         "",
         "Per trial (errors: total / heading / inclination RMSE [°]; 01 and 02 are the training trials):",
         "",
@@ -420,7 +399,7 @@ def _markdown(rows: list[dict], s: dict, fs: float, how: str, elapsed: float, ve
         "",
         f"Mean over the {n} trials [°] (total / heading / inclination): **before {_fmt3(before)}; after "
         f"(median δ) {_fmt3(after)}**; after (own δ) {_fmt3(own)}. For comparison, docs/BENCHMARKS.md "
-        "lists 1.88 / 1.63 / 0.84 for the undisturbed group with this model run through the FMU with fmpy "
+        "lists 1.88 / 1.63 / 0.85 for the undisturbed group with this model run through the FMU with fmpy "
         "(`imufmu bench broad-trained`, 'attitude reference').",
         "",
         f"**Attitude error change with the median δ: total {change:+.3f}° ({100 * change / before['total']:+.1f} %), "
@@ -472,11 +451,11 @@ def _markdown(rows: list[dict], s: dict, fs: float, how: str, elapsed: float, ve
 
 def _print_table(rows: list[dict], s: dict, fs: float) -> None:
     print(f"\nδ > 0: IMU lags the optical reference. fs = {fs:.2f} Hz")
-    print(f"{'trial':<44} {'δ ms':>6} {'δ smp':>7} {'95% CI':>15} {'raw':>6} {'m_raw':>6} "
+    print(f"{'trial':<44} {'δ ms':>6} {'δ smp':>7} {'95% CI':>15} {'raw':>6} "
           f"{'before tot/hdg/inc':>20} {'after(median δ)':>20} {'own':>6}")
     for r in rows:
         print(f"{r['name']:<44} {1e3 * r['delta'] / fs:6.2f} {r['delta']:7.3f} "
-              f"{r['ci95'][0]:7.3f}…{r['ci95'][1]:.3f} {r['raw']:6.3f} {r['matched_raw']:6.3f} "
+              f"{r['ci95'][0]:7.3f}…{r['ci95'][1]:.3f} {r['raw']:6.3f} "
               f"{_fmt3(r['before']):>20} {_fmt3(r['after_common']):>20} {r['after_own']['total']:6.3f}")
     print(f"median δ {s['median_ms']:.3f} ms = {s['median_samples']:.3f} samples, IQR {s['iqr_samples']:.3f} samples "
           f"({s['iqr_ms']:.3f} ms); mean errors before {_fmt3(s['before'])}, after {_fmt3(s['after_common'])}, "
@@ -538,12 +517,12 @@ def main(argv=None) -> int:
     with open(out / "offsets.csv", "w", newline="") as f:
         w = csv.writer(f)
         w.writerow(["name", "delta_samples", "delta_ms", "ci95_lo", "ci95_hi", "half_1", "half_2", "boot_std",
-                    "delta_raw_gyro", "delta_matched_raw", "attitude_optimal_shift", "n_moving",
+                    "delta_raw_gyro", "attitude_optimal_shift", "n_moving",
                     *(f"{k}_{m}" for k in ("before", "after_common", "after_own") for m in ("total", "heading", "inclination"))])
         for r in rows:
             w.writerow([r["name"], f"{r['delta']:.4f}", f"{1e3 * r['delta'] / fs:.4f}", f"{r['ci95'][0]:.4f}",
                         f"{r['ci95'][1]:.4f}", f"{r['halves'][0]:.4f}", f"{r['halves'][1]:.4f}", f"{r['boot_std']:.4f}",
-                        f"{r['raw']:.4f}", f"{r['matched_raw']:.4f}", f"{r['attitude_optimal']:.3f}", r["n_moving"],
+                        f"{r['raw']:.4f}", f"{r['attitude_optimal']:.3f}", r["n_moving"],
                         *(f"{r[k][m]:.4f}" for k in ("before", "after_common", "after_own")
                           for m in ("total", "heading", "inclination"))])
     _print_table(rows, summary, fs)

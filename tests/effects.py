@@ -130,6 +130,21 @@ def mag_delay(data: ImuData, rng: np.random.Generator | None = None, samples: in
     return replace(data, mag=delay(data.mag, samples))
 
 
+def mag_long_delay(data: ImuData, rng: np.random.Generator | None = None, samples: int = 20) -> ImuData:
+    """Raw magnetometer 20 samples (200 ms) late: a magnetometer read at 5 Hz and held, or a long
+    moving-average filter. Far outside the linear range of a time-shift fit (ω·D·Δt ~ 0.1-0.5 rad):
+    ≈ 4 µT RMS on the handheld motion against 0.1 µT."""
+    return replace(data, mag=delay(data.mag, samples))
+
+
+def gyro_lead(data: ImuData, rng: np.random.Generator | None = None, samples: int = 7) -> ImuData:
+    """Raw gyro 7 samples (70 ms) EARLY against accelerometer, magnetometer and truth (its
+    timestamps taken at a later interrupt than its sampling instant): gyr_raw[k] = gyr[k + samples],
+    the last samples repeating the final one. The runtime must delay it (a negative lag)."""
+    idx = np.minimum(np.arange(len(data)) + samples, len(data) - 1)
+    return replace(data, gyr=data.gyr[idx].copy())
+
+
 def acc_delay(data: ImuData, rng: np.random.Generator | None = None, samples: int = 3) -> ImuData:
     """Raw accelerometer delayed by `samples` whole samples against the gyro (a low-pass digital
     filter's group delay on the accelerometer only): acc_raw[k] = acc_raw_before[k − samples],
@@ -317,6 +332,10 @@ EFFECTS: dict[str, Effect] = dict([
     # On a monotonic temperature ramp, time and temperature are both readings of a slow drift; the
     # diagnosis prefers the physical driver (time since power-on does not carry over to the next
     # power cycle) unless time explains clearly more (training.diagnose.TIME_TIE).
+    _effect("mag_long_delay", mag_long_delay, "mag", {"dc_mag"},
+            "magnetometer 20 samples (200 ms) late, far beyond a linear time-shift fit [µT]"),
+    _effect("gyro_lead", gyro_lead, "gyr", {"dc_gyr"},
+            "gyro 7 samples (70 ms) early against accelerometer, magnetometer and truth [rad/s]"),
     _effect("mag_warmup_drift", mag_warmup_drift, "mag", {"time", "temp"},
             "field offset creeping with time since power-on, mag += v·t, |v| ≈ 0.7 µT/min [µT]"),
     _effect("heater_gyro_bias", heater_gyro_bias, "gyr", {"aux_heater_power"},

@@ -251,3 +251,12 @@ def test_aux_driven(data, name, column, high, unit_scale):
     assert 150.0 / 10.0 < switches < 150.0 * 2 * 2.0   # a level change every few s, PWM ≤ 2 Hz
     speed = np.linalg.norm(data.ref_gyr, axis=1)
     assert abs(np.corrcoef(drive, speed)[0, 1]) < 0.2
+
+
+def test_long_delay_and_lead(data):
+    """mag_long_delay: raw[k] == original[k − 20]; gyro_lead: raw[k] == original[k + 7], the last
+    7 samples holding the final one."""
+    mag = EFFECTS["mag_long_delay"](data).mag
+    assert np.array_equal(mag[20:], data.mag[:-20]) and np.array_equal(mag[:20], np.repeat(data.mag[:1], 20, axis=0))
+    gyr = EFFECTS["gyro_lead"](data).gyr
+    assert np.array_equal(gyr[:-7], data.gyr[7:]) and np.array_equal(gyr[-7:], np.repeat(data.gyr[-1:], 7, axis=0))

@@ -20,7 +20,7 @@ from whatever signals are present:
   so they are fitted with instruments (training.diagnose_fit);
 - the target's own time shift (a lag against the reference), when the target has a reference;
 - a lever arm of the accelerometer, ω̇×r + ω×(ω×r);
-- every `aux_*` column alone, and all of them together.
+- every `aux_*` column alone, and all of them together (except the reference's `aux_pos_*`).
 """
 from __future__ import annotations
 
@@ -39,6 +39,10 @@ MIN_FINITE_SHARE = 0.9
 #: ≥ 50 Hz) is not.
 INSTRUMENT_HOLE = 2
 INSTRUMENT_SPAN = 4
+#: Aux columns that belong to the reference, not to the sensor's surroundings: the optical
+#: marker position that comes with ref_q (shared/ARCHITECTURE.md). A system simulation has no such
+#: input, so they are never candidates.
+REFERENCE_AUX = "aux_pos_"
 #: Half-width [samples] of the central difference behind the time-shift column (it leaves out the
 #: current sample, whose noise the target shares).
 SHIFT_HALF_WIDTH = 2
@@ -137,7 +141,7 @@ def _families(target: str, signals: dict[str, np.ndarray]) -> list[Candidate]:
         out.append(Candidate(f"{TRIAD_NAMES[triad]} time shift", target, time_shift_column(triad), kind="lag"))
     if triad == "acc":
         out.append(Candidate("lever arm", target, lever_arm_columns()))
-    aux = sorted(k for k in signals if k.startswith("aux_"))
+    aux = sorted(k for k in signals if k.startswith("aux_") and not k.startswith(REFERENCE_AUX))
     out += [Candidate(name, target, _free([(name, None)])) for name in aux]
     if len(aux) > 1:
         out.append(Candidate("all aux columns", target, _free([(name, None) for name in aux])))

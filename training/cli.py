@@ -116,6 +116,12 @@ def cmd_diagnose(args) -> None:
         f"selected {selected['name']} on {selected['target']}"
     print(f"{what}; {result['metric']}: {result['before']:.4g} -> {result['after']:.4g} "
           f"({result['improvement_pct']:.1f} %)")
+    for it in result["iterations"]:
+        s = it["selected"]
+        print(f"  {s['name']} -> {s['target']}: {it['before']:.4g} -> {it['after']:.4g}"
+              + "".join(f"; {x}" for x in s["readings"]))
+    for note in result["notes"]:
+        print(f"  note: {note}")
     print(f"wrote {Path(args.out) / 'diagnosis.json'}, report.md and model.json")
 
 

@@ -292,17 +292,20 @@ def _aux_units(datasets: list[ImuData]) -> dict[str, str]:
     return out
 
 
-def _iterate(artefact: ModelArtefact, datasets: list[ImuData], targets: dict[str, str], max_iterations: int):
+def _iterate(artefact: ModelArtefact, datasets: list[ImuData], targets: dict[str, str], max_iterations: int,
+             progress: bool):
     """Select, grow, add, rerun; returns (artefact, residuals, iterations, first ranking, plot data, notes)."""
+    from tqdm import tqdm
     r = residuals(artefact, datasets, targets)
     current, iterations, first, plot_data, notes = artefact, [], None, None, []
     rate, units = _rate(datasets), _aux_units(datasets)
     rejected: set[tuple[str, str]] = set()
-    for _ in range(max_iterations):
+    for k in range(max_iterations):
         candidates = [c for c in build_candidates(r.signals, list(targets)) if (c.target, c.name) not in rejected]
         base = {t: offset_fit(t, r) for t in targets}
         fits = [f for f in (fit_candidates((c,), r, base[c.target], base[c.target], len(candidates))
-                            for c in candidates) if f is not None]
+                            for c in tqdm(candidates, desc=f"diagnose: candidates, iteration {k + 1}",
+                                          unit="family", disable=not progress, leave=False)) if f is not None]
         fits.sort(key=lambda f: -f.explained_fraction)
         first = fits if first is None else first
         best, why = _select(fits, r, current)
@@ -331,7 +334,7 @@ def _iterate(artefact: ModelArtefact, datasets: list[ImuData], targets: dict[str
 
 
 def diagnose(paths: list[Path], model_path: Path, out_dir: Path, seed: int = 0,
-             max_iterations: int = MAX_ITERATIONS, plots: bool = True) -> dict:
+             max_iterations: int = MAX_ITERATIONS, plots: bool = True, progress: bool = True) -> dict:
     """Diagnose recordings `paths` with the artefact `model_path`; write out_dir/diagnosis.json,
     out_dir/model.json (the artefact carrying the effects found) and out_dir/report.md (+ PNG plots).
 
@@ -348,7 +351,7 @@ def diagnose(paths: list[Path], model_path: Path, out_dir: Path, seed: int = 0,
         targets.update(_targets(d))
     r0 = residuals(artefact, datasets, targets)
     start = {t: metric(r0, t) for t in targets}
-    current, r, iterations, first_fits, plot_data, why = _iterate(artefact, datasets, targets, max_iterations)
+    current, r, iterations, first_fits, plot_data, why = _iterate(artefact, datasets, targets, max_iterations, progress)
     first = iterations[0] if iterations else None
     target = first["target"] if first else (first_fits[0].target if first_fits else next(iter(targets)))
     before, after = start[target], metric(r, target)

@@ -55,7 +55,22 @@ def _reading(candidate, coef: np.ndarray, rate_hz: float, aux_units: dict[str, s
     if name.startswith("aux_") and k.shape[1] == 1:
         aux_unit = aux_units.get(name) or "unit"
         return f"{_vector(k[:, 0] * scale)} {unit} per {aux_unit} of {name}"
-    return None
+    return _largest(candidate, coef, unit, scale)
+
+
+def _largest(candidate, coef: np.ndarray, unit: str, scale: float) -> str | None:
+    """The largest coefficient of a free family of a triad, in the target's display unit per
+    regressor unit: '0.003 m/s² per (m/s²)² on acc_x × acc_x*acc_y'."""
+    units = {"gyr": "rad/s", "acc": "m/s²", "mag": "µT"}
+    j = int(np.argmax(np.abs(coef)))
+    (c, a, b, _), = candidate.columns[j]
+    source = units.get(a.removeprefix("abs_").removeprefix("d_").split("_")[0])
+    if source is None:
+        return None
+    power = "" if b is None else "²"
+    label = a if b is None else f"{a}*{b}"
+    return (f"largest coefficient {coef[j] * scale:.3g} {unit} per ({source}){power} "
+            f"on {candidate.triad}_{'xyz'[c]} × {label}")
 
 
 def readings(fit: Fit, rate_hz: float, aux_units: dict[str, str] | None = None,

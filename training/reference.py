@@ -71,12 +71,14 @@ def matched_raw(data: ImuData, triad: str) -> np.ndarray:
     filtered pair holds for the raw signal). Regressing the raw rate on the smoothed reference would
     shrink the gains (BROAD: 0.95 instead of 1). The field reference is not filtered; neither is the
     raw field. Specific force: returned unfiltered (its kinematic part is smoothed over
-    ACCEL_WINDOW_S, gravity is not)."""
+    ACCEL_WINDOW_S, gravity is not). The gyro is integrated with the trapezoidal rule, which puts
+    the rate at the sample times (the rectangle rule Σ ω_k·Δt_k would advance it by ½ sample);
+    an interval touching a non-finite sample adds nothing, and the angle stays NaN at such samples."""
     raw = np.asarray(getattr(data, triad), dtype=np.float64)
     if triad != "gyr":
         return raw
-    dt = np.diff(data.t, prepend=data.t[0])
-    angle = np.cumsum(np.nan_to_num(raw) * dt[:, None], axis=0)
+    inc = 0.5 * (raw[1:] + raw[:-1]) * np.diff(data.t)[:, None]
+    angle = np.cumsum(np.concatenate([np.zeros_like(raw[:1]), np.where(np.isfinite(inc), inc, 0.0)]), axis=0)
     angle[~np.all(np.isfinite(raw), axis=1)] = np.nan
     return _derivative(angle, data.t, RATE_WINDOW_S, 1)
 
