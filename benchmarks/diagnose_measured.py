@@ -55,6 +55,37 @@ def _identity_pan(data_dir: Path, out: Path) -> Path:
     return model.save(out / "trained" / "model.json")
 
 
+def _transfer(data_dir: Path, out: Path) -> Path:
+    """OUT/broad/transfer.md: every undisturbed BROAD trial's held-out-agnostic error (all rows)
+    of each triad against its derived reference, with the trained and with the diagnosed model —
+    whether the terms added on trials 02 and 11 (mounting B) carry over to the other trials and to
+    mounting A."""
+    from training.artefact import load_artefact
+    from training.diagnose import load_recordings, residuals, targets_of
+    models = {k: load_artefact(out / "broad" / p) for k, p in (("trained", "trained/model.json"),
+                                                                ("diagnosed", "model.json"))}
+    lines = ["# BROAD: do the diagnosed terms carry over to other trials?", "",
+             "Regenerate: `python benchmarks/diagnose_measured.py --only broad`. RMS over all rows of each "
+             "undisturbed trial against the references derived from the optical system (training.reference); "
+             "diagnosed on 02 and 11 (mounting B).", "",
+             "| trial | specific force, trained → diagnosed [m/s²] | field, trained → diagnosed [µT] |", "|---|---|---|"]
+    for path in sorted((data_dir / "broad").glob("*_undisturbed_*.csv.gz")):
+        datasets, _ = load_recordings([path])
+        targets = targets_of(datasets[0])
+        rms = {k: {t: _rms(residuals(m, datasets, targets).residual[t]) for t in ("acc", "mag")}
+               for k, m in models.items()}
+        lines.append(f"| {path.name.removesuffix('.csv.gz')} | " + " | ".join(
+            f"{rms['trained'][t]:.3f} → {rms['diagnosed'][t]:.3f}" for t in ("acc", "mag")) + " |")
+    path = out / "broad" / "transfer.md"
+    path.write_text("\n".join(lines) + "\n", encoding="utf-8")
+    return path
+
+
+def _rms(e: np.ndarray) -> float:
+    e = e[np.all(np.isfinite(e), axis=1)]
+    return float(np.sqrt(np.mean(e * e)))
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--data", type=Path, default=ROOT.parent / "shared" / "data")
@@ -73,6 +104,8 @@ def main(argv=None) -> int:
         r = diagnose(paths, model, out, seed=0)
         rows.append((name, r["target"], r["selected"]["name"] if r["selected"] else "-",
                      r["metric"], r["before"], r["after"], r["improvement_pct"]))
+        if name == "broad":
+            print(f"wrote {_transfer(args.data, args.out)}")
     print(f"{'data':12s} {'target':8s} {'selected':28s} {'before':>10s} {'after':>10s} {'gain %':>7s}  metric")
     for name, target, sel, metric, before, after, pct in rows:
         print(f"{name:12s} {target:8s} {sel:28s} {before:10.4g} {after:10.4g} {pct:7.1f}  {metric}")

@@ -66,7 +66,7 @@ _METRIC_NAMES = {"gyr": "rate error RMS", "acc": "specific-force error RMS", "ma
 _AUX_SLOTS = [n for n in INPUTS if n.startswith("aux_")]
 
 
-def _targets(data: ImuData) -> dict[str, str]:
+def targets_of(data: ImuData) -> dict[str, str]:
     """target -> kind ('triad' or 'norm') for the residuals this recording supports."""
     out = {}
     for triad in TRIAD_ORDER:
@@ -348,7 +348,7 @@ def diagnose(paths: list[Path], model_path: Path, out_dir: Path, seed: int = 0,
     datasets, notes = load_recordings([Path(p) for p in paths])
     targets = {}
     for d in datasets:
-        targets.update(_targets(d))
+        targets.update(targets_of(d))
     r0 = residuals(artefact, datasets, targets)
     start = {t: metric(r0, t) for t in targets}
     current, r, iterations, first_fits, plot_data, why = _iterate(artefact, datasets, targets, max_iterations, progress)
@@ -370,7 +370,8 @@ def diagnose(paths: list[Path], model_path: Path, out_dir: Path, seed: int = 0,
         "alpha_bonferroni": ALPHA, "min_explained": MIN_EXPLAINED,
         "regression_rate_hz": REGRESSION_RATE_HZ,
         "thermal_refitted": "no (each effect's offset is a constant correction term of its triad)",
-        "test": f"one-sided batch-means test of held-out predictive accuracy over {BLOCKS} held-out blocks per recording",
+        "test": (f"one-sided t test of held-out predictive accuracy: ln(SSE_base/SSE_candidate) over the {BLOCKS} "
+                 "held-out blocks of each recording"),
         "model_in": str(model_path), "seed": seed, "notes": notes + why,
         "conclusion": ("nothing significant left" if not iterations else
                        f"added: {', '.join(s['selected']['name'] + ' -> ' + s['target'] for s in iterations)}"),

@@ -67,6 +67,8 @@ def _largest(candidate, coef: np.ndarray, unit: str, scale: float) -> str | None
     source = units.get(a.removeprefix("abs_").removeprefix("d_").split("_")[0])
     if source is None:
         return None
+    if a.startswith("d_"):
+        source = f"{source}/s"
     power = "" if b is None else "²"
     label = a if b is None else f"{a}*{b}"
     return (f"largest coefficient {coef[j] * scale:.3g} {unit} per ({source}){power} "
