@@ -172,7 +172,9 @@ def aux_field(data: ImuData, rng: np.random.Generator | None = None, max_current
     body axes [µT/A]. Default |c| ≈ 4.2 µT at 10 A (a 10 A lead ~0.5 m away gives
     μ0·I/(2πr) = 4 µT): ≈ 1.1 µT RMS against 0.1 µT."""
     current = switching_waveform(data.t, _rng(rng), max_current_a)
-    return _add(data, "mag", current[:, None] * np.asarray(c_ut_per_a), aux_motor_current=current)
+    out = _add(data, "mag", current[:, None] * np.asarray(c_ut_per_a), aux_motor_current=current)
+    aux_meta = {**data.meta.get("aux", {}), "aux_motor_current": {"unit": "A", "meaning": "motor current"}}
+    return replace(out, meta={**data.meta, "aux": aux_meta})
 
 
 def lever_arm(data: ImuData, rng: np.random.Generator | None = None,

@@ -9,6 +9,7 @@ fmpy. The no-effect case reports nothing.
 """
 from __future__ import annotations
 
+import zipfile
 from dataclasses import replace
 from pathlib import Path
 
@@ -39,8 +40,10 @@ FMU_AGREEMENT_PCT = 1.0
 #: One simulated hour at rest at 10 Hz through the FMU (fmpy): 36 000 steps.
 STATIC_HOUR_S, STATIC_RATE_HZ = 3600.0, 10.0
 #: Per-sample white noise of diag_base (benchmarks/effect_sizes.py measures it): gyro 0.03 °/s,
-#: accelerometer 0.0098 m/s², magnetometer 0.1 µT, per output component in SI units.
-NOISE = np.repeat([np.deg2rad(0.03), 0.0098, 0.1], 3)
+#: accelerometer 0.0098 m/s², magnetometer 0.1 µT, per output component in SI units; for roll,
+#: pitch and yaw the angle that noise makes in one sample: 0.0098 / 9.81 rad (accelerometer) and
+#: 0.1 / 25 µT rad (the field's horizontal part at 60° dip), the smaller of the two, 1e-3 rad.
+NOISE = np.concatenate([np.repeat([np.deg2rad(0.03), 0.0098, 0.1], 3), np.full(3, 1e-3)])
 _TRIAD_OUTPUTS = {"gyr": ("rate", "ref_gyr", np.rad2deg(1.0)), "acc": ("accel", "ref_acc", 1.0),
                   "mag": ("field", "ref_mag", 1.0)}
 
@@ -133,12 +136,14 @@ def test_time_is_found_and_bounded(time_drift):
 
 
 def _static_hour(fmu: Path) -> np.ndarray:
-    """(N, 9) rate, specific-force and field outputs of one simulated hour at rest, 10 Hz, 25 °C."""
+    """(N, 12) rate, specific-force, field and roll/pitch/yaw outputs of one simulated hour at rest,
+    10 Hz, 25 °C."""
     t = np.arange(0.0, STATIC_HOUR_S, 1.0 / STATIC_RATE_HZ)
     sample = dict(zip(INPUTS, [0.0] * len(INPUTS)))
     sample.update(acc_z=-9.80665, mag_x=20.0, mag_z=40.0, temp=25.0)
     out = run_fmu(fmu, t, np.tile([sample[n] for n in INPUTS], (t.size, 1)))
-    return out[:, [OUTPUTS.index(f"{k}_{a}") for k in ("rate", "accel", "field") for a in "xyz"]]
+    names = [f"{k}_{a}" for k in ("rate", "accel", "field") for a in "xyz"] + ["roll", "pitch", "yaw"]
+    return out[:, [OUTPUTS.index(n) for n in names]]
 
 
 def test_diagnosed_fmus_do_not_drift_at_rest(fmus, time_drift):
@@ -151,6 +156,16 @@ def test_diagnosed_fmus_do_not_drift_at_rest(fmus, time_drift):
         out = _static_hour(fmu)
         drift = np.abs(out[-minute:].mean(axis=0) - out[5 * minute:6 * minute].mean(axis=0))
         assert np.all(drift <= NOISE), f"{name}: drift {drift} > {NOISE}"
+
+
+def test_aux_input_is_described_from_the_sidecar(diagnosed, fmus):
+    """The motor current's column, unit and meaning (the sidecar's "aux" entry) reach the FMU's
+    model description, and the reading is per ampere."""
+    result, _, _ = diagnosed["aux_field"]
+    assert any("per A of aux_motor_current" in x for x in result["selected"]["readings"])
+    with zipfile.ZipFile(fmus["aux_field"]) as z:
+        xml = z.read("modelDescription.xml").decode()
+    assert "recording column aux_motor_current [A] (motor current)" in xml
 
 
 def test_no_missing_effect_reports_nothing(diagnosed):

@@ -99,6 +99,9 @@ def test_changes_only_its_target(data, name):
             assert np.all(np.isfinite(b)) and not np.array_equal(a, b)
         elif isinstance(a, np.ndarray):
             assert np.array_equal(a, b), f.name
+        elif f.name == "meta":   # only the effect's aux columns may be described
+            assert {k: v for k, v in b.items() if k != "aux"} == {k: v for k, v in a.items() if k != "aux"}
+            assert set(b.get("aux", {})) <= set(a.get("aux", {})) | set(effect.aux)
         elif f.name != "aux":
             assert a == b, f.name
     after = snapshot(data)

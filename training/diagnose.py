@@ -282,13 +282,16 @@ def load_recordings(paths: list[Path]) -> tuple[list[ImuData], list[str]]:
     return datasets, notes
 
 
-def _aux_units(datasets: list[ImuData]) -> dict[str, str]:
-    """Units of aux columns from the sidecars' optional {"aux": {column: {"unit": ...}}}."""
-    out = {}
+def _aux_info(datasets: list[ImuData]) -> dict[str, dict]:
+    """Unit and meaning of aux columns from the sidecars' optional
+    {"aux": {column: {"unit": "A", "meaning": "motor current"}}} (text entries only)."""
+    out: dict[str, dict] = {}
     for d in datasets:
-        for column, info in (d.meta.get("aux") or {}).items():
-            if isinstance(info, dict) and isinstance(info.get("unit"), str):
-                out[column] = info["unit"]
+        aux = d.meta.get("aux")
+        for column, info in (aux.items() if isinstance(aux, dict) else ()):
+            if isinstance(info, dict):
+                out.setdefault(column, {}).update({k: v for k, v in info.items()
+                                                   if k in ("unit", "meaning") and isinstance(v, str)})
     return out
 
 
@@ -298,7 +301,8 @@ def _iterate(artefact: ModelArtefact, datasets: list[ImuData], targets: dict[str
     from tqdm import tqdm
     r = residuals(artefact, datasets, targets)
     current, iterations, first, plot_data, notes = artefact, [], None, None, []
-    rate, units = _rate(datasets), _aux_units(datasets)
+    rate, info = _rate(datasets), _aux_info(datasets)
+    units = {k: v["unit"] for k, v in info.items() if "unit" in v}
     rejected: set[tuple[str, str]] = set()
     for k in range(max_iterations):
         candidates = [c for c in build_candidates(r.signals, list(targets)) if (c.target, c.name) not in rejected]
@@ -313,7 +317,7 @@ def _iterate(artefact: ModelArtefact, datasets: list[ImuData], targets: dict[str
         if best is None:
             break
         effect = _grow(best, candidates, r, base[best.target], current)
-        new = refine_lag(add_effect(current, effect, r, _label(effect), units), current, effect, datasets)
+        new = refine_lag(add_effect(current, effect, r, _label(effect), info), current, effect, datasets)
         r_new = residuals(new, datasets, targets)
         if not metric(r_new, effect.target) < metric(r, effect.target):
             notes.append(f"'{_label(effect)}' on {effect.target} explained {effect.explained_fraction:.1%} in the fit "

@@ -31,14 +31,15 @@ def aux_slots_needed(fit_or_candidates, artefact: ModelArtefact) -> list[str]:
     return sorted({s for c in cands for s in c.signals() if s.startswith("aux_") and s not in mapped})
 
 
-def _aux_inputs(artefact: ModelArtefact, columns: list[str], units: dict[str, str]) -> list[dict]:
-    """The artefact's aux input map with `columns` appended (ValueError when the slots run out)."""
+def _aux_inputs(artefact: ModelArtefact, columns: list[str], aux_info: dict[str, dict]) -> list[dict]:
+    """The artefact's aux input map with `columns` appended, unit and meaning from the sidecars'
+    optional "aux" entries (ValueError when the slots run out)."""
     out = [dict(a) for a in artefact.aux_inputs]
     for column in columns:
         if len(out) == len(AUX_SLOTS):
             raise ValueError(f"no free auxiliary input for {column} (the FMU has {len(AUX_SLOTS)})")
-        out.append({"column": column, "unit": units.get(column, ""),
-                    "meaning": f"recording column {column}, used by a diagnosed correction term"})
+        info = aux_info.get(column, {})
+        out.append({"column": column, "unit": info.get("unit", ""), "meaning": info.get("meaning", "")})
     return out
 
 
@@ -94,11 +95,11 @@ def _offset_terms(terms: list[dict], triad: str, offset: np.ndarray, name: str) 
 
 
 def add_effect(artefact: ModelArtefact, fit: Fit, r: Residuals, label: str,
-               aux_units: dict[str, str] | None = None) -> ModelArtefact:
+               aux_info: dict[str, dict] | None = None) -> ModelArtefact:
     """A new artefact carrying the fit: terms (bounded), offset, lag setting, aux inputs, notes."""
     triad = fit.target.split("_")[0]
     name = f"diagnose: {label} -> {fit.target}"
-    aux_inputs = _aux_inputs(artefact, aux_slots_needed(fit, artefact), aux_units or {})
+    aux_inputs = _aux_inputs(artefact, aux_slots_needed(fit, artefact), aux_info or {})
     new = [{"name": name, "target": target, "a": _slot(a, aux_inputs), "b": _slot(b, aux_inputs),
             "coefficient": value, **dict(zip(("lo", "hi"), _range(r, a, b)))}
            for (target, a, b), value in effect_terms(fit, r).items()]
