@@ -14,15 +14,33 @@
  *    decomposed into ZYX angles. Each angle's mean-square error grows,
  *    P_i += gyro_noise^2 dt + (gyro_bias_residual dt)^2 (white-noise random walk plus the drift
  *    of the residual bias over the step; a step without any finite rate adds the random walk of
- *    untracked motion instead of propagating).
+ *    untracked motion instead of propagating) + the integration-error bound of the step
+ *    (ImuAttitudeStepError: a rate jump |dw| may lie anywhere within the step, |dw| dt / 2; a
+ *    step that lost samples adds the untracked motion over the missing time, 1 rad/s x time).
  * 2. Acc/mag set: roll = atan2(-f_y, -f_z), pitch = atan2(f_x, |f_yz|); yaw = atan2(-m_y', m_x')
  *    of the field m' de-tilted into the level frame.
  * 3. Per angle: innovation e_i = wrap(acc/mag angle - gyro angle); R_i = moving mean of e_i^2
  *    (time constant mse_time_constant) floored by angle_noise^2, plus a term for the current
- *    departure of |f| from g (or |m| from field_norm); K_i = P_i / (P_i + R_i); fused angle =
+ *    departure of |f| from g (or |m| from field_norm) and, for yaw, tan^2(dip) times the variance
+ *    of the tilt it was de-tilted with; K_i = P_i / (P_i + R_i); fused angle =
  *    wrap(gyro angle + K_i e_i); P_i <- (1 - K_i) P_i. R is rebuilt from the fused angles.
  * Roll/pitch are set directly from the first finite accelerometer sample and yaw from the first
  * finite magnetometer sample (P_i = angle_noise^2 from the start).
+ *
+ * Changes from the published adaptive-gain method (issue 15), so that a transient is recovered
+ * from within seconds. In the method P grows only by the gyro noise while R tracks the mean
+ * innovation^2, so after one glitch of the gyro set (a rate spike, samples lost, a clock jump) its
+ * own error enters R as if it were acc/mag noise: the gain falls to ~1e-4 and the error stays for
+ * minutes (eval_handheld: 19 deg after one 2000 deg/s sample, 100 deg after five, still 11 deg /
+ * 93 deg three minutes later). Here (a) P also grows by the step's integration-error bound above,
+ * so the filter knows when its gyro set may be wrong before that error reaches R (zero for smooth
+ * motion up to the rate changes the gyro actually measured, which also makes the clean run
+ * slightly more accurate: eval_handheld 1.25 -> 1.05 deg); (b) the yaw measurement carries the
+ * variance of the tilt it is de-tilted with, so a wrong tilt does not pull yaw; (c) when the
+ * summed bounds of the recent steps (decaying with mse_time_constant) exceed
+ * IMU_ATTITUDE_RESTART_VARIANCE, the angles restart from the acc/mag set as at power-on (the
+ * gyro set may then be off by more than the correction removes in the averaging time). Recovery:
+ * within 10 s after the glitch the error is back within 2x the clean run's (tests/test_attitude_recovery.py).
  *
  * Quaternion mode, q = Rz(heading offset) (x) qAcc (x) qGyr:
  * 1. qGyr <- qGyr (x) exp(w dt / 2) with the trapezoidal rate (strapdown into a frame that is
@@ -38,6 +56,12 @@
  *    decays IMU_ATTITUDE_MAG_RECOVERY times faster while the field is clean, so a persistent new
  *    field is accepted again); an accepted one moves the offset with gain 1 - exp(-dt/tau_mag)
  *    (1/n over the first n samples, so the start averages instead of trusting one sample).
+ * 4. Restart (issue 15): when the summed integration-error bounds of the recent steps
+ *    (ImuAttitudeStepError, decaying with tau_acc) exceed IMU_ATTITUDE_RESTART_VARIANCE (a rate
+ *    spike, lost samples, a clock jump), the strapdown frame may have turned by more than 10 deg
+ *    and the corrections restart as at power-on: the low-passed f from the current sample, the
+ *    heading averaging 1/n again, no field rejected. Without it the heading recovered only with
+ *    tau_mag (five 2000 deg/s samples: still 14 deg after 10-20 s).
  *
  * A non-finite rate is left out of the propagation (the other one is held alone; neither finite:
  * no propagation) and a non-finite acc/mag sample skips its correction, so the state stays finite.
@@ -62,7 +86,8 @@
 /*
  * Angle random walk [rad/sqrt(s)] of motion that no gyro sample tracked (both rates of a step
  * non-finite): handheld motion turns by about 1 rad within 1 s, so after such a gap P_i is of the
- * order of the possible rotation and the next acc/mag fix is trusted accordingly.
+ * order of the possible rotation and the next acc/mag fix is trusted accordingly. The same number
+ * as a rate [rad/s] bounds the rotation over the time of lost samples (ImuAttitudeStepError).
  */
 #define IMU_ATTITUDE_UNTRACKED_MOTION 1.0
 /*
@@ -77,6 +102,15 @@
 #define IMU_ATTITUDE_MAG_DIP_TOLERANCE 0.1745329252
 /* Rejection time decays this many times faster than it grows while the field is clean. */
 #define IMU_ATTITUDE_MAG_RECOVERY 2.0
+/* A step longer than this many previous steps has missed samples (a dropped sample doubles the
+ * step; clock jitter of recordings stays far below it). */
+#define IMU_ATTITUDE_MISSING_STEPS 1.5
+/* Both modes: restart the corrections once the recent steps may have turned the gyro set or the
+ * strapdown frame by more than 10 deg (variance (10 deg)^2): more than a few time constants of the
+ * correction take to remove, while a single dropped sample at 100 Hz (1e-4 rad^2) stays far below. */
+#define IMU_ATTITUDE_RESTART_VARIANCE 0.0304617420
+/* cos^2 of 80 deg: caps the tan^2(dip) by which a tilt error enters the yaw measurement. */
+#define IMU_ATTITUDE_COS2_DIP_MIN 0.0301536896
 
 /** @brief Set the settings and reset the state (level, yaw 0, nothing initialised). */
 void ImuAttitudeInitialise(ImuAttitude *a, const ImuAttitudeSettings *s)
@@ -97,6 +131,7 @@ void ImuAttitudeReset(ImuAttitude *a)
         a->gain[i] = 0.0;
         a->previousRate[i] = 0.0;
     }
+    a->previousStep = 0.0;
     ImuMatrixFromEuler(0.0, 0.0, 0.0, a->rotation);
     a->tiltInitialised = 0;
     a->yawInitialised = 0;
@@ -113,6 +148,7 @@ void ImuAttitudeReset(ImuAttitude *a)
     a->headingOffset = 0.0;
     a->magRejected = 0.0;
     a->magSamples = 0.0;
+    a->stepError = 0.0;
 }
 
 /**
@@ -133,11 +169,40 @@ static int ImuAttitudeStepRate(const ImuAttitude *a, const double gyr[3], double
     return previous || current;
 }
 
+/**
+ * @brief Mean-square angle error [rad^2] of integrating one step with the trapezoidal rule beyond
+ *        the white noise: the rate change within the step and the samples missing from it.
+ *
+ * The trapezoidal rule assumes the rate varies linearly between two samples. A rate that changed
+ * by dw may have changed anywhere within the step, an angle error of up to |dw| dt / 2 (negligible
+ * for smooth motion: at 100 Hz a change of 1 rad/s per sample costs 5 mrad; a 35 rad/s spike
+ * 0.17 rad). A step longer than IMU_ATTITUDE_MISSING_STEPS previous steps has lost samples: the
+ * motion over the excess time x was not measured; handheld motion turns by about
+ * IMU_ATTITUDE_UNTRACKED_MOTION rad/s, an error of up to that rate times x (a dropped sample at
+ * 100 Hz: 0.01 rad; 1 s lost: 1 rad).
+ */
+static double ImuAttitudeStepError(const ImuAttitude *a, const double gyr[3], double dt)
+{
+    double variance = 0.0, change;
+    int i;
+    if (ImuAllFinite(a->previousRate, 3) && ImuAllFinite(gyr, 3)) {
+        for (i = 0; i < 3; i++) {
+            change = 0.5 * (gyr[i] - a->previousRate[i]) * dt;
+            variance += change * change;
+        }
+    }
+    if (a->previousStep > 0.0 && dt > IMU_ATTITUDE_MISSING_STEPS * a->previousStep) {
+        change = IMU_ATTITUDE_UNTRACKED_MOTION * (dt - a->previousStep);
+        variance += change * change;
+    }
+    return variance;
+}
+
 /** @brief Gyro Euler set: propagate R with the rate gyr [rad/s] over dt [s] and grow P_i. */
 static void ImuAttitudePredict(ImuAttitude *a, const double gyr[3], double dt)
 {
     const ImuAttitudeSettings *s = &a->settings;
-    double rate[3], growth;
+    double rate[3], growth, stepError;
     int i;
     if (!(dt > 0.0)) {
         return;
@@ -146,9 +211,18 @@ static void ImuAttitudePredict(ImuAttitude *a, const double gyr[3], double dt)
     if (ImuAttitudeStepRate(a, gyr, rate)) {
         ImuMatrixPropagate(a->rotation, rate, dt);
         ImuMatrixToEuler(a->rotation, a->euler);
+        stepError = ImuAttitudeStepError(a, gyr, dt);
+        growth += stepError;
+        a->stepError = a->stepError * exp(-dt / s->mseTimeConstant) + stepError;
+        if (a->stepError > IMU_ATTITUDE_RESTART_VARIANCE) { /* restart as at power-on */
+            a->stepError = 0.0;
+            a->tiltInitialised = 0;
+            a->yawInitialised = 0;
+        }
     } else {
         growth += IMU_ATTITUDE_UNTRACKED_MOTION * IMU_ATTITUDE_UNTRACKED_MOTION * dt;
     }
+    a->previousStep = dt;
     for (i = 0; i < 3; i++) {
         a->variance[i] += growth;
     }
@@ -194,10 +268,15 @@ static void ImuAttitudeCorrectTilt(ImuAttitude *a, const double acc[3], double a
  * @brief Yaw from a finite field mag [uT] de-tilted with roll/pitch tilt[2] [rad]: initialise
  *        or correct.
  */
-static void ImuAttitudeCorrectYaw(ImuAttitude *a, const double mag[3], const double tilt[2], double alpha)
+static void ImuAttitudeCorrectYaw(ImuAttitude *a, const double mag[3], const double tilt[2], double tiltVariance,
+                                  double alpha)
 {
     const double fieldNorm = a->settings.fieldNorm;
     const double departure = (ImuVectorNorm(mag) - fieldNorm) / fieldNorm;
+    const double sinDip = sin(a->settings.fieldDip), cosDip = cos(a->settings.fieldDip);
+    /* A tilt error d turns the de-tilted horizontal field by up to d tan(dip): the yaw measurement
+     * inherits the variance of the tilt it was de-tilted with (tan^2 capped at dip 80 deg). */
+    const double tiltTerm = tiltVariance * sinDip * sinDip / fmax(cosDip * cosDip, IMU_ATTITUDE_COS2_DIP_MIN);
     double level[9], m[3], yaw;
     ImuMatrixFromEuler(tilt[0], tilt[1], 0.0, level); /* Ry(pitch) Rx(roll): body -> level */
     ImuMatrixVector(level, mag, m);
@@ -207,7 +286,7 @@ static void ImuAttitudeCorrectYaw(ImuAttitude *a, const double mag[3], const dou
         a->yawInitialised = 1;
         return;
     }
-    ImuAttitudeCorrect(a, 2, yaw, IMU_ATTITUDE_MAG_DEPARTURE_VARIANCE * departure * departure, alpha);
+    ImuAttitudeCorrect(a, 2, yaw, IMU_ATTITUDE_MAG_DEPARTURE_VARIANCE * departure * departure + tiltTerm, alpha);
 }
 
 /** @brief Euler mode: one sample of corrected gyr [rad/s], acc [m/s^2], mag [uT]; dt [s]. */
@@ -215,28 +294,49 @@ static void ImuAttitudeUpdateEuler(ImuAttitude *a, const double gyr[3], const do
                                    double dt)
 {
     const double alpha = dt > 0.0 ? 1.0 - exp(-dt / a->settings.mseTimeConstant) : 0.0;
-    const int tiltWasInitialised = a->tiltInitialised;
-    double predictedTilt[2];
-    ImuAttitudePredict(a, gyr, dt);
+    int tiltWasInitialised;
+    double predictedTilt[2], predictedTiltVariance;
+    ImuAttitudePredict(a, gyr, dt); /* may restart: clears tiltInitialised */
+    tiltWasInitialised = a->tiltInitialised;
     predictedTilt[0] = a->euler[0];
     predictedTilt[1] = a->euler[1];
+    predictedTiltVariance = a->variance[0] + a->variance[1];
     if (ImuAllFinite(acc, 3)) {
         ImuAttitudeCorrectTilt(a, acc, alpha);
     }
     if (ImuAllFinite(mag, 3)) {
         /* De-tilt with the gyro-predicted roll/pitch: unlike the accelerometer angles they are
          * not disturbed by linear acceleration. Before the first tilt fix, use the fresh one. */
-        ImuAttitudeCorrectYaw(a, mag, tiltWasInitialised ? predictedTilt : a->euler, alpha);
+        ImuAttitudeCorrectYaw(a, mag, tiltWasInitialised ? predictedTilt : a->euler, predictedTiltVariance, alpha);
     }
     ImuMatrixFromEuler(a->euler[0], a->euler[1], a->euler[2], a->rotation);
 }
 
-/** @brief Quaternion mode: strapdown qGyr with the rate gyr [rad/s] over dt [s]. */
+/**
+ * @brief Quaternion mode: strapdown qGyr with the rate gyr [rad/s] over dt [s]. When the summed
+ *        integration-error bounds of the recent steps (ImuAttitudeStepError, decaying with tau_acc)
+ *        exceed IMU_ATTITUDE_RESTART_VARIANCE, the corrections restart as at power-on: the
+ *        low-passed f restarts from the current sample and the heading averages 1/n again.
+ */
 static void ImuAttitudeQuaternionPredict(ImuAttitude *a, const double gyr[3], double dt)
 {
     double rate[3];
-    if (dt > 0.0 && ImuAttitudeStepRate(a, gyr, rate)) {
+    if (!(dt > 0.0)) {
+        return;
+    }
+    a->stepError *= exp(-dt / a->settings.tauAcc);
+    if (ImuAttitudeStepRate(a, gyr, rate)) {
         ImuQuaternionIntegrate(a->qGyr, rate, dt);
+        a->stepError += ImuAttitudeStepError(a, gyr, dt);
+    } else {
+        a->stepError += IMU_ATTITUDE_UNTRACKED_MOTION * IMU_ATTITUDE_UNTRACKED_MOTION * dt;
+    }
+    a->previousStep = dt;
+    if (a->stepError > IMU_ATTITUDE_RESTART_VARIANCE) {
+        a->stepError = 0.0;
+        a->tiltInitialised = 0;
+        a->magSamples = 0.0;
+        a->magRejected = 0.0;
     }
 }
 

@@ -55,6 +55,7 @@ typedef struct {
     double mse[3];          /* rad^2, R_i: moving mean-square acc/mag innovation */
     double gain[3];         /* 1, K_i of the last update (0 where no correction was made) */
     double previousRate[3]; /* rad/s, corrected rate of the previous sample (may be NaN) */
+    double previousStep;    /* s, the previous positive time step (0 before the first) */
     int tiltInitialised;    /* roll/pitch were set from the accelerometer */
     int yawInitialised;     /* yaw was set from the magnetometer */
     double bias[3];         /* rad/s, gyro bias estimated at rest */
@@ -65,6 +66,9 @@ typedef struct {
     double headingOffset;   /* rad, quaternion mode: level frame -> magnetic NED about down */
     double magRejected;     /* s, quaternion mode: time the field has been rejected */
     double magSamples;      /* 1, quaternion mode: accepted field samples (start-up averaging) */
+    double stepError;       /* rad^2, summed integration-error bounds of the recent steps, decaying
+                             * with mse_time_constant (Euler) or tau_acc (quaternion); beyond
+                             * IMU_ATTITUDE_RESTART_VARIANCE the corrections restart */
 } ImuAttitude;
 
 /** @brief Set the settings and reset the state (level, yaw 0, nothing initialised). */
