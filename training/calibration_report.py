@@ -64,6 +64,9 @@ def triad_summary(artefact: ModelArtefact, triad: str) -> list[str]:
              f"  cross-axis (xy xz yx yz zx zy): [{', '.join(f'{v:+.3f}' for v in _cross_axis_deg(a))}] °",
              f"  temperature model: degree {model.degree}" + (
                  f", fitted over {model.t0 - model.ts:.1f} … {model.t0 + model.ts:.1f} °C" if model.degree else "")]
+    choice = stats.get("degree_choice") or {}
+    if choice.get("rule"):
+        lines.append(f"  degree choice: {choice['rule']}")
     fit = _fit_line(stats, triad)
     if fit:
         lines.append(f"  {fit} (on the calibration data)")

@@ -10,6 +10,7 @@ from tqdm import tqdm
 
 from .artefact import ModelArtefact
 from .dataset import ImuData
+from .degree import AUTO, ceiling, choose_degree, parse_degree
 from .errors import ModelError
 from .layout import TRIAD_ORDER
 from .recommend import recommended_settings, sidecar_values
@@ -108,7 +109,7 @@ def fit_bias_only(raw: np.ndarray, ref: np.ndarray, temp: np.ndarray, degree: in
 
 
 def _fit_notes(triad: str, fit: ThermalFit, degree: int) -> list[str]:
-    """Warnings about one completed fit."""
+    """Warnings about one completed fit (degree: the degree it was asked for)."""
     notes = []
     if fit.model.degree < degree:
         notes.append(f"{triad}: no finite temperature; fitted degree 0 (constant A, G, B)")
@@ -230,9 +231,11 @@ def gate_outliers(raw: np.ndarray, target: np.ndarray) -> tuple[np.ndarray, int]
     return out, int(bad.sum())
 
 
-def _fit_with_reference(ref: TriadReference, degree: int, seed: int) -> tuple[ThermalModel, dict, list[str]]:
+def _fit_with_reference(ref: TriadReference, degree, seed: int) -> tuple[ThermalModel, dict, list[str]]:
     """Fit one triad against the reference its recordings carry (columns, derived or static):
-    the full gain/bias model when the reference moves along every axis, else the bias B(T) only."""
+    the full gain/bias model when the reference moves along every axis, else the bias B(T) only.
+    degree: 'auto' or the largest degree; the degree fitted is chosen from the data
+    (training.degree.choose_degree) and reported in the stats ('degree_choice') and the notes."""
     triad, datasets = ref.triad, list(ref.datasets)
     temp = np.concatenate([d.temp for d in datasets]).astype(np.float64)
     raw, target = _stack(datasets, triad), _stack(datasets, f"ref_{triad}")
@@ -243,19 +246,24 @@ def _fit_with_reference(ref: TriadReference, degree: int, seed: int) -> tuple[Th
         if dropped:
             notes.append(f"{triad}: {dropped} rows whose derived reference disagrees with the sensor by more "
                          f"than {REFERENCE_OUTLIER_SIGMAS:g} robust σ (optical gaps, marker glitches) left out")
-    reason = _skip_reason(datasets, triad, raw, target, degree)
+    reason = _skip_reason(datasets, triad, raw, target, ceiling(degree))
     if reason:
         return ThermalModel.identity(enabled=False), {}, [f"{reason}; thermal model disabled"]
     excitation = _weakest_excitation(target)
-    if excitation >= MIN_EXCITATION[triad]:
-        fit = GainBiasFitter(degree=degree).fit(raw, target, temp, seed, UNITS[triad])
-        return fit.model, _fit_stats(fit), notes + _fit_notes(triad, fit, degree)
-    if ref.source == "static" and triad != "gyr" and temperature_clusters(temp) < 2:
+    gains = excitation >= MIN_EXCITATION[triad]
+    if not gains and ref.source == "static" and triad != "gyr" and temperature_clusters(temp) < 2:
         return ThermalModel.identity(enabled=False), {}, [
             f"{triad}: a static log at one temperature identifies nothing of the {triad} (its bias and "
             "gains need several poses or a reference); thermal model disabled"]
-    model = fit_bias_only(raw, target, temp, min(degree, max(temperature_clusters(temp) - 1, 0)))
-    stats = {"unit": UNITS[triad], "bias_only": True, "weakest_excitation": excitation}
+    choice = choose_degree(raw, target, temp, degree, gains, UNITS[triad])
+    notes.append(f"{triad}: temperature polynomial {choice.reason}")
+    if gains:
+        fit = GainBiasFitter(degree=choice.degree).fit(raw, target, temp, seed, UNITS[triad])
+        stats = {**_fit_stats(fit), "degree_choice": choice.as_dict()}
+        return fit.model, stats, notes + _fit_notes(triad, fit, choice.degree)
+    model = fit_bias_only(raw, target, temp, choice.degree)
+    stats = {"unit": UNITS[triad], "bias_only": True, "weakest_excitation": excitation,
+             "degree_choice": choice.as_dict()}
     what = ("the temperature drift of the bias only (the absolute bias and the gains are not "
             "identifiable from a static log)") if ref.source == "static" and triad != "gyr" else "the bias B(T) only"
     return model, stats, notes + [f"{triad}: the reference hardly moves (weakest direction {excitation:.3g} "
@@ -290,7 +298,7 @@ def _prepared_datasets(datasets: list[ImuData], refs: dict[str, TriadReference])
     return out
 
 
-def _held_out(datasets: list[ImuData], refs: dict[str, TriadReference], degree: int, seed: int,
+def _held_out(datasets: list[ImuData], refs: dict[str, TriadReference], degree, seed: int,
               selfcal, notes: list[str]) -> dict[str, dict]:
     """Held-out error per triad (training.holdout): the same procedure refitted without the last
     quarter of every recording, scored on it; {} with a note when the recordings are too short."""
@@ -300,7 +308,7 @@ def _held_out(datasets: list[ImuData], refs: dict[str, TriadReference], degree: 
     norm = float(np.mean(norms)) if norms else (selfcal.report.get("mag", {}).get("field_norm_ut") if selfcal else None)
 
     def fit_selfcal(parts):
-        return self_calibrate(parts, field_norm=norm, degree=degree, progress=False).thermal
+        return self_calibrate(parts, field_norm=norm, degree=ceiling(degree), progress=False).thermal
     try:
         with _deterministic(seed):
             return held_out(datasets, refs, lambda r: _fit_with_reference(r, degree, seed)[0], fit_selfcal,
@@ -335,18 +343,25 @@ def _moved(report: dict) -> bool:
             or int(report.get("gyr", {}).get("segments") or 0) >= 1)
 
 
-def train(datasets: list[ImuData], seed: int = 0, degree: int = 2,
+def train(datasets: list[ImuData], seed: int = 0, degree: int | str = AUTO,
           progress: bool = True, allow_identity: bool = False) -> ModelArtefact:
     """Fit the gain/bias temperature model of every triad and return the model artefact.
 
     datasets: calibration recordings. Per triad the best reference any recording offers is used
     (training.reference_source: reference columns, an attitude reference, a static log); a triad
-    without any is self-calibrated from invariants (training.selfcal). degree: largest polynomial
-    degree (0..MAX_DEGREE). Deterministic given `seed`. Raises ModelError when `datasets` is empty,
+    without any is self-calibrated from invariants (training.selfcal). degree: 'auto' (default) or
+    the largest polynomial degree (0..MAX_DEGREE) of G(T) and B(T); the degree fitted per triad is
+    chosen from the data (training.degree: no more than the distinct temperatures pin down, the
+    simplest that holds on held-out data; self-calibrated triads cap it by their rest temperatures).
+    Deterministic given `seed`. Raises ModelError when `datasets` is empty,
     and when no triad can be calibrated unless allow_identity (then an identity model is returned).
     """
     if not datasets:
         raise ModelError("train: no training data given")
+    try:
+        degree = parse_degree(degree)
+    except ValueError as e:
+        raise ModelError(f"train: {e}") from None
     refs = {triad: choose_reference(datasets, triad) for triad in TRIAD_ORDER}
     thermal, stats, notes = {}, {}, []
     with _deterministic(seed):
@@ -355,7 +370,7 @@ def train(datasets: list[ImuData], seed: int = 0, degree: int = 2,
             thermal[triad], stats[triad], fit_notes = _fit_with_reference(refs[triad], degree, seed)
             notes += list(refs[triad].notes) + fit_notes
         blind = [t for t in TRIAD_ORDER if refs[t].source == "none"]
-        selfcal = _self_calibrated(datasets, blind, degree, progress, notes) if blind else None
+        selfcal = _self_calibrated(datasets, blind, ceiling(degree), progress, notes) if blind else None
         for triad in blind:
             thermal[triad], stats[triad] = selfcal.thermal[triad], selfcal.report.get(triad, {})
         for triad in TRIAD_ORDER:
