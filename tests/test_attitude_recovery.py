@@ -4,7 +4,8 @@ On the eval_handheld scenario the gyro or the clock glitches once at 60 s: (a) o
 34.9 rad/s (2000 °/s, a typical MEMS full scale) on one axis, (b) five such samples in a row,
 (c) 1 s of rows dropped (the next sample comes 1 s late and the motion in between was never
 measured), (d) one sample whose time stamp jumps by 1 s while every sample is kept (the rate of
-that sample is integrated over 1 s although the body turned only for one sample interval). Each
+that sample is integrated over 1 s although the body turned only for one sample interval), (e) the
+same with a jump of one hour (a logger paused mid-file). Each
 is run in every attitude mode through the batch runtime, with the identity model on sensors at
 the residual error level of a calibrated MEMS unit (as tests/test_runtime.py's accuracy tests:
 the attitude filter is under test, not the calibration).
@@ -44,7 +45,10 @@ SETTLED_RATIO = 1.5
 #: every setting at its default.
 MODES = {"euler": {"attitude_mode": 0.0, "rest_gyro_threshold": 0.0},
          "quaternion": {"attitude_mode": 1.0}}
-CASES = ("spike", "five_spikes", "rows_dropped", "time_jump")
+CASES = ("spike", "five_spikes", "rows_dropped", "time_jump", "hour_gap")
+#: s, the clock of case (e) jumps by an hour (a logger paused mid-file; issue 15: "a 1-h gap is
+#: reported and the attitude after it is as good as at the start").
+HOUR_S = 3600.0
 
 
 @pytest.fixture(scope="module")
@@ -77,6 +81,8 @@ def glitched(d, case: str):
         keep &= (d.t < GLITCH_S) | (d.t >= GLITCH_S + GAP_S)
     elif case == "time_jump":
         t[k:] += GAP_S           # the clock jumps; the samples and their truth stay the same
+    elif case == "hour_gap":
+        t[k:] += HOUR_S
     elif case != "clean":
         raise ValueError(case)
     return t[keep], x[keep], d.t[keep], keep

@@ -1,7 +1,8 @@
 """`imufmu`: the command-line interface. Each subcommand makes one library call.
 
 Problems the user can fix (bad file, bad option, bad model) print one line `imufmu VERB: error:
-...` and exit with status 1; usage errors exit with status 2 (argparse).
+...` and exit with status 1; usage errors exit with status 2 (argparse). Notes of the loader (gaps
+in time, one line per recording) are printed as the recordings are read, by every verb.
 """
 from __future__ import annotations
 
@@ -31,6 +32,15 @@ def _param(text: str) -> tuple[str, float]:
         raise argparse.ArgumentTypeError(f"expected NAME=NUMBER, got '{text}'") from None
 
 
+def _degree(text: str):
+    """--degree: 'auto' or an integer 0..3 (training.degree.parse_degree)."""
+    from .degree import parse_degree
+    try:
+        return parse_degree(text)
+    except ValueError as e:
+        raise argparse.ArgumentTypeError(str(e)) from None
+
+
 def cmd_simulate(args) -> None:
     """imufmu simulate SCENARIO.toml --out DIR [--seed N]."""
     from .simulator import simulate_to_dir
@@ -39,7 +49,7 @@ def cmd_simulate(args) -> None:
 
 
 def cmd_train(args) -> None:
-    """imufmu train DATA... --out DIR [--seed N] [--degree P] [--allow-identity]."""
+    """imufmu train DATA... --out DIR [--seed N] [--degree auto|P] [--allow-identity]."""
     from .calibration_report import summary_text, write_calibration_report
     from .io import read_imu_csv
     from .train import train
@@ -165,8 +175,12 @@ def build_parser() -> argparse.ArgumentParser:
                    "attitude reference or a static sidecar are used when present, else self-calibration")
     s.add_argument("--out", required=True, help="output folder for model.json and calibration.md")
     s.add_argument("--seed", type=int, default=0)
-    s.add_argument("--degree", type=int, default=2, choices=(0, 1, 2, 3),
-                   help="largest polynomial degree of G(T) and B(T) (lower when the data span fewer temperatures)")
+    s.add_argument("--degree", type=_degree, default="auto", metavar="{auto,0,1,2,3}",
+                   help="temperature polynomial degree of G(T) and B(T). auto (default): chosen per triad from "
+                        "the data — at most (distinct temperatures − 1), of 0..2 the one with the lowest error on the "
+                        "held-out last quarter of every temperature band (ties: the lower); a number is a maximum (the data may force a "
+                        "lower degree; the notes say so). The choice and its reason are in the summary, "
+                        "calibration.md and the model's notes")
     s.add_argument("--allow-identity", action="store_true",
                    help="write the model anyway when nothing can be calibrated (identity) or a log without "
                         "reference shows no motion (gyro bias only), instead of failing")
@@ -215,9 +229,11 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the `imufmu` console script; returns the exit status."""
+    from .io import report_load_notes
     args = build_parser().parse_args(argv)
     try:
-        args.func(args)
+        with report_load_notes(lambda note: print(note, flush=True)):
+            args.func(args)
     except ImuFusionError as e:
         print(f"imufmu {args.verb}: error: {e}", file=sys.stderr)
         return 1

@@ -11,7 +11,10 @@ from __future__ import annotations
 import gzip
 import io
 import json
-from collections.abc import Iterable, Sequence
+from collections.abc import Callable, Iterable, Iterator, Sequence
+from contextlib import contextmanager
+from contextvars import ContextVar
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -35,6 +38,15 @@ MAG_MEDIAN_NORM_MIN_UT = 5.0      # gauss values are 100x smaller (0.25-0.65 G)
 GYR_P99_NORM_MAX_RAD_S = 35.0     # ≈ 2000 °/s, the largest common MEMS range
 ACC_G_UNITS_RANGE = (0.5, 2.0)    # a median norm ≈ 1 means the file holds g, not m/s²
 ACC_MEDIAN_NORM_MAX = 200.0       # ≈ 20 g sustained: mg or raw counts, not m/s²
+
+# Time plausibility: t must be in seconds; gaps are reported, not refused.
+RATE_TOLERANCE = 1.5         # median step of t vs the sidecar's 1/rate_hz: a larger factor either way is refused
+MIN_MEDIAN_STEP_S = 1e-5     # without rate_hz: a smaller median step (faster than a 100 kHz IMU) is refused
+#: A step longer than GAP_STEP_FACTOR × the nominal step (1/rate_hz, else the median step) is a
+#: gap in time. The one definition of the threshold: the loader reports such gaps, and the runtime's
+#: gap handling (re-initialising the attitude across a gap) is to use the same factor.
+GAP_STEP_FACTOR = 5.0
+TIME_UNITS = (("milliseconds", 1e3), ("microseconds", 1e6), ("nanoseconds", 1e9))  # t given in these
 
 
 def recording_stem(path: str | Path) -> str:
@@ -69,7 +81,10 @@ def read_imu_csv(path: str | Path) -> ImuData:
     table = _parse_body(path, body, columns)
     data = _to_imu_data(path, columns, table, meta)
     _check_time(path, data.t)
+    rate_hz = _sidecar_rate(path, meta)
+    _check_time_unit(path, data.t, rate_hz)
     _check_units(path, data)
+    _report_load_note(time_gap_note(path, time_gaps(data.t, rate_hz)))
     return data
 
 
@@ -246,6 +261,111 @@ def _check_time(path: Path, t: np.ndarray) -> None:
         i = int(not_increasing[0]) + 1
         raise DataError(path, f"time is not strictly increasing ({t[i]!r} s after {t[i - 1]!r} s)",
                         row=FIRST_DATA_LINE + i, column="t")
+
+
+def _sidecar_rate(path: Path, meta: dict) -> float | None:
+    """The sidecar's rate_hz [Hz], None when absent; DataError (naming the sidecar) when not a
+    positive finite number."""
+    rate = meta.get("rate_hz")
+    if rate is None:
+        return None
+    if isinstance(rate, bool) or not isinstance(rate, (int, float)) or not np.isfinite(rate) or rate <= 0:
+        raise DataError(sidecar_path(path), f"sidecar 'rate_hz' is {rate!r}, expected a positive number [Hz]")
+    return float(rate)
+
+
+def _num(x: float) -> str:
+    """Short text of a number: 4 significant digits, exponents without '+' or leading zeros."""
+    text = f"{x:.4g}"
+    mantissa, e, exponent = text.partition("e")
+    return mantissa + (f"e{int(exponent)}" if e else "")
+
+
+def _check_time_unit(path: Path, t: np.ndarray, rate_hz: float | None) -> None:
+    """Raise DataError when the median step of t betrays a time not in seconds: against the
+    sidecar's 1/rate_hz (beyond RATE_TOLERANCE either way), else below MIN_MEDIAN_STEP_S."""
+    if t.size < 2:
+        return
+    median = float(np.median(np.diff(t)))
+    if rate_hz is None:
+        if median < MIN_MEDIAN_STEP_S:
+            raise DataError(path, f"t steps by {_num(median)} (median), less than {_num(MIN_MEDIAN_STEP_S)} s "
+                                  f"(a {_num(1e-3 / MIN_MEDIAN_STEP_S)} kHz IMU): t does not look like "
+                                  f"seconds; convert t to seconds (or give rate_hz in the sidecar)",
+                            column="t")
+        return
+    factor = median * rate_hz
+    if 1.0 / RATE_TOLERANCE <= factor <= RATE_TOLERANCE:
+        return
+    said = (f"t steps by {_num(median)} (median) but the sidecar says rate_hz {_num(rate_hz)} "
+            f"(step {_num(1.0 / rate_hz)} s)")
+    for unit, scale in TIME_UNITS:
+        if 1.0 / RATE_TOLERANCE <= factor / scale <= RATE_TOLERANCE:
+            raise DataError(path, f"{said}: t looks like {unit} (factor {_num(factor)}); convert t to seconds",
+                            column="t")
+    raise DataError(path, f"{said}: a factor {_num(factor)} apart (tolerance {_num(RATE_TOLERANCE)}× either "
+                          f"way); give t in seconds and the sidecar's rate_hz in Hz", column="t")
+
+
+@dataclass(frozen=True)
+class TimeGaps:
+    """Steps of t longer than GAP_STEP_FACTOR × the nominal step [s] (1/rate_hz, else the median
+    step): how many, the longest and the time of the sample before it (NaN when there is none)."""
+
+    nominal_step_s: float
+    count: int
+    longest_s: float
+    longest_at_s: float
+
+    @property
+    def threshold_s(self) -> float:
+        """Steps longer than this [s] are gaps."""
+        return GAP_STEP_FACTOR * self.nominal_step_s
+
+
+def time_gaps(t: np.ndarray, rate_hz: float | None = None) -> TimeGaps:
+    """The gaps in the sample times t [s] (strictly increasing); nominal step 1/rate_hz [Hz] when
+    given, else the median step."""
+    steps = np.diff(np.asarray(t, dtype=np.float64))
+    if steps.size == 0:
+        return TimeGaps(np.nan, 0, np.nan, np.nan)
+    nominal = 1.0 / rate_hz if rate_hz else float(np.median(steps))
+    gaps = np.flatnonzero(steps > GAP_STEP_FACTOR * nominal)
+    if gaps.size == 0:
+        return TimeGaps(nominal, 0, np.nan, np.nan)
+    i = int(gaps[np.argmax(steps[gaps])])
+    return TimeGaps(nominal, int(gaps.size), float(steps[i]), float(t[i]))
+
+
+def time_gap_note(path: str | Path, gaps: TimeGaps) -> str | None:
+    """One line reporting the gaps of recording `path`, None when it has none."""
+    if gaps.count == 0:
+        return None
+    return (f"{path}: {gaps.count} gap{'s' if gaps.count > 1 else ''} in time (longest "
+            f"{_num(gaps.longest_s)} s at t = {_num(gaps.longest_at_s)} s; steps > {_num(GAP_STEP_FACTOR)} × "
+            f"the nominal {_num(gaps.nominal_step_s)} s); the attitude filters count the lost time as "
+            "unmeasured motion and restart once it could amount to 10° (README, 'Recovery from transients')")
+
+
+_LOAD_NOTE_SINK: ContextVar[Callable[[str], None] | None] = ContextVar("imu_load_note_sink", default=None)
+
+
+@contextmanager
+def report_load_notes(sink: Callable[[str], None]) -> Iterator[None]:
+    """Within the block, every note of read_imu_csv (gaps in time: one line per file) goes to
+    `sink` (e.g. print, or a list's append); outside any such block the notes are dropped."""
+    token = _LOAD_NOTE_SINK.set(sink)
+    try:
+        yield
+    finally:
+        _LOAD_NOTE_SINK.reset(token)
+
+
+def _report_load_note(note: str | None) -> None:
+    """Pass a load note to the active report_load_notes sink, if any."""
+    sink = _LOAD_NOTE_SINK.get()
+    if note and sink is not None:
+        sink(note)
 
 
 def _finite_norms(xyz: np.ndarray) -> np.ndarray:
