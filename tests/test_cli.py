@@ -7,6 +7,7 @@ from pathlib import Path
 
 import pytest
 
+from cli_errors import fails
 from training.cli import main
 
 HEADER = "t,gyr_x,gyr_y,gyr_z,acc_x,acc_y,acc_z,mag_x,mag_y,mag_z,temp"
@@ -24,36 +25,24 @@ def _row(t: float, mag=(20.0, 0.0, 40.0), gyr=(0.01, 0.0, 0.0)) -> str:
     return ",".join(str(v) for v in (t, *gyr, 0.0, 0.0, -9.81, *mag, 25.0))
 
 
-def _fails(capsys, argv: list[str], *needles: str) -> str:
-    """Run the CLI, assert exit status 1 and a one-line error containing every needle."""
-    code = main(argv)
-    err = capsys.readouterr().err.strip()
-    assert code == 1, err
-    assert len(err.splitlines()) == 1, err
-    assert err.startswith(f"imufmu {argv[0]}: error:"), err
-    for n in needles:
-        assert n in err, err
-    return err
-
-
 def test_simulate_missing_scenario(tmp_path, capsys):
-    _fails(capsys, ["simulate", str(tmp_path / "nope.toml"), "--out", str(tmp_path)], "nope.toml")
+    fails(capsys, ["simulate", str(tmp_path / "nope.toml"), "--out", str(tmp_path)], "nope.toml")
 
 
 def test_simulate_unknown_key(tmp_path, capsys):
     bad = tmp_path / "bad.toml"
     bad.write_text('name = "x"\nbogus_key = 3\n')
-    _fails(capsys, ["simulate", str(bad), "--out", str(tmp_path)], "bad.toml")
+    fails(capsys, ["simulate", str(bad), "--out", str(tmp_path)], "bad.toml")
 
 
 def test_train_missing_column(tmp_path, capsys):
     p = _csv(tmp_path, "nocol.csv", ["0,0,0,0,0,0,-9.81,20,0,40"], header=HEADER.rsplit(",", 1)[0])
-    _fails(capsys, ["train", str(p), "--out", str(tmp_path)], "nocol.csv", "temp")
+    fails(capsys, ["train", str(p), "--out", str(tmp_path)], "nocol.csv", "temp")
 
 
 def test_train_non_increasing_time(tmp_path, capsys):
     p = _csv(tmp_path, "time.csv", [_row(0.0), _row(0.01), _row(0.01)])
-    _fails(capsys, ["train", str(p), "--out", str(tmp_path)], "time.csv", "row 4")
+    fails(capsys, ["train", str(p), "--out", str(tmp_path)], "time.csv", "row 4")
 
 
 def test_run_field_in_nanotesla(tmp_path, capsys):
@@ -61,7 +50,7 @@ def test_run_field_in_nanotesla(tmp_path, capsys):
     p = _csv(tmp_path, "nt.csv", rows)
     fmu = tmp_path / "x.fmu"
     fmu.write_bytes(b"PK")
-    _fails(capsys, ["run", str(fmu), str(p), "--out", str(tmp_path / "o.csv")], "nt.csv", "nT")
+    fails(capsys, ["run", str(fmu), str(p), "--out", str(tmp_path / "o.csv")], "nt.csv", "nT")
 
 
 def test_run_rates_in_degrees(tmp_path, capsys):
@@ -69,29 +58,29 @@ def test_run_rates_in_degrees(tmp_path, capsys):
     p = _csv(tmp_path, "deg.csv", rows)
     fmu = tmp_path / "x.fmu"
     fmu.write_bytes(b"PK")
-    _fails(capsys, ["run", str(fmu), str(p), "--out", str(tmp_path / "o.csv")], "deg.csv", "deg")
+    fails(capsys, ["run", str(fmu), str(p), "--out", str(tmp_path / "o.csv")], "deg.csv", "deg")
 
 
 def test_build_fmu_missing_model(tmp_path, capsys):
-    _fails(capsys, ["build-fmu", "--model", str(tmp_path / "m.json"), "--out", str(tmp_path / "a.fmu")],
+    fails(capsys, ["build-fmu", "--model", str(tmp_path / "m.json"), "--out", str(tmp_path / "a.fmu")],
            "m.json", "not found")
 
 
 def test_build_fmu_model_not_json(tmp_path, capsys):
     m = tmp_path / "model.json"
     m.write_text("{ not json")
-    _fails(capsys, ["build-fmu", "--model", str(m), "--out", str(tmp_path / "a.fmu")], "model.json")
+    fails(capsys, ["build-fmu", "--model", str(m), "--out", str(tmp_path / "a.fmu")], "model.json")
 
 
 def test_validate_not_an_fmu(tmp_path, capsys):
     f = tmp_path / "broken.fmu"
     f.write_text("this is not a zip archive")
-    _fails(capsys, ["validate", str(f)], "broken.fmu")
+    fails(capsys, ["validate", str(f)], "broken.fmu")
 
 
 def test_run_missing_fmu(tmp_path, capsys):
     p = _csv(tmp_path, "ok.csv", [_row(0.0), _row(0.01)])
-    _fails(capsys, ["run", str(tmp_path / "none.fmu"), str(p), "--out", str(tmp_path / "o.csv")],
+    fails(capsys, ["run", str(tmp_path / "none.fmu"), str(p), "--out", str(tmp_path / "o.csv")],
            "none.fmu", "not found")
 
 
@@ -111,12 +100,12 @@ def test_console_script_reports_error_and_status(tmp_path):
 
 def test_diagnose_missing_model(tmp_path, capsys):
     p = _csv(tmp_path, "rec.csv", [_row(0.0), _row(0.01)])
-    _fails(capsys, ["diagnose", str(p), "--model", str(tmp_path / "none.json"), "--out", str(tmp_path / "d")],
+    fails(capsys, ["diagnose", str(p), "--model", str(tmp_path / "none.json"), "--out", str(tmp_path / "d")],
            "none.json", "not found")
 
 
 def test_compare_thermal_missing_data(tmp_path, capsys):
-    _fails(capsys, ["compare-thermal", str(tmp_path / "gone.csv.gz"), "--out", str(tmp_path / "c")],
+    fails(capsys, ["compare-thermal", str(tmp_path / "gone.csv.gz"), "--out", str(tmp_path / "c")],
            "gone.csv.gz", "not found")
 
 

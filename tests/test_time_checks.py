@@ -7,6 +7,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from cli_errors import fails
 from training.cli import main
 from training.dataset import ImuData
 from training.errors import DataError
@@ -41,18 +42,6 @@ def loads_with_notes(path: Path) -> tuple[ImuData, list[str]]:
     with report_load_notes(notes.append):
         data = read_imu_csv(path)
     return data, notes
-
-
-def fails(capsys, argv: list[str], *needles: str) -> str:
-    """Run the CLI: exit status 1 and one line on stderr containing every needle."""
-    code = main(argv)
-    err = capsys.readouterr().err.strip()
-    assert code == 1, err
-    assert len(err.splitlines()) == 1, err
-    assert err.startswith(f"imufmu {argv[0]}: error:"), err
-    for n in needles:
-        assert n in err, err
-    return err
 
 
 def fake_fmu(tmp_path: Path) -> Path:
