@@ -55,7 +55,8 @@ def triad_summary(artefact: ModelArtefact, triad: str) -> list[str]:
     source = stats.get("reference", "none")
     head = f"{NAMES[triad]}: reference: {SOURCE_TEXT.get(source, source)}"
     if not model.enabled:
-        return [head, "  not calibrated (identity): see the notes"]
+        loud = [n.split(": ", 1)[1] for n in artefact.notes if n.startswith(f"{triad}: NOT EXPORTED")]
+        return [head, f"  not calibrated (identity): {loud[0]}" if loud else "  not calibrated (identity): see the notes"]
     unit, factor = DISPLAY[triad]
     a, b = _at_t0(model)
     lines = [head,

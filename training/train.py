@@ -318,6 +318,32 @@ def _held_out(datasets: list[ImuData], refs: dict[str, TriadReference], degree, 
         return {}
 
 
+#: A held-out error above this share of the raw sensor's is a fit that barely helps: a warning.
+BARELY_IMPROVED = 0.9
+
+
+def _worse_than_raw(thermal: dict[str, ThermalModel], stats: dict, notes: list[str]) -> list[str]:
+    """Triads whose calibration is worse than the raw sensor on held-out data (not exported: the
+    caller keeps the identity), with a loud note each; a warning note for a fit that barely helps."""
+    worse = []
+    for triad in TRIAD_ORDER:
+        held = stats.get(triad, {}).get("held_out") or {}
+        before, after = held.get("before"), held.get("after")
+        if before is None or after is None or not thermal[triad].enabled:
+            continue
+        metric = held.get("metric", "held-out error")
+        if after > before:
+            worse.append(triad)
+            notes.append(f"{triad}: NOT EXPORTED — the calibration is worse than the raw sensor on held-out data "
+                         f"({metric}: raw {before:.4g}, calibrated {after:.4g}); the identity is kept"
+                         + (" and the PSO-BP stage is off" if triad == "gyr" else "")
+                         + (" and the ELM stage is off" if triad == "mag" else ""))
+        elif after > BARELY_IMPROVED * before:
+            notes.append(f"{triad}: warning: the calibration barely helps on held-out data ({metric}: raw "
+                         f"{before:.4g}, calibrated {after:.4g}, {100 * (1 - after / before):.0f} % lower)")
+    return worse
+
+
 def _refuse_identity(thermal: dict[str, ThermalModel], refs: dict[str, TriadReference], selfcal,
                      notes: list[str]) -> None:
     """ModelError naming what is missing when no triad could be calibrated, or when nothing carries a
@@ -382,6 +408,10 @@ def train(datasets: list[ImuData], seed: int = 0, degree: int | str = AUTO,
         _refuse_identity(thermal, refs, selfcal, notes)
     for triad, score in _held_out(datasets, refs, degree, seed, selfcal, notes).items():
         stats[triad]["held_out"] = score
+    for triad in _worse_than_raw(thermal, stats, notes):
+        thermal[triad] = ThermalModel.identity(enabled=False)
+        elm_on, psobp_on = elm_on and triad != "mag", psobp_on and triad != "gyr"
+        psobp_block = psobp_block if psobp_on else {}
     blocks.update(psobp_block)
     stats = {k: v for k, v in stats.items() if v}
     settings = recommended_settings(datasets, refs, thermal, selfcal, notes)
