@@ -36,6 +36,7 @@ from .layout import INPUTS, TERM_SIGNALS, TERMS_MAX, TRIAD_ORDER, settings_array
 from .pipeline import recording_parameters
 from .reference import derive_references
 from .runtime import run_batch, term_signals
+from .train import REFERENCE_OUTLIER_SIGMAS
 
 #: Held-out blocks per recording; each recording is cut into 3·BLOCKS blocks and every third is held
 #: out (a third of the rows). 16 blocks of a 150 s recording are ~3 s long, longer than the ~1 s
@@ -131,7 +132,20 @@ def _residual(target: str, kind: str, d: ImuData, out: np.ndarray, fitted: np.nd
     r = norm - _reference_norm(target, d, comp, fitted)
     if triad == "acc":
         r = np.where(np.linalg.norm(out[:, 0:3], axis=1) < REST_RATE, r, np.nan)
-    return r[:, None], comp / norm[:, None]
+    return _without_disturbances(r)[:, None], comp / norm[:, None]
+
+
+def _without_disturbances(r: np.ndarray) -> np.ndarray:
+    """A norm residual with NaN where it is further than REFERENCE_OUTLIER_SIGMAS robust standard
+    deviations (1.4826 · MAD) from its median: an invariant only holds where nothing outside the
+    sensor changes it (x-io's log: a 12 s magnetic disturbance lowers the field norm by 13 %, and
+    the norm target would otherwise fit it with rate terms that distort every undisturbed field)."""
+    ok = np.isfinite(r)
+    if ok.sum() < 10:
+        return r
+    centre = np.median(r[ok])
+    scale = 1.4826 * np.median(np.abs(r[ok] - centre))
+    return np.where(np.abs(r - centre) <= REFERENCE_OUTLIER_SIGMAS * scale, r, np.nan)
 
 
 def residuals(artefact: ModelArtefact, datasets: list[ImuData], targets: dict[str, str]) -> Residuals:
