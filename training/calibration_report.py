@@ -12,6 +12,7 @@ import numpy as np
 
 from .artefact import ModelArtefact
 from .dataset import ImuData
+from .fit_quality import at_t0, cross_axis_deg, is_warning
 from .layout import TRIAD_ORDER
 from .reference_source import SOURCE_TEXT
 from .thermal import ThermalModel, apply_thermal
@@ -27,16 +28,6 @@ SETTINGS_SHOWN = {"attitude_mode": ("", 1.0), "rest_gyro_threshold": ("°/s", fl
                   "pf_measurement_noise": ("µT", 1.0), "enable_elm": ("", 1.0), "enable_psobp": ("", 1.0)}
 #: Rows of a recording plotted at most (evenly thinned): enough to show every rest and motion.
 PLOT_ROWS = 20000
-
-
-def _at_t0(model: ThermalModel) -> tuple[np.ndarray, np.ndarray]:
-    """(A·G(t0) (3, 3), B(t0) (3,)): the model at its centre temperature, where G = 1."""
-    return model.A, model.b[:, 0]
-
-
-def _cross_axis_deg(a: np.ndarray) -> list[float]:
-    """Cross-axis terms of A as small angles [°]: atan(A_ij / A_ii) for i ≠ j, order xy xz yx yz zx zy."""
-    return [float(np.degrees(np.arctan2(a[i, j], a[i, i]))) for i in range(3) for j in range(3) if i != j]
 
 
 def _fit_line(stats: dict, triad: str) -> str:
@@ -58,11 +49,11 @@ def triad_summary(artefact: ModelArtefact, triad: str) -> list[str]:
         loud = [n.split(": ", 1)[1] for n in artefact.notes if n.startswith(f"{triad}: NOT EXPORTED")]
         return [head, f"  not calibrated (identity): {loud[0]}" if loud else "  not calibrated (identity): see the notes"]
     unit, factor = DISPLAY[triad]
-    a, b = _at_t0(model)
+    a, b = at_t0(model)
     lines = [head,
              f"  bias at {model.t0:.1f} °C: [{', '.join(f'{v * factor:+.4g}' for v in b)}] {unit}",
              f"  scale factors (diagonal of A): [{', '.join(f'{v:.5f}' for v in np.diag(a))}]",
-             f"  cross-axis (xy xz yx yz zx zy): [{', '.join(f'{v:+.3f}' for v in _cross_axis_deg(a))}] °",
+             f"  cross-axis (xy xz yx yz zx zy): [{', '.join(f'{v:+.3f}' for v in cross_axis_deg(a))}] °",
              f"  temperature model: degree {model.degree}" + (
                  f", fitted over {model.t0 - model.ts:.1f} … {model.t0 + model.ts:.1f} °C" if model.degree else "")]
     choice = stats.get("degree_choice") or {}
@@ -118,6 +109,10 @@ def summary_text(artefact: ModelArtefact, datasets: list[ImuData]) -> str:
         if name in artefact.settings:
             shown.append(f"{name} = {artefact.settings[name] * factor:.4g}{(' ' + unit) if unit else ''}")
     lines.append("FMU settings written: " + ", ".join(shown))
+    warnings = [n for n in artefact.notes if is_warning(n)]
+    if warnings:
+        lines.append(f"WARNINGS ({len(warnings)}): the fit is outside what this sensor class or the data support")
+        lines += [f"  ! {w}" for w in warnings]
     return "\n".join(lines)
 
 

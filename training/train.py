@@ -12,6 +12,7 @@ from .artefact import ModelArtefact
 from .dataset import ImuData
 from .degree import AUTO, ceiling, choose_degree, parse_degree
 from .errors import ModelError
+from .fit_quality import fit_warnings
 from .layout import TRIAD_ORDER
 from .recommend import recommended_settings, sidecar_values
 from .reference import matched_raw
@@ -415,6 +416,7 @@ def train(datasets: list[ImuData], seed: int = 0, degree: int | str = AUTO,
     blocks.update(psobp_block)
     stats = {k: v for k, v in stats.items() if v}
     settings = recommended_settings(datasets, refs, thermal, selfcal, notes)
+    notes += fit_warnings(thermal, settings)
     settings["enable_elm"] = float(elm_on)
     settings["enable_psobp"] = float(psobp_on)
     return ModelArtefact(seed=seed, thermal=thermal, settings=settings, fit_stats=stats,
