@@ -238,29 +238,27 @@ static void ImuMagPfEstimate(ImuMagPf *pf)
     ImuMagPfHardSpread(pf);
 }
 
-/** @brief Reseed the generator and draw the prior particles (weights 1/N). */
-void ImuMagPfReset(ImuMagPf *pf)
+void ImuMagPfClearEvidence(ImuMagPf *pf)
+{
+    pf->evidenceDirections = 0;
+    pf->retestUpdates = 0;
+    pf->retestDirections = 0;
+    pf->retestPriorSum = 0.0;
+    pf->retestEstimateSum = 0.0;
+}
+
+void ImuMagPfPriorState(const ImuMagPf *pf, double x[IMU_MAG_PF_STATE_SIZE])
+{
+    memcpy(x, pf->settings.priorHardIron, sizeof(pf->settings.priorHardIron));
+    memcpy(x + 3, pf->settings.priorSoftIron, sizeof(pf->settings.priorSoftIron));
+}
+
+/** @brief Mode 0: particles around the prior calibration with the prior spreads, weights 1/N, estimate. */
+static void ImuMagPfDrawPrior(ImuMagPf *pf)
 {
     const ImuMagPfSettings *s = &pf->settings;
     const int n = s->particleCount;
     int i, j;
-    ImuRngSeed(&pf->rng, s->seed, IMU_MAG_PF_RNG_STREAM);
-    pf->effectiveSampleSize = (double)n;
-    pf->innovationAverage = 1.0;
-    pf->inflation = 1.0;
-    pf->sampleCounter = 0;
-    pf->lastUsed[0] = pf->lastUsed[1] = pf->lastUsed[2] = 0.0;
-    memset(pf->binUsed, 0, sizeof(pf->binUsed));
-    pf->binCount = 0;
-    pf->updatesSinceChange = 0;
-    pf->changeArmed = 0;
-    pf->changeCount = 0;
-    pf->frozen = 0;
-    pf->residualMean = 0.0;
-    if (s->raoBlackwell) {
-        ImuMagPfRbReset(pf);
-        return;
-    }
     for (i = 0; i < n; i++) {
         for (j = 0; j < 3; j++) {
             pf->particle[i][j] = s->priorHardIron[j] + s->priorSpreadHard * ImuRngNormal(&pf->rng);
@@ -271,6 +269,33 @@ void ImuMagPfReset(ImuMagPf *pf)
         pf->weight[i] = 1.0 / (double)n;
     }
     ImuMagPfEstimate(pf);
+}
+
+/** @brief Reseed the generator and draw the prior particles (weights 1/N). */
+void ImuMagPfReset(ImuMagPf *pf)
+{
+    const ImuMagPfSettings *s = &pf->settings;
+    ImuRngSeed(&pf->rng, s->seed, IMU_MAG_PF_RNG_STREAM);
+    pf->effectiveSampleSize = (double)s->particleCount;
+    pf->innovationAverage = 1.0;
+    pf->priorAverage = 1.0;
+    pf->inflation = 1.0;
+    pf->sampleCounter = 0;
+    pf->lastUsed[0] = pf->lastUsed[1] = pf->lastUsed[2] = 0.0;
+    memset(pf->binUsed, 0, sizeof(pf->binUsed));
+    pf->binCount = 0;
+    pf->updatesSinceChange = 0;
+    pf->changeArmed = 0;
+    pf->changeCount = 0;
+    pf->frozen = 0;
+    pf->residualMean = 0.0;
+    pf->retesting = 0;
+    ImuMagPfClearEvidence(pf);
+    if (s->raoBlackwell) {
+        ImuMagPfRbReset(pf);
+        return;
+    }
+    ImuMagPfDrawPrior(pf);
 }
 
 /** @brief Squared norm of a 3-vector [unit^2]. */
@@ -306,25 +331,41 @@ static int ImuMagPfIsValidSample(const ImuMagPf *pf, const double mag[3])
            norm < IMU_MAG_PF_MAX_FIELD_RATIO * pf->settings.fieldNorm;
 }
 
-int ImuMagPfRotated(const ImuMagPf *pf, const double mag[3])
+int ImuMagPfTurned(const ImuMagPf *pf, const double reference[3], const double mag[3])
 {
-    const double norm = ImuVectorNorm(mag), last = ImuVectorNorm(pf->lastUsed);
+    const double norm = ImuVectorNorm(mag), last = ImuVectorNorm(reference);
     return pf->settings.minRotation <= 0.0 || last <= 0.0 ||
-           mag[0] * pf->lastUsed[0] + mag[1] * pf->lastUsed[1] + mag[2] * pf->lastUsed[2] <
+           mag[0] * reference[0] + mag[1] * reference[1] + mag[2] * reference[2] <
                pf->coefficients.minRotationCosine * norm * last;
 }
 
-/** @brief Residual e = |h_m|^2 - |h_0|^2 - h(x) - mean of the observation noise [uT^2] of the estimate. */
-static double ImuMagPfResidual(const ImuMagPf *pf, const double mag[3])
+int ImuMagPfRotated(const ImuMagPf *pf, const double mag[3])
+{
+    return ImuMagPfTurned(pf, pf->lastUsed, mag);
+}
+
+/** @brief Residual e = |h_m|^2 - |h_0|^2 - h(x) - mean of the observation noise [uT^2] of a state x. */
+static double ImuMagPfResidual(const ImuMagPf *pf, const double x[IMU_MAG_PF_STATE_SIZE], const double mag[3])
 {
     const ImuMagPfCoefficients *c = &pf->coefficients;
-    return ImuMagPfNormSquared(mag) - c->fieldNormSquared - ImuMagPfObservation(pf->estimate, mag) - c->observationMean;
+    return ImuMagPfNormSquared(mag) - c->fieldNormSquared - ImuMagPfObservation(x, mag) - c->observationMean;
+}
+
+double ImuMagPfInnovationOf(const ImuMagPf *pf, const double x[IMU_MAG_PF_STATE_SIZE], const double mag[3])
+{
+    const double e = ImuMagPfResidual(pf, x, mag) - pf->residualMean;
+    return 2.0 * pf->coefficients.halfInverseVariance * e * e;
 }
 
 double ImuMagPfInnovation(const ImuMagPf *pf, const double mag[3])
 {
-    const double e = ImuMagPfResidual(pf, mag) - pf->residualMean;
-    return 2.0 * pf->coefficients.halfInverseVariance * e * e;
+    return ImuMagPfInnovationOf(pf, pf->estimate, mag);
+}
+
+double ImuMagPfClip(const ImuMagPf *pf, double z)
+{
+    const double clip = IMU_MAG_PF_CLIP_FACTOR * pf->settings.changeThreshold;
+    return clip > 0.0 && z > clip ? clip : z;
 }
 
 int ImuMagPfOutlier(const ImuMagPf *pf, const double mag[3])
@@ -336,16 +377,19 @@ int ImuMagPfOutlier(const ImuMagPf *pf, const double mag[3])
 void ImuMagPfAdapt(ImuMagPf *pf, const double mag[3])
 {
     const ImuMagPfCoefficients *c = &pf->coefficients;
-    const double clip = IMU_MAG_PF_CLIP_FACTOR * pf->settings.changeThreshold;
-    double z, ratio;
+    double z, clipped, ratio, prior[IMU_MAG_PF_STATE_SIZE];
     if (c->innovationRate <= 0.0) {
         return;
     }
+    ImuMagPfPriorState(pf, prior); /* the prior calibration's average: the hypothesis of every re-test */
+    pf->priorAverage += c->innovationRate * (ImuMagPfClip(pf, ImuMagPfInnovationOf(pf, prior, mag)) - pf->priorAverage);
     z = ImuMagPfInnovation(pf, mag);
-    z = clip > 0.0 && z > clip ? clip : z; /* one glitch cannot declare a change */
-    if (pf->settings.normTimeConstant > 0.0) { /* an ambient norm offset is not a change of the carrier */
-        pf->residualMean += (ImuMagPfResidual(pf, mag) - pf->residualMean) / pf->settings.normTimeConstant;
+    clipped = ImuMagPfClip(pf, z); /* one glitch cannot declare a change */
+    if (pf->settings.normTimeConstant > 0.0 && clipped == z) { /* an ambient norm offset is not a change of
+                                                                  the carrier; a glitch is not an ambient norm */
+        pf->residualMean += (ImuMagPfResidual(pf, pf->estimate, mag) - pf->residualMean) / pf->settings.normTimeConstant;
     }
+    z = clipped;
     pf->innovationAverage += c->innovationRate * (z - pf->innovationAverage);
     ratio = sqrt(pf->innovationAverage);
     pf->inflation = ratio < 1.0 ? 1.0 : (ratio > pf->settings.maxInflation ? pf->settings.maxInflation : ratio);
@@ -465,11 +509,80 @@ void ImuMagPfDeclareChange(ImuMagPf *pf)
     pf->changeArmed = 0;
     pf->changeCount++;
     pf->residualMean = 0.0;
+    pf->retesting = 1;
+    ImuMagPfClearEvidence(pf);
+}
+
+/**
+ * Re-test of the prior calibration (from a declared change until taken back): while the average of
+ * its clipped normalised innovation (ImuMagPfAdapt) stays under changeThreshold the
+ * clipped innovations of prior and estimate are summed, and once the sums span
+ * IMU_MAG_PF_RETEST_DIRECTIONS field directions minRotation apart with the prior missing by at most
+ * IMU_MAG_PF_RETEST_MARGIN per update more than the estimate, the prior explains the data (a glitch
+ * that was declared a change, a magnet that was removed).
+ */
+int ImuMagPfPriorExplains(ImuMagPf *pf, const double mag[3])
+{
+    const ImuMagPfSettings *s = &pf->settings;
+    double prior[IMU_MAG_PF_STATE_SIZE], z;
+    if (!pf->retesting || s->changeThreshold <= 0.0 || pf->coefficients.innovationRate <= 0.0) {
+        return 0;
+    }
+    ImuMagPfPriorState(pf, prior);
+    z = ImuMagPfClip(pf, ImuMagPfInnovationOf(pf, prior, mag));
+    if (pf->priorAverage > s->changeThreshold) {
+        pf->retestUpdates = 0;
+        pf->retestDirections = 0;
+        pf->retestPriorSum = 0.0;
+        pf->retestEstimateSum = 0.0;
+        return 0;
+    }
+    pf->retestUpdates++;
+    pf->retestPriorSum += z;
+    pf->retestEstimateSum += ImuMagPfClip(pf, ImuMagPfInnovation(pf, mag));
+    if (pf->retestDirections == 0 || ImuMagPfTurned(pf, pf->retestDirection, mag)) {
+        pf->retestDirections++;
+        memcpy(pf->retestDirection, mag, sizeof(pf->retestDirection));
+    }
+    return pf->retestDirections >= IMU_MAG_PF_RETEST_DIRECTIONS &&
+           pf->retestPriorSum <= pf->retestEstimateSum + IMU_MAG_PF_RETEST_MARGIN * pf->retestUpdates;
+}
+
+void ImuMagPfChangeCentre(const ImuMagPf *pf, double x[IMU_MAG_PF_STATE_SIZE])
+{
+    if (pf->priorAverage <= pf->settings.changeThreshold) { /* the change returned to it (a magnet removed) */
+        ImuMagPfPriorState(pf, x);
+    } else {
+        memcpy(x, pf->estimate, sizeof(pf->estimate));
+    }
+}
+
+void ImuMagPfTakeBackPrior(ImuMagPf *pf)
+{
+    const double average = pf->priorAverage;
+    if (pf->settings.raoBlackwell) {
+        ImuMagPfRbReset(pf);
+    } else {
+        ImuMagPfDrawPrior(pf);
+        memset(pf->binUsed, 0, sizeof(pf->binUsed));
+        pf->binCount = 0;
+        pf->changeArmed = 0;
+    }
+    pf->innovationAverage = average;
+    pf->inflation = 1.0;
+    pf->updatesSinceChange = 0;
+    pf->retesting = 0;
+    ImuMagPfClearEvidence(pf);
 }
 
 /** Change test: armed once the innovation average is below changeThreshold after
- *  innovationTimeConstant updates; when armed, an average above it declares a change. */
-int ImuMagPfChangeDeclared(ImuMagPf *pf)
+ *  innovationTimeConstant updates; when armed, an average above it declares a change. To leave a
+ *  held calibration the evidence must persist over field directions: the samples whose own
+ *  innovation exceeds the threshold must come from IMU_MAG_PF_CHANGE_DIRECTIONS directions
+ *  minRotation apart (a carrier change shows at every orientation; a stuck reading shows at one, and
+ *  a short burst rarely keeps the average up). Once adapting, one suffices: a magnet brought closer
+ *  is declared again at once, and a false declaration is undone by the re-test of the prior. */
+int ImuMagPfChangeDeclared(ImuMagPf *pf, const double mag[3])
 {
     const ImuMagPfSettings *s = &pf->settings;
     pf->updatesSinceChange++;
@@ -481,24 +594,32 @@ int ImuMagPfChangeDeclared(ImuMagPf *pf)
         return 0;
     }
     if (pf->innovationAverage <= s->changeThreshold) {
+        pf->evidenceDirections = 0;
+        return 0;
+    }
+    if (ImuMagPfInnovation(pf, mag) > s->changeThreshold &&
+        (pf->evidenceDirections == 0 || ImuMagPfTurned(pf, pf->evidenceDirection, mag))) {
+        pf->evidenceDirections++;
+        memcpy(pf->evidenceDirection, mag, sizeof(pf->evidenceDirection));
+    }
+    if (pf->evidenceDirections < (pf->frozen ? IMU_MAG_PF_CHANGE_DIRECTIONS : 1)) {
         return 0;
     }
     ImuMagPfDeclareChange(pf);
     return 1;
 }
 
-/** @brief After a declared change: re-draw the particles around the estimate with changeSpread
- *         (weights 1/N) and flush the buffer. */
-static void ImuMagPfDetectChange(ImuMagPf *pf)
+/** @brief After a declared change: re-draw the particles around ImuMagPfChangeCentre with
+ *         changeSpread (weights 1/N) and flush the buffer. */
+static void ImuMagPfRedraw(ImuMagPf *pf)
 {
     const ImuMagPfSettings *s = &pf->settings;
+    double centre[IMU_MAG_PF_STATE_SIZE];
     int i, j;
-    if (!ImuMagPfChangeDeclared(pf)) {
-        return;
-    }
+    ImuMagPfChangeCentre(pf, centre);
     for (i = 0; i < s->particleCount; i++) {
         for (j = 0; j < IMU_MAG_PF_STATE_SIZE; j++) {
-            pf->particle[i][j] = pf->estimate[j] + (j < 3 ? s->changeSpreadHard : s->changeSpreadSoft) * ImuRngNormal(&pf->rng);
+            pf->particle[i][j] = centre[j] + (j < 3 ? s->changeSpreadHard : s->changeSpreadSoft) * ImuRngNormal(&pf->rng);
         }
         pf->weight[i] = 1.0 / s->particleCount;
     }
@@ -610,6 +731,7 @@ int ImuMagPfUpdate(ImuMagPf *pf, const double mag[3])
 {
     const double threshold = IMU_MAG_PF_RESAMPLE_FRACTION * pf->settings.particleCount;
     double alpha;
+    int glitch;
     if (!ImuMagPfIsValidSample(pf, mag)) {
         return 0;
     }
@@ -621,9 +743,20 @@ int ImuMagPfUpdate(ImuMagPf *pf, const double mag[3])
     }
     pf->sampleCounter = 0;
     memcpy(pf->lastUsed, mag, sizeof(pf->lastUsed));
+    /* the buffer keeps a reading per direction bin until that direction recurs, for good if the motion
+       never returns there: an isolated glitch (the innovation average still low) stays out of it */
+    glitch = ImuMagPfOutlier(pf, mag) && pf->innovationAverage <= pf->settings.changeThreshold;
     ImuMagPfAdapt(pf, mag);
-    ImuMagPfDetectChange(pf);
-    ImuMagPfStore(pf, mag);
+    if (ImuMagPfChangeDeclared(pf, mag)) {
+        ImuMagPfRedraw(pf);
+        glitch = 0;
+    } else if (ImuMagPfPriorExplains(pf, mag)) { /* the change was a glitch, or it returned */
+        ImuMagPfTakeBackPrior(pf);
+        return 0;
+    }
+    if (!glitch) {
+        ImuMagPfStore(pf, mag);
+    }
     ImuMagPfPredict(pf);
     alpha = ImuMagPfWeigh(pf);
     pf->effectiveSampleSize = ImuMagPfEss(pf);

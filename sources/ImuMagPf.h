@@ -9,7 +9,8 @@
  * predict, weigh (log domain) against the whole buffer, N_eff; below 2N/3 double-threshold
  * splitting with roughened copies whose weights come from a small back-propagation network
  * (diversity check by the Hill number), then systematic resampling if N_eff is still below 2N/3.
- * A change test on the innovation of the estimate re-widens the cloud and flushes the buffer.
+ * A change test on the innovation of the estimate re-widens the cloud and flushes the buffer; the
+ * prior calibration is re-tested after every change and taken back when it explains the data.
  * Compensation h_c = (I + B)(h_m - h_p) with the weighted-mean estimate. All memory is inside
  * ImuMagPf; the network and splitting are in ImuMagPfNet.c.
  */
@@ -28,6 +29,9 @@
 #define IMU_MAG_PF_RNG_STREAM 54U    /* PCG32 stream selector of the filter */
 #define IMU_MAG_PF_MAX_BIN_SIDE 4    /* largest sphereBins (cells per cube-face side) */
 #define IMU_MAG_PF_OUTLIER_FACTOR 4.0 /* samples beyond 4 x changeThreshold (normalised innovation^2) are glitches */
+#define IMU_MAG_PF_CHANGE_DIRECTIONS 2 /* field directions (minRotation apart) the evidence against a held calibration must cover */
+#define IMU_MAG_PF_RETEST_DIRECTIONS 30 /* field directions (minRotation apart) the prior's agreement must cover */
+#define IMU_MAG_PF_RETEST_MARGIN 1.0   /* the prior may miss by one noise variance per update more than the estimate */
 #define IMU_MAG_PF_MAX_BINS (6 * IMU_MAG_PF_MAX_BIN_SIDE * IMU_MAG_PF_MAX_BIN_SIDE) /* 96 */
 
 /** User settings (units in the comments). */
@@ -126,7 +130,17 @@ typedef struct {
     int changeCount;               /* changes of environment declared since the reset */
     double residualMean;           /* uT^2, averaged residual of the estimate (normTimeConstant) */
     double hardSpread;             /* uT, largest weighted sigma of the hard-iron components of the cloud */
-    int frozen;                    /* 1 while the prior calibration is held (holdPrior, no change declared yet) */
+    int frozen;                    /* 1 while the prior calibration is held (holdPrior, no change declared yet or taken back) */
+    int evidenceDirections;        /* distinct field directions (armed, innovation average above changeThreshold)
+                                      of the samples whose own innovation exceeded it */
+    double evidenceDirection[3];   /* uT, raw sample of the last direction counted as evidence */
+    double priorAverage;           /* 1, averaged clipped normalised innovation of the prior calibration (re-tests) */
+    int retestUpdates;             /* updates since the prior's average last exceeded changeThreshold */
+    int retestDirections;          /* distinct field directions (minRotation apart) among them */
+    double retestDirection[3];     /* uT, raw sample of the last direction counted in the re-test */
+    double retestPriorSum;         /* 1, sum of the prior's clipped normalised innovations over them */
+    double retestEstimateSum;      /* 1, sum of the estimate's clipped normalised innovations over them */
+    int retesting;                 /* 1 from a declared change until the prior calibration is taken back */
     /* Rao-Blackwellised mode only (particle[i] = [h_p (3) uT, m (6) posterior mean of M given h_p]) */
     double moments[IMU_MAG_MOMENT_COUNT];         /* power sums of mag - priorHardIron since the reset or change */
     double previousMoments[IMU_MAG_MOMENT_COUNT]; /* the sums at the previous filter update */
@@ -173,6 +187,10 @@ IMU_HIDDEN void ImuMagPfCloudSigma(const ImuMagPf *pf, double sigma[IMU_MAG_PF_S
 IMU_HIDDEN void ImuMagPfSplit(ImuMagPf *pf, double alpha);
 /** @brief Normalised innovation squared (y - h(x_estimate) - 3 sigma^2)^2 / var of a sample mag [uT]. */
 IMU_HIDDEN double ImuMagPfInnovation(const ImuMagPf *pf, const double mag[3]);
+/** @brief The same for a state x (hard [uT], soft [1]), the averaged residual of the estimate removed. */
+IMU_HIDDEN double ImuMagPfInnovationOf(const ImuMagPf *pf, const double x[IMU_MAG_PF_STATE_SIZE], const double mag[3]);
+/** @brief A normalised innovation clipped at IMU_MAG_PF_CLIP_FACTOR x changeThreshold (as it enters the tests). */
+IMU_HIDDEN double ImuMagPfClip(const ImuMagPf *pf, double z);
 /** @brief 1 if the change test is armed and the sample's normalised innovation exceeds
  *         IMU_MAG_PF_OUTLIER_FACTOR x changeThreshold (a glitch: kept out of the power sums). */
 IMU_HIDDEN int ImuMagPfOutlier(const ImuMagPf *pf, const double mag[3]);
@@ -180,11 +198,32 @@ IMU_HIDDEN int ImuMagPfOutlier(const ImuMagPf *pf, const double mag[3]);
 IMU_HIDDEN void ImuMagPfAdapt(ImuMagPf *pf, const double mag[3]);
 /** @brief Count a change of environment and restart the innovation average and the change test. */
 IMU_HIDDEN void ImuMagPfDeclareChange(ImuMagPf *pf);
+/** @brief Restart the evidence of a change and the re-test of the prior (the prior unproven). */
+IMU_HIDDEN void ImuMagPfClearEvidence(ImuMagPf *pf);
+/** @brief The prior calibration as a state x (priorHardIron [uT], priorSoftIron [1]). */
+IMU_HIDDEN void ImuMagPfPriorState(const ImuMagPf *pf, double x[IMU_MAG_PF_STATE_SIZE]);
+/** @brief Re-test of the prior calibration after a declared change, one update with sample mag [uT]:
+ *         1 once it explains the data from IMU_MAG_PF_RETEST_DIRECTIONS directions as well as the
+ *         estimate (IMU_MAG_PF_RETEST_MARGIN). */
+IMU_HIDDEN int ImuMagPfPriorExplains(ImuMagPf *pf, const double mag[3]);
+/** @brief Centre x of the cloud after a declared change: the prior calibration if its innovation
+ *         average is under changeThreshold (it explains the recent data the estimate does not: the
+ *         change returned to it, a magnet removed), else the estimate. */
+IMU_HIDDEN void ImuMagPfChangeCentre(const ImuMagPf *pf, double x[IMU_MAG_PF_STATE_SIZE]);
+/** @brief Take the prior calibration back: mode 1 restarts from the prior (held again with holdPrior),
+ *         mode 0 re-draws the cloud around it and flushes the buffer; the change test restarts. */
+IMU_HIDDEN void ImuMagPfTakeBackPrior(ImuMagPf *pf);
 /** @brief 1 if minRotation is 0 or the direction of mag [uT] is more than minRotation away from the
  *         last used sample (the first sample always counts). */
 IMU_HIDDEN int ImuMagPfRotated(const ImuMagPf *pf, const double mag[3]);
-/** @brief Change test on the innovation average; 1 (counters reset, change counted) if a change is declared. */
-IMU_HIDDEN int ImuMagPfChangeDeclared(ImuMagPf *pf);
+/** @brief 1 if minRotation is 0 or the direction of mag [uT] is more than minRotation away from that of
+ *         reference [uT] (or reference is zero). */
+IMU_HIDDEN int ImuMagPfTurned(const ImuMagPf *pf, const double reference[3], const double mag[3]);
+/** @brief Change test on the innovation average of the sample mag [uT]: a change is declared once,
+ *         while the average is above changeThreshold, the samples whose own innovation exceeded it
+ *         cover IMU_MAG_PF_CHANGE_DIRECTIONS directions (a held calibration) or one (adapting);
+ *         1 (counters reset, change counted, re-test of the prior started) if declared. */
+IMU_HIDDEN int ImuMagPfChangeDeclared(ImuMagPf *pf, const double mag[3]);
 /** @brief Systematic resampling indices (one uniform, offsets (U + k)/N) into work.parent. */
 IMU_HIDDEN void ImuMagPfSystematicParents(ImuMagPf *pf);
 /** @brief Effective sample size 1 / sum w^2 of the current weights [particles]. */

@@ -12,7 +12,10 @@
  * IMU_MAG_PF_BRIDGE_STEPS steps per update, the last one with g = 1 (adaptive tempering of a
  * resample-move sequential Monte Carlo sampler). A change of environment restarts the sums with
  * a hard-iron prior around the estimate (changeSpreadHard) and a soft-iron prior at the estimate
- * (changeSpreadSoft), as does an update in which no particle keeps an admissible soft iron.
+ * (changeSpreadSoft), as does an update in which no particle keeps an admissible soft iron (around
+ * the prior calibration if none around the estimate does). After a change the prior calibration is
+ * re-tested against the data and taken back once it explains them as well as the estimate
+ * (ImuMagPfPriorExplains).
  */
 #include <math.h>
 #include <string.h>
@@ -109,14 +112,15 @@ void ImuMagPfRbReset(ImuMagPf *pf)
     }
 }
 
-/** @brief New segment after a change: sums restart at the current sample, priors around the estimate. */
-static void ImuMagPfRbRestart(ImuMagPf *pf, const double mag[3])
+/** @brief New segment after a change: sums restart at the current sample, priors around a state
+ *         (hard iron [uT] then soft iron b11..b33: the estimate, or the prior calibration). */
+static void ImuMagPfRbRestart(ImuMagPf *pf, const double mag[3], const double state[IMU_MAG_PF_STATE_SIZE])
 {
     const ImuMagPfSettings *s = &pf->settings;
     const double u[3] = {mag[0] - s->priorHardIron[0], mag[1] - s->priorHardIron[1], mag[2] - s->priorHardIron[2]};
     double softMean[IMU_MAG_SOFT_COUNT], centre[3];
-    memcpy(centre, pf->estimate, sizeof(centre));
-    ImuMagQuadraticFromSoft(pf->estimate + 3, softMean);
+    memcpy(centre, state, sizeof(centre));
+    ImuMagQuadraticFromSoft(state + 3, softMean);
     memset(pf->moments, 0, sizeof(pf->moments));
     memset(pf->previousMoments, 0, sizeof(pf->previousMoments));
     ImuMagMomentsAdd(pf->moments, u);
@@ -311,17 +315,27 @@ int ImuMagPfRbUpdate(ImuMagPf *pf, const double mag[3])
     }
     pf->sampleCounter = 0;
     ImuMagPfAdapt(pf, mag);
-    if (ImuMagPfChangeDeclared(pf)) {
+    if (ImuMagPfChangeDeclared(pf, mag)) {
+        double centre[IMU_MAG_PF_STATE_SIZE];
+        ImuMagPfChangeCentre(pf, centre);
         pf->frozen = 0;
-        ImuMagPfRbRestart(pf, mag);
+        ImuMagPfRbRestart(pf, mag, centre);
     } else if (pf->frozen) {
+        return 0;
+    } else if (ImuMagPfPriorExplains(pf, mag)) {
+        ImuMagPfTakeBackPrior(pf);
         return 0;
     }
     if (!ImuMagPfRbWeighNew(pf)) { /* no admissible particle left: a change the test did not see */
         ImuMagPfDeclareChange(pf);
-        ImuMagPfRbRestart(pf, mag);
-        if (!ImuMagPfRbWeighNew(pf)) {
-            return 0;
+        ImuMagPfRbRestart(pf, mag, pf->estimate);
+        if (!ImuMagPfRbWeighNew(pf)) { /* the estimate itself is hopeless: around the prior calibration */
+            double prior[IMU_MAG_PF_STATE_SIZE];
+            ImuMagPfPriorState(pf, prior);
+            ImuMagPfRbRestart(pf, mag, prior);
+            if (!ImuMagPfRbWeighNew(pf)) {
+                return 0;
+            }
         }
     }
     ImuMagPfRbBridge(pf);

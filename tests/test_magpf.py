@@ -37,6 +37,10 @@ ELLIPSOID_OFFSET_BOUND_UT = 0.05
 ELLIPSOID_MATRIX_BOUND = 1e-3
 # Held calibration: the jump test of the acceptance on 5 seeds (the 20-seed table is in docs/magpf.md).
 HELD_SEEDS = 5
+# The 9-state filter adapts from the start: on clean 30 s tumbling records from the trained prior it
+# wanders by up to 0.39 µT (seeds 0–4), after the prior is taken back its re-drawn cloud
+# re-converges within 0.7 µT; 1 µT still rejects an estimate kept from a disturbance (7–11 µT).
+NINE_STATE_RETURN_UT = 1.0
 # Ambient field growth that the change test must not take for a change of the carrier: 4 % of
 # |h_0| makes the normalised residual ~(2·60·2.4/36)² ≈ 64, far above the threshold 25.
 AMBIENT_GROWTH = 0.04
@@ -129,6 +133,78 @@ def test_c_equals_numpy_twin_rao_blackwell(move, jump, prior):
     for a, b in ((c.hard_iron, py.hard_iron), (c.soft_iron, py.soft_iron), (c.neff, py.neff),
                  (c.compensated, py.compensated), (c.changes, py.changes)):
         np.testing.assert_allclose(a, b, rtol=TWIN_RTOL, atol=TWIN_RTOL * 60.0)
+
+
+def _disturbed(d, start_s: float, duration_s: float, seed: int) -> np.ndarray:
+    """d.mag with `duration_s` of independent wrong fields (random direction, norm 0.5–1.5 |h_0|)
+    from `start_s`: long and varied enough to be declared a change of environment."""
+    rng = np.random.default_rng(seed)
+    mag = d.mag.copy()
+    rows = slice(int(start_s * d.rate_hz), int((start_s + duration_s) * d.rate_hz))
+    v = rng.normal(size=(rows.stop - rows.start, 3))
+    mag[rows] = v / np.linalg.norm(v, axis=1)[:, None] * d.field_norm_ut * rng.uniform(0.5, 1.5, (len(v), 1))
+    return mag
+
+
+@pytest.mark.parametrize("rao_blackwell", [1, 0])
+def test_c_equals_numpy_twin_through_a_declared_glitch_and_the_prior_taken_back(rao_blackwell):
+    # 0.3 s of wrong fields at 0.5 s is declared a change (persistent evidence from many directions);
+    # afterwards the prior calibration (the truth) explains the data and is taken back. Both steps
+    # and the mode-0 buffer confirmation run identically in the twin.
+    d = magpf.simulate_tumbling(8, duration_s=2.0)
+    s = magpf.settings(60.0, particle_count=16, seed=3, decimation=1, rao_blackwell=rao_blackwell,
+                       **magpf.trained_prior(d.hard_iron[0], d.soft_iron[0]))
+    mag = _disturbed(d, 0.5, 0.3, 1)
+    c, py = magpf.run_c(mag, s), magpf.run_python(mag, s)
+    for a, b in ((c.hard_iron, py.hard_iron), (c.soft_iron, py.soft_iron), (c.neff, py.neff),
+                 (c.compensated, py.compensated), (c.changes, py.changes)):
+        np.testing.assert_allclose(a, b, rtol=TWIN_RTOL, atol=TWIN_RTOL * 60.0)
+    assert c.changes[-1] >= 1
+    if rao_blackwell:   # taken back: the held calibration again, bit for bit
+        np.testing.assert_array_equal(c.hard_iron[-1], d.hard_iron[0])
+
+
+@pytest.mark.parametrize("rao_blackwell", [1, 0])
+def test_a_disturbance_declared_as_a_change_falls_back_to_the_trained_calibration(rao_blackwell):
+    # 1 s of wrong fields (25 updates at decimation 4) is declared a change; 10 s later the trained
+    # calibration (the truth ± 0.5 µT / 0.005) is back: held bit for bit (mode 1) or the 9-state
+    # cloud re-drawn around it and adapting (mode 0, NINE_STATE_RETURN_UT). Before, both re-estimated
+    # from the disturbance and kept what they found (7–11 µT off on these seeds).
+    for seed in range(HELD_SEEDS):
+        d = magpf.simulate_tumbling(seed, duration_s=30.0)
+        s = magpf.settings(60.0, seed=seed, rao_blackwell=rao_blackwell, decimation=4,
+                           **magpf.trained_prior(d.hard_iron[0], d.soft_iron[0]))
+        r = magpf.run_c(_disturbed(d, 10.0, 1.0, seed), s)
+        after = int(21.0 * d.rate_hz)
+        assert r.changes[-1] >= 1, seed
+        error = np.abs(r.hard_iron[after:] - d.hard_iron[0]).max()
+        assert error <= (0.0 if rao_blackwell else NINE_STATE_RETURN_UT), (seed, error)
+
+
+def test_a_removed_magnet_returns_to_the_trained_calibration():
+    # BROAD trial 32's defect: a magnet (20 µT hard iron) attached at 10 s and removed at 25 s; the
+    # filter declares both changes and, after the removal, holds the trained calibration again
+    # (exactly) instead of settling at a re-estimate of it.
+    d = magpf.simulate_tumbling(1, duration_s=40.0)
+    t = np.arange(len(d.mag)) / d.rate_hz
+    mag = d.mag + np.where(((t >= 10.0) & (t < 25.0))[:, None], [20.0, 0.0, 0.0], 0.0)
+    r = magpf.run_c(mag, magpf.settings(60.0, seed=1, **magpf.trained_prior(d.hard_iron[0], d.soft_iron[0])))
+    assert r.changes[-1] >= 2
+    assert np.abs(r.hard_iron[int(20.0 * d.rate_hz)] - d.hard_iron[0] - [20.0, 0.0, 0.0]).max() <= ACCEPTANCE_HARD_UT
+    np.testing.assert_array_equal(r.hard_iron[int(35.0 * d.rate_hz):], np.tile(d.hard_iron[0], (500, 1)))
+
+
+def test_a_stuck_reading_is_not_a_change():
+    # 1 s of one constant wrong reading (a stuck register) after convergence: a single direction is
+    # no evidence of a carrier change (IMU_MAG_PF_CHANGE_DIRECTIONS), so nothing is declared and the
+    # held calibration stays; before, four clipped updates declared a change.
+    d = magpf.simulate_tumbling(4, duration_s=20.0)
+    mag = d.mag.copy()
+    mag[1000:1100] = [25.0, -30.0, 35.0]
+    r = magpf.run_c(mag, magpf.settings(60.0, seed=4, decimation=2,
+                                        **magpf.trained_prior(d.hard_iron[0], d.soft_iron[0])))
+    assert r.changes[-1] == 0
+    np.testing.assert_array_equal(r.hard_iron[-1], d.hard_iron[0])
 
 
 def test_power_sums_shift_and_likelihood_equal_direct_sums():

@@ -129,16 +129,23 @@ def _derive_for(seed: int, noise_scale: float) -> dict:
     return ps.pf_settings_from_calibration(field, np.arange(len(field)) / cal.rate_hz, cal.field_norm_ut, cal.rate_hz)
 
 
+#: Noise of the noisier sensor relative to the simulator's default [1].
+NOISY = 5.0
+
+
 def test_derived_settings_hold_a_noisier_sensor_and_declare_a_20_ut_jump():
-    # A sensor with 3x the default noise: with the settings derived from its own calibration data
+    # A sensor with 5x the default noise: with the settings derived from its own calibration data
     # the filter (C, holding the trained calibration) declares no change on a clean 60 s recording
     # and declares the 20 µT hard-iron jump at 30 s (none before it). The settings derived for the
     # default-noise sensor declare false changes on the same clean recordings: the noise matters.
+    # (5x: since a change needs persistent evidence from several field directions, noise
+    # underestimated 3x — z about 9x too large — no longer declares one.)
     false_with_quiet_settings = 0
     for seed in range(3):
-        own, quiet = _derive_for(seed, 3.0), _derive_for(seed, 1.0)
-        clean = magpf.simulate_tumbling(20 + seed, noise_uniform_ut=0.9, noise_t_scale_ut=0.3)
-        jump = magpf.simulate_tumbling(20 + seed, noise_uniform_ut=0.9, noise_t_scale_ut=0.3, jump_at_s=30.0)
+        own, quiet = _derive_for(seed, NOISY), _derive_for(seed, 1.0)
+        noise = {"noise_uniform_ut": 0.3 * NOISY, "noise_t_scale_ut": 0.1 * NOISY}
+        clean = magpf.simulate_tumbling(20 + seed, **noise)
+        jump = magpf.simulate_tumbling(20 + seed, **noise, jump_at_s=30.0)
         held = magpf.settings(clean.field_norm_ut, seed=seed,
                               **magpf.trained_prior(clean.hard_iron[0], clean.soft_iron[0]))
         s = {**held, **ps.to_magpf(own)}

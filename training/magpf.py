@@ -32,6 +32,9 @@ MIN_FIELD_RATIO = 1e-3
 RESAMPLE_FRACTION = 2.0 / 3.0
 CLIP_FACTOR = 2.0            # IMU_MAG_PF_CLIP_FACTOR: change-test inputs clipped at 2 x threshold
 OUTLIER_FACTOR = 4.0         # IMU_MAG_PF_OUTLIER_FACTOR: glitches kept out of the power sums
+CHANGE_DIRECTIONS = 2        # IMU_MAG_PF_CHANGE_DIRECTIONS: field directions the evidence of a change covers
+RETEST_DIRECTIONS = 30       # IMU_MAG_PF_RETEST_DIRECTIONS: field directions (min_rotation apart) of the prior's agreement
+RETEST_MARGIN = 1.0          # IMU_MAG_PF_RETEST_MARGIN: the prior may miss by this much more per update
 HILL_FRACTION = 0.9
 NETWORK_INIT = 0.5
 TINY = 1e-12
@@ -362,6 +365,7 @@ class MagPf:
         self.rng = Pcg32(int(s["seed"]), RNG_STREAM)
         self.neff = float(self.n)
         self.innovation_average = 1.0
+        self.prior_average = 1.0
         self.inflation = 1.0
         self.counter = 0
         self.last_used = np.zeros(3)
@@ -373,15 +377,70 @@ class MagPf:
         self.changes = 0
         self.frozen = False
         self.residual_mean = 0.0
+        self.retesting = False
+        self._clear_evidence()
         if int(s["rao_blackwell"]):
             magpf_rb.reset(self)
             return
-        mean = np.array([s[f"prior_hard_iron_{a}_ut"] for a in "xyz"]
-                        + [s[f"prior_soft_iron_{k}"] for k in ("xx", "xy", "xz", "yy", "yz", "zz")])
+        self._draw_prior()
+
+    def _prior_state(self) -> np.ndarray:
+        """ImuMagPfPriorState: the prior calibration [h_p µT, b11 b12 b13 b22 b23 b33]."""
+        s = self.s
+        return np.array([s[f"prior_hard_iron_{a}_ut"] for a in "xyz"]
+                        + [s[f"prior_soft_iron_{k}"] for k in ("xx", "xy", "xz", "yy", "yz", "zz")], dtype=np.float64)
+
+    def _draw_prior(self) -> None:
+        """ImuMagPfDrawPrior (mode 0): the cloud around the prior calibration, weights 1/N."""
+        s = self.s
         spread = np.array([s["prior_spread_hard_ut"]] * 3 + [s["prior_spread_soft"]] * 6, float)
-        self.particle = mean + spread * self.rng.normals(self.n * STATE_SIZE).reshape(self.n, STATE_SIZE)
+        self.particle = self._prior_state() + spread * self.rng.normals(self.n * STATE_SIZE).reshape(self.n, STATE_SIZE)
         self.weight = np.full(self.n, 1.0 / self.n)
         self.estimate = self.weight @ self.particle
+
+    def _prior_explains(self, mag: np.ndarray) -> bool:
+        """ImuMagPfPriorExplains: after a declared change, True once the prior calibration explains
+        the data from RETEST_DIRECTIONS directions as well as the estimate (RETEST_MARGIN)."""
+        threshold = float(self.s["change_threshold"])
+        if not self.retesting or threshold <= 0.0 or self.innovation_rate <= 0.0:
+            return False
+        z = self._clip(self._innovation(mag, self._prior_state()))
+        if self.prior_average > threshold:
+            self.retest_updates = 0
+            self.retest_directions = 0
+            self.retest_prior_sum = 0.0
+            self.retest_estimate_sum = 0.0
+            return False
+        self.retest_updates += 1
+        self.retest_prior_sum += z
+        self.retest_estimate_sum += self._clip(self._innovation(mag))
+        if self.retest_directions == 0 or self._turned(self.retest_direction, mag):
+            self.retest_directions += 1
+            self.retest_direction = mag.copy()
+        return (self.retest_directions >= RETEST_DIRECTIONS
+                and self.retest_prior_sum <= self.retest_estimate_sum + RETEST_MARGIN * self.retest_updates)
+
+    def _change_centre(self) -> np.ndarray:
+        """ImuMagPfChangeCentre: the prior calibration if its average is under the change threshold
+        (the change returned to it), else the estimate."""
+        if self.prior_average <= float(self.s["change_threshold"]):
+            return self._prior_state()
+        return self.estimate.copy()
+
+    def _take_back_prior(self) -> None:
+        """ImuMagPfTakeBackPrior."""
+        average = self.prior_average
+        if int(self.s["rao_blackwell"]):
+            magpf_rb.reset(self)
+        else:
+            self._draw_prior()
+            self.bin_list = []
+            self.change_armed = False
+        self.innovation_average = average
+        self.inflation = 1.0
+        self.updates_since_change = 0
+        self.retesting = False
+        self._clear_evidence()
 
     # -- steps ------------------------------------------------------------------------------
 
@@ -392,22 +451,41 @@ class MagPf:
         f = float(self.s["field_norm_ut"])
         return MIN_FIELD_RATIO * f < norm < MAX_FIELD_RATIO * f
 
-    def _rotated(self, mag: np.ndarray) -> bool:
+    def _turned(self, reference: np.ndarray, mag: np.ndarray) -> bool:
+        """ImuMagPfTurned: the direction of mag is more than min_rotation from reference's."""
         norm = float(np.sqrt(mag @ mag))
-        last = float(np.sqrt(self.last_used @ self.last_used))
+        last = float(np.sqrt(reference @ reference))
         return (float(self.s["min_rotation_deg"]) <= 0.0 or last <= 0.0
-                or float(mag @ self.last_used) < self.min_rotation_cos * norm * last)
+                or float(mag @ reference) < self.min_rotation_cos * norm * last)
 
-    def _residual(self, mag: np.ndarray) -> float:
-        """|h_m|² − |h_0|² − h(x) − noise mean [µT²] of the estimate (ImuMagPfResidual)."""
+    def _rotated(self, mag: np.ndarray) -> bool:
+        return self._turned(self.last_used, mag)
+
+    def _residual(self, mag: np.ndarray, x: np.ndarray | None = None) -> float:
+        """|h_m|² − |h_0|² − h(x) − noise mean [µT²] of a state (default the estimate; ImuMagPfResidual)."""
+        x = self.estimate if x is None else x
         norm_sq = float(mag[0] * mag[0] + mag[1] * mag[1] + mag[2] * mag[2])
-        return norm_sq - self.field_sq - float(observation(self.estimate, mag)) - self.obs_mean
+        return norm_sq - self.field_sq - float(observation(x, mag)) - self.obs_mean
 
-    def _innovation(self, mag: np.ndarray) -> float:
-        """Normalised innovation squared of a sample against the estimate, the averaged residual
-        removed (ImuMagPfInnovation)."""
-        e = self._residual(mag) - self.residual_mean
+    def _innovation(self, mag: np.ndarray, x: np.ndarray | None = None) -> float:
+        """Normalised innovation squared of a sample against a state (default the estimate), the
+        averaged residual removed (ImuMagPfInnovationOf)."""
+        e = self._residual(mag, x) - self.residual_mean
         return 2.0 * self.half_inv_var * e * e
+
+    def _clip(self, z: float) -> float:
+        clip = CLIP_FACTOR * float(self.s["change_threshold"])
+        return clip if clip > 0.0 and z > clip else z
+
+    def _clear_evidence(self) -> None:
+        """ImuMagPfClearEvidence."""
+        self.evidence_directions = 0
+        self.evidence_direction = np.zeros(3)
+        self.retest_updates = 0
+        self.retest_directions = 0
+        self.retest_direction = np.zeros(3)
+        self.retest_prior_sum = 0.0
+        self.retest_estimate_sum = 0.0
 
     def _outlier(self, mag: np.ndarray) -> bool:
         threshold = float(self.s["change_threshold"])
@@ -416,11 +494,14 @@ class MagPf:
     def _adapt(self, mag: np.ndarray) -> None:
         if self.innovation_rate <= 0.0:
             return
-        clip = CLIP_FACTOR * float(self.s["change_threshold"])
+        # the prior calibration's average: the hypothesis of every re-test
+        self.prior_average += self.innovation_rate * (self._clip(self._innovation(mag, self._prior_state()))
+                                                      - self.prior_average)
         z = self._innovation(mag)
-        z = clip if clip > 0.0 and z > clip else z
-        if float(self.s["norm_time_constant"]) > 0.0:
+        clipped = self._clip(z)
+        if float(self.s["norm_time_constant"]) > 0.0 and clipped == z:   # a glitch is no ambient norm
             self.residual_mean += (self._residual(mag) - self.residual_mean) / float(self.s["norm_time_constant"])
+        z = clipped
         self.innovation_average += self.innovation_rate * (z - self.innovation_average)
         self.inflation = min(max(math.sqrt(self.innovation_average), 1.0),
                              float(self.s["max_inflation"]))
@@ -473,8 +554,11 @@ class MagPf:
         self.change_armed = False
         self.changes += 1
         self.residual_mean = 0.0
+        self.retesting = True
+        self._clear_evidence()
 
-    def _change_declared(self) -> bool:
+    def _change_declared(self, mag: np.ndarray) -> bool:
+        """ImuMagPfChangeDeclared: the evidence must persist over CHANGE_DIRECTIONS field directions."""
         s = self.s
         self.updates_since_change += 1
         threshold = float(s["change_threshold"])
@@ -485,16 +569,22 @@ class MagPf:
                                  and self.innovation_average < threshold)
             return False
         if self.innovation_average <= threshold:
+            self.evidence_directions = 0
+            return False
+        if self._innovation(mag) > threshold and (
+                self.evidence_directions == 0 or self._turned(self.evidence_direction, mag)):
+            self.evidence_directions += 1
+            self.evidence_direction = mag.copy()
+        if self.evidence_directions < (CHANGE_DIRECTIONS if self.frozen else 1):
             return False
         self._declare_change()
         return True
 
-    def _detect_change(self) -> None:
+    def _redraw(self) -> None:
+        """ImuMagPfRedraw: after a declared change, the cloud around the estimate, the buffer flushed."""
         s = self.s
-        if not self._change_declared():
-            return
         spread = np.array([s["change_spread_hard_ut"]] * 3 + [s["change_spread_soft"]] * 6, float)
-        self.particle = self.estimate + spread * self.rng.normals(
+        self.particle = self._change_centre() + spread * self.rng.normals(
             self.n * STATE_SIZE).reshape(self.n, STATE_SIZE)
         self.weight = np.full(self.n, 1.0 / self.n)
         self.bin_list = []
@@ -516,9 +606,17 @@ class MagPf:
             return False
         self.counter = 0
         self.last_used = mag.copy()
+        # an isolated glitch (innovation average still low) would stay in its direction bin until that recurs
+        glitch = self._outlier(mag) and self.innovation_average <= float(self.s["change_threshold"])
         self._adapt(mag)
-        self._detect_change()
-        self._store(mag)
+        if self._change_declared(mag):
+            self._redraw()
+            glitch = False
+        elif self._prior_explains(mag):   # the change was a glitch, or it returned
+            self._take_back_prior()
+            return False
+        if not glitch:
+            self._store(mag)
         self.particle = self.particle + self.inflation * self.q * self.rng.normals(
             self.n * STATE_SIZE).reshape(self.n, STATE_SIZE)
         alpha = self._weigh()

@@ -81,10 +81,11 @@ def reset(pf) -> None:
         pf.estimate = np.concatenate([_reference(pf), np.asarray(soft, dtype=np.float64)])
 
 
-def restart(pf, mag: np.ndarray) -> None:
+def restart(pf, mag: np.ndarray, state: np.ndarray) -> None:
+    """New segment: sums restart at mag, priors around state (the estimate or the prior calibration)."""
     s = pf.s
-    centre = pf.estimate[:3].copy()
-    soft_mean = mm.quadratic_from_soft(pf.estimate[3:])
+    centre = np.asarray(state[:3], dtype=np.float64).copy()
+    soft_mean = mm.quadratic_from_soft(state[3:])
     pf.moments = [0.0] * mm.MOMENT_COUNT
     pf.previous_moments = [0.0] * mm.MOMENT_COUNT
     mm.moments_add(pf.moments, mag - _reference(pf))
@@ -231,16 +232,21 @@ def update(pf, mag: np.ndarray) -> bool:
         return False
     pf.counter = 0
     pf._adapt(mag)
-    if pf._change_declared():
+    if pf._change_declared(mag):
         pf.frozen = False
-        restart(pf, mag)
+        restart(pf, mag, pf._change_centre())
     elif pf.frozen:
+        return False
+    elif pf._prior_explains(mag):
+        pf._take_back_prior()
         return False
     if not weigh_new(pf):
         pf._declare_change()
-        restart(pf, mag)
-        if not weigh_new(pf):
-            return False
+        restart(pf, mag, pf.estimate)
+        if not weigh_new(pf):   # the estimate itself is hopeless: around the prior calibration
+            restart(pf, mag, pf._prior_state())
+            if not weigh_new(pf):
+                return False
     bridge(pf)
     pf.previous_moments = list(pf.moments)
     pf.previous_log = pf.loglik.copy()
