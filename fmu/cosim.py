@@ -3,22 +3,23 @@ from __future__ import annotations
 
 import ctypes
 import shutil
+import tempfile
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
 import numpy as np
-from fmpy import calloc, extract, free, read_model_description
 from fmpy.fmi1 import FMICallException
-from fmpy.fmi2 import (FMU2Slave, fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE,
-                       fmi2CallbackFunctions, fmi2CallbackLoggerTYPE, fmi2Real, fmi2ValueReference)
+from fmpy.fmi2 import FMU2Slave, fmi2Real, fmi2ValueReference
 from fmpy.fmi3 import FMU3Slave, fmi3Boolean, fmi3Float64, fmi3ValueReference
-from fmpy.logging import addLoggerProxy  # formats the logger's variadic message natively
 from tqdm import tqdm
 
+from fmu.archive import extract_archive, read_description
+from fmu.fmi2_logger import callbacks_for, release
 from fmu.variables import by_name
-from training.errors import ImuFusionError
+from training.errors import ImuFusionError, one_line
 from training.layout import INPUTS, OUTPUTS
+from training.schema import check_setting
 
 _STATUS = ("OK", "WARNING", "DISCARD", "ERROR", "FATAL", "PENDING")
 
@@ -26,8 +27,17 @@ _STATUS = ("OK", "WARNING", "DISCARD", "ERROR", "FATAL", "PENDING")
 OK, WARNING, DISCARD = 0, 1, 2
 
 
+#: An FmuError's message quotes at most this many of the FMU's last log messages (all are in .log).
+LOG_MESSAGES_QUOTED = 3
+
+
 class FmuError(ImuFusionError):
-    """An FMI call failed; the message carries the call and the FMU's log messages."""
+    """An FMI call failed; the one-line message carries the call and the FMU's last log messages,
+    `log` all of them."""
+
+    def __init__(self, message: str, log: list[str] | None = None):
+        super().__init__(message)
+        self.log = list(log or [])
 
 
 class _Log:
@@ -35,15 +45,11 @@ class _Log:
 
     def __init__(self) -> None:
         self.messages: list[str] = []
-        self.callbacks = fmi2CallbackFunctions()
-        self.callbacks.logger = fmi2CallbackLoggerTYPE(self._log2)
-        self.callbacks.allocateMemory = fmi2CallbackAllocateMemoryTYPE(calloc)
-        self.callbacks.freeMemory = fmi2CallbackFreeMemoryTYPE(free)
-        addLoggerProxy(ctypes.byref(self.callbacks))
+        self.callbacks, self._key = callbacks_for(self.log3)
 
-    def _log2(self, environment, instance_name: bytes, status: int, category: bytes, message: bytes) -> None:
-        """fmi2CallbackLogger (behind fmpy's proxy, which formats the message)."""
-        self.log3(environment, status, category, message)
+    def close(self) -> None:
+        """Stop receiving messages (after the FMU instance is freed)."""
+        release(self._key)
 
     def log3(self, environment, status: int, category: bytes, message: bytes) -> None:
         """fmi3LogMessageCallback: remember '[STATUS] category: message'."""
@@ -51,9 +57,13 @@ class _Log:
         self.messages.append(f"[{label}] {category.decode(errors='replace')}: {message.decode(errors='replace')}")
 
     def error(self, what: str) -> FmuError:
-        """An FmuError for `what`, with every message logged so far."""
-        log = "\n".join(self.messages) if self.messages else "(the FMU logged nothing)"
-        return FmuError(f"{what}\nFMU log:\n{log}")
+        """A one-line FmuError for `what` quoting the last LOG_MESSAGES_QUOTED messages logged so far
+        (all of them in its `log`)."""
+        quoted = self.messages[-LOG_MESSAGES_QUOTED:]
+        earlier = len(self.messages) - len(quoted)
+        log = " | ".join(one_line(m) for m in quoted) if quoted else "(the FMU logged nothing)"
+        more = f" ({earlier} earlier messages)" if earlier else ""
+        return FmuError(f"{one_line(what)}; FMU log{more}: {log}", self.messages)
 
 
 class Stepper:
@@ -135,6 +145,11 @@ def _set_parameters(fmu: FMU2Slave | FMU3Slave, parameters: dict) -> None:
             raise FmuError(str(e.args[0])) from e
         if variable.causality != "parameter":
             raise FmuError(f"'{name}' is an {variable.causality}, not a parameter")
+        if variable.type != "Real":   # bool(0.5) or int(2.9) would pass the FMU a different value
+            try:
+                value = check_setting(name, value)
+            except ValueError as e:
+                raise FmuError(str(e)) from None
         vr = [variable.value_reference]
         if variable.type == "Boolean":
             fmu.setBoolean(vr, [bool(value)])
@@ -164,10 +179,13 @@ def step_samples(fmu: FMU2Slave | FMU3Slave, t: np.ndarray, inputs: np.ndarray, 
 
 def _instantiate(fmu_path: str | Path, unzipdir: str, log: _Log, instance_name: str) -> FMU2Slave | FMU3Slave:
     """Load the binary and instantiate an FMU2Slave or FMU3Slave; FmuError with the log on failure."""
-    description = read_model_description(str(fmu_path))
+    description = read_description(fmu_path, unzipdir)
     cls = FMU3Slave if description.fmiVersion.startswith("3") else FMU2Slave
-    fmu = cls(guid=description.guid, unzipDirectory=unzipdir,
-              modelIdentifier=description.coSimulation.modelIdentifier, instanceName=instance_name)
+    try:
+        fmu = cls(guid=description.guid, unzipDirectory=unzipdir,
+                  modelIdentifier=description.coSimulation.modelIdentifier, instanceName=instance_name)
+    except Exception as e:  # fmpy raises bare Exception, ctypes OSError for a binary that does not load
+        raise FmuError(f"{fmu_path}: cannot load the FMU's binary ({one_line(str(e))})") from None
     try:
         if cls is FMU3Slave:
             fmu.instantiate(logMessage=log.log3)
@@ -175,7 +193,7 @@ def _instantiate(fmu_path: str | Path, unzipdir: str, log: _Log, instance_name: 
             fmu.instantiate(callbacks=log.callbacks)
     except Exception as e:
         fmu.freeLibrary()
-        raise log.error(f"instantiation failed: {e}") from e
+        raise log.error(f"{fmu_path}: instantiation failed: {e}") from e
     return fmu
 
 
@@ -188,10 +206,11 @@ def initialised_fmu(fmu_path: str | Path, start_time: float = 0.0, parameters: d
     free and clean up afterwards. Every failing FMI call inside the block becomes an FmuError
     that carries the FMU's log messages.
     """
-    unzipdir = extract(str(fmu_path))
+    unzipdir = tempfile.mkdtemp(prefix="imufusion-fmu-")
     log = _Log()
     fmu = None
     try:
+        extract_archive(fmu_path, unzipdir)
         fmu = _instantiate(fmu_path, unzipdir, log, instance_name)
         fmu.log_messages = log.messages
         try:
@@ -206,10 +225,11 @@ def initialised_fmu(fmu_path: str | Path, start_time: float = 0.0, parameters: d
             yield fmu
             fmu.terminate()
         except FMICallException as e:
-            raise log.error(str(e)) from e
+            raise log.error(f"{fmu_path}: {e}") from e
     finally:
         if fmu is not None:
             fmu.freeInstance()
+        log.close()
         shutil.rmtree(unzipdir, ignore_errors=True)
 
 
@@ -226,7 +246,7 @@ def run_fmu(fmu_path: str | Path, t: np.ndarray, inputs: np.ndarray, parameters:
     is a list, the FMU's log messages ('[STATUS] category: message') are appended to it.
     """
     t, inputs = _check_arrays(t, inputs)
-    experiment = read_model_description(str(fmu_path)).defaultExperiment
+    experiment = read_description(fmu_path).defaultExperiment
     h = step_sizes(t, experiment.stepSize if experiment is not None and experiment.stepSize else 1.0)
     with initialised_fmu(fmu_path, float(t[0]), parameters) as fmu:
         out = step_samples(fmu, t, inputs, h, progress)

@@ -73,13 +73,23 @@ def _common_attributes(variable: Variable) -> list[str]:
     return attributes
 
 
+def _range_attributes(variable: Variable) -> list[str]:
+    """min and max of a Real or Integer with a declared range (training.layout.SETTING_RANGES,
+    inclusive in FMI; an open bound is refused by the FMU at initialisation)."""
+    if variable.type == "Boolean":
+        return []
+    return [f'{key}="{_start_text(variable, value)}"'
+            for key, value in (("min", variable.min), ("max", variable.max)) if value is not None]
+
+
 def _unit_attributes(variable: Variable, start) -> list[str]:
-    """unit, displayUnit and start attributes (those that apply)."""
+    """unit, displayUnit, min, max and start attributes (those that apply)."""
     attributes = []
     if variable.type == "Real":  # a Real without a unit in the table is dimensionless; integers carry none
         attributes.append(f"unit={quoteattr(variable.unit or '1')}")
     if variable.display_unit is not None:
         attributes.append(f"displayUnit={quoteattr(variable.display_unit)}")
+    attributes += _range_attributes(variable)
     if start is not None:
         attributes.append(f'start="{_start_text(variable, start)}"')
     return attributes

@@ -229,6 +229,6 @@ def fmu_aux_columns(fmu_path: str | Path) -> list[str]:
     try:
         with zipfile.ZipFile(fmu_path) as zf:
             return [entry["column"] for entry in json.loads(zf.read(AUX_INPUTS_FILE).decode())]
-    except (KeyError, zipfile.BadZipFile) as e:
+    except (KeyError, zipfile.BadZipFile, ValueError, TypeError) as e:  # ValueError: not JSON; TypeError: not a list of objects
         raise ModelError(f"{fmu_path}: not an ImuFusion FMU with auxiliary inputs ({e}); rebuild it "
                          "with imufmu build-fmu") from e

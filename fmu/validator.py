@@ -13,11 +13,12 @@ import fmpy
 import numpy as np
 from fmpy.validation import validate_fmu as fmpy_validate_fmu
 
+from fmu.archive import FmuArchiveError, read_description
 from fmu.compiler import binary_path
 from fmu.cosim import run_fmu
 from fmu.model_description import MODEL_NAME
 from fmu.packer import REFERENCE_INPUT, REFERENCE_OUTPUT, read_reference_csv
-from training.errors import ImuFusionError
+from training.errors import ImuFusionError, one_line
 from training.layout import INPUTS, OUTPUTS
 
 #: The 25 common and 9 co-simulation functions of FMI 2.0: exactly what the binary exports.
@@ -97,7 +98,7 @@ def exported_symbols(path: str | Path) -> set[str]:
         result = subprocess.run(["nm", "-D", "--defined-only", str(library)],
                                 stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
     if result.returncode != 0:
-        raise ImuFusionError(f"nm failed on {path}:\n{result.stdout}")
+        raise ImuFusionError(f"nm failed on {path}: {one_line(result.stdout)}")
     return {line.split()[-1] for line in result.stdout.splitlines() if line.strip()}
 
 
@@ -129,7 +130,7 @@ def fmutool_problems(path: str | Path) -> list[str]:
     passed = (f"compliant with FMI-{version}.0" in report and f"No semantic error against the FMI-{version}" in report
               and result.returncode == 0)
     bad_lines = [line for line in report.splitlines() if line.startswith(("ERROR", "WARNING"))]
-    return [] if passed and not bad_lines else [f"fmutool -check reported problems:\n{report}"]
+    return [] if passed and not bad_lines else [f"fmutool -check reported problems: {one_line(report)}"]
 
 
 def reference_problems(path: str | Path) -> list[str]:
@@ -169,15 +170,18 @@ def _smoke_problems(path: Path) -> list[str]:
 def validate_fmu(path: str | Path) -> list[str]:
     """Every problem found in the FMU (FMI 2 or 3) at path (empty list = valid).
 
-    Checks fmpy's model-description validation (schema, names, model structure, units), that the
-    binary exports exactly the 34 FMI 2.0 co-simulation functions or all 75 FMI 3.0 functions,
+    First the archive itself (fmu.archive: a zip within the size caps, safe member names, a
+    well-formed modelDescription.xml, the binary present); then fmpy's model-description validation
+    (schema, names, model structure, units), that the binary exports exactly the 34 FMI 2.0 co-simulation functions or all 75 FMI 3.0 functions,
     fmutool's static check (fmu-manipulation-toolbox), a
     1 s smoke co-simulation, and that the FMU reproduces its shipped reference result.
     """
     path = Path(path)
-    if not zipfile.is_zipfile(path):
-        return [f"{path}: not an FMU (an FMU is a zip archive)"]
-    problems = list(fmpy_validate_fmu(str(path)))
+    try:
+        read_description(path)
+    except FmuArchiveError as e:
+        return [str(e)]
+    problems = [one_line(p) for p in fmpy_validate_fmu(str(path))]
     if problems:
         return problems
     problems += _symbol_problems(path, fmi_version_of(path))

@@ -12,7 +12,8 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import dataclass
 
-from training.layout import AUX_INPUTS, INPUTS, OUTPUTS, SETTINGS
+from training.layout import AUX_INPUTS, INPUTS, OUTPUTS, SETTING_RANGES, SETTINGS
+from training.schema import range_text
 
 
 @dataclass(frozen=True)
@@ -23,11 +24,13 @@ class Variable:
     value_reference: int
     causality: str      # "input" | "output" | "parameter"
     variability: str    # "continuous" | "fixed"
-    type: str           # "Real" | "Boolean"
+    type: str           # "Real" | "Integer" | "Boolean"
     unit: str | None
     display_unit: str | None
     description: str
-    start: float | bool | None
+    start: float | int | bool | None
+    min: float | None = None    # declared range (parameters: training.layout.SETTING_RANGES)
+    max: float | None = None
 
 
 _NED = "body -> magnetic NED, ZYX Euler angles"
@@ -43,10 +46,15 @@ def _output(name: str, vr: int, unit: str, description: str, display_unit: str |
     return Variable(name, vr, "output", "continuous", "Real", unit, display_unit, description, None)
 
 
-def _parameter(name: str, vr: int, unit: str | None, description: str, start: float | bool,
-               display_unit: str | None = None, type_: str = "Real") -> Variable:
-    """A fixed parameter (set before initialisation)."""
-    return Variable(name, vr, "parameter", "fixed", type_, unit, display_unit, description, start)
+def _parameter(name: str, vr: int, description: str, display_unit: str | None = None) -> Variable:
+    """A fixed parameter (set before initialisation): type, unit, range and start value from
+    training.layout (SETTING_RANGES, SETTINGS); Integer and Boolean parameters carry no unit."""
+    r = SETTING_RANGES[name]
+    start = _DEFAULTS[name]
+    if r.type == "Boolean":
+        return Variable(name, vr, "parameter", "fixed", r.type, None, None, description, bool(start))
+    typed = int(start) if r.type == "Integer" else start
+    return Variable(name, vr, "parameter", "fixed", r.type, r.unit, display_unit, description, typed, r.min, r.max)
 
 
 _DEFAULTS = dict(SETTINGS)
@@ -90,88 +98,69 @@ _LAYOUT_2: tuple[Variable, ...] = (
     _output("soft_iron_yy", 34, "1", "Particle-filter soft-iron matrix entry b22 (0 when enable_pf is off)"),
     _output("soft_iron_zz", 35, "1", "Particle-filter soft-iron matrix entry b33 (0 when enable_pf is off)"),
     _output("pf_neff", 36, "1", "Particle-filter effective sample size before resampling (0 when enable_pf is off)"),
-    _parameter("declination", 37, "rad", "Magnetic declination: heading = yaw + declination",
-               _DEFAULTS["declination"], "deg"),
-    _parameter("field_norm", 38, "uT", "Local earth-field magnitude", _DEFAULTS["field_norm"]),
-    _parameter("gyro_noise", 39, "rad/s/sqrt(Hz)", "White-noise density of the corrected gyro",
-               _DEFAULTS["gyro_noise"]),
-    _parameter("gyro_bias_residual", 40, "rad/s", "Residual gyro bias after calibration",
-               _DEFAULTS["gyro_bias_residual"]),
-    _parameter("mse_time_constant", 41, "s", "Averaging time of the innovation mean-square errors",
-               _DEFAULTS["mse_time_constant"]),
-    _parameter("angle_noise", 42, "rad", "Floor of the accelerometer/magnetometer angle error standard deviation",
-               _DEFAULTS["angle_noise"], "deg"),
-    _parameter("enable_thermal", 43, None, "Apply the gain/bias temperature model",
-               bool(_DEFAULTS["enable_thermal"]), type_="Boolean"),
-    _parameter("attitude_mode", 44, "1", "Attitude filter: 0 = adaptive-gain Euler fusion, 1 = quaternion filter "
-               "with gyro bias at rest and magnetic disturbance rejection", _DEFAULTS["attitude_mode"]),
-    _parameter("field_dip", 45, "rad", "Local earth-field dip (inclination, positive down)",
-               _DEFAULTS["field_dip"], "deg"),
-    _parameter("tau_acc", 46, "s", "Time constant of the inclination correction (quaternion filter)",
-               _DEFAULTS["tau_acc"]),
-    _parameter("tau_mag", 47, "s", "Time constant of the heading correction (quaternion filter)",
-               _DEFAULTS["tau_mag"]),
-    _parameter("rest_gyro_threshold", 48, "rad/s", "Rest detection rate threshold for the gyro bias estimate "
-               "(0 = no bias estimation)", _DEFAULTS["rest_gyro_threshold"], "deg/s"),
-    _parameter("rest_acc_threshold", 49, "m/s2", "Rest detection specific-force deviation threshold",
-               _DEFAULTS["rest_acc_threshold"]),
-    _parameter("mag_reject_time", 50, "s", "Longest rejection of a magnetic field whose norm or dip is disturbed "
-               "(0 = no rejection; quaternion filter)", _DEFAULTS["mag_reject_time"]),
-    _parameter("enable_elm", 51, None, "Apply the extreme-learning-machine model of the nonlinear "
-               "magnetometer distortion (when the artefact carries one)",
-               bool(_DEFAULTS["enable_elm"]), type_="Boolean"),
-    _parameter("enable_pf", 52, None, "Online hard/soft-iron estimation by particle filter on the calibrated field",
-               bool(_DEFAULTS["enable_pf"]), type_="Boolean"),
-    _parameter("pf_particles", 53, None, "Particle count of the filter (2..512)",
-               int(_DEFAULTS["pf_particles"]), type_="Integer"),
-    _parameter("pf_measurement_noise", 54, "uT", "Field noise per axis assumed by the filter",
-               _DEFAULTS["pf_measurement_noise"]),
-    _parameter("pf_process_noise_hard", 55, "uT", "Random-walk standard deviation of the hard iron per filter update",
-               _DEFAULTS["pf_process_noise_hard"]),
-    _parameter("pf_process_noise_soft", 56, "1", "Random-walk standard deviation of the soft-iron entries per filter update",
-               _DEFAULTS["pf_process_noise_soft"]),
-    _parameter("pf_prior_spread_hard", 57, "uT", "Prior standard deviation of the hard iron around the trained calibration",
-               _DEFAULTS["pf_prior_spread_hard"]),
-    _parameter("pf_prior_spread_soft", 58, "1", "Prior standard deviation of the soft-iron entries",
-               _DEFAULTS["pf_prior_spread_soft"]),
-    _parameter("pf_decimation", 59, None, "Filter every n-th valid sample (the field is compensated every sample)",
-               int(_DEFAULTS["pf_decimation"]), type_="Integer"),
-    _parameter("pf_seed", 60, None, "Seed of the filter's PCG32 random numbers",
-               int(_DEFAULTS["pf_seed"]), type_="Integer"),
-    _parameter("pf_threshold_high", 61, "1", "High-weight threshold omega1 of double-threshold splitting, relative to 1/N",
-               _DEFAULTS["pf_threshold_high"]),
-    _parameter("pf_threshold_low", 62, "1", "Low-weight threshold omega2 of double-threshold splitting, relative to 1/N",
-               _DEFAULTS["pf_threshold_low"]),
-    _parameter("pf_sphere_bins", 63, None, "Cells per cube-face side of the buffer of field directions (0 = current sample only)",
-               int(_DEFAULTS["pf_sphere_bins"]), type_="Integer"),
-    _parameter("enable_psobp", 64, None, "Apply the PSO-BP network (temperature and its rate) to the gyro bias "
-               "that the gain/bias polynomial leaves (when the artefact carries one)",
-               bool(_DEFAULTS["enable_psobp"]), type_="Boolean"),
-    _parameter("pf_rao_blackwell", 65, None, "Particle filter samples the hard iron only and integrates the soft "
-               "iron out exactly (off: the method's 9-state filter with splitting and restoration network)",
-               bool(_DEFAULTS["pf_rao_blackwell"]), type_="Boolean"),
-    _parameter("pf_min_rotation", 66, "rad", "Turn of the field direction since the last sample used before the "
-               "filter uses a sample (thins samples at rest)", _DEFAULTS["pf_min_rotation"], "deg"),
-    _parameter("pf_change_spread_hard", 67, "uT", "Prior standard deviation of the hard iron around the estimate "
-               "after a declared change of environment", _DEFAULTS["pf_change_spread_hard"]),
-    _parameter("pf_hold_prior", 68, None, "Particle filter holds the prior (trained) calibration until the first "
-               "declared change of environment", bool(_DEFAULTS["pf_hold_prior"]), type_="Boolean"),
-    _parameter("pf_settle_spread", 69, "uT", "The attitude filter ignores the magnetometer while the particle "
-               "filter's hard-iron standard deviation exceeds this (0: never)", _DEFAULTS["pf_settle_spread"]),
+    _parameter("declination", 37, "Magnetic declination: heading = yaw + declination", "deg"),
+    _parameter("field_norm", 38, "Local earth-field magnitude"),
+    _parameter("gyro_noise", 39, "White-noise density of the corrected gyro"),
+    _parameter("gyro_bias_residual", 40, "Residual gyro bias after calibration"),
+    _parameter("mse_time_constant", 41, "Averaging time of the innovation mean-square errors"),
+    _parameter("angle_noise", 42, "Floor of the accelerometer/magnetometer angle error standard deviation", "deg"),
+    _parameter("enable_thermal", 43, "Apply the gain/bias temperature model"),
+    _parameter("attitude_mode", 44, "Attitude filter: 0 = adaptive-gain Euler fusion, 1 = quaternion filter "
+               "with gyro bias at rest and magnetic disturbance rejection"),
+    _parameter("field_dip", 45, "Local earth-field dip (inclination, positive down)", "deg"),
+    _parameter("tau_acc", 46, "Time constant of the inclination correction (quaternion filter)"),
+    _parameter("tau_mag", 47, "Time constant of the heading correction (quaternion filter)"),
+    _parameter("rest_gyro_threshold", 48, "Rest detection rate threshold for the gyro bias estimate "
+               "(0 = no bias estimation)", "deg/s"),
+    _parameter("rest_acc_threshold", 49, "Rest detection specific-force deviation threshold"),
+    _parameter("mag_reject_time", 50, "Longest rejection of a magnetic field whose norm or dip is disturbed "
+               "(0 = no rejection; quaternion filter)"),
+    _parameter("enable_elm", 51, "Apply the extreme-learning-machine model of the nonlinear "
+               "magnetometer distortion (when the artefact carries one)"),
+    _parameter("enable_pf", 52, "Online hard/soft-iron estimation by particle filter on the calibrated field"),
+    _parameter("pf_particles", 53, "Particle count of the filter (2..512)"),
+    _parameter("pf_measurement_noise", 54, "Field noise per axis assumed by the filter"),
+    _parameter("pf_process_noise_hard", 55, "Random-walk standard deviation of the hard iron per filter update"),
+    _parameter("pf_process_noise_soft", 56, "Random-walk standard deviation of the soft-iron entries per filter update"),
+    _parameter("pf_prior_spread_hard", 57, "Prior standard deviation of the hard iron around the trained calibration"),
+    _parameter("pf_prior_spread_soft", 58, "Prior standard deviation of the soft-iron entries"),
+    _parameter("pf_decimation", 59, "Filter every n-th valid sample (the field is compensated every sample)"),
+    _parameter("pf_seed", 60, "Seed of the filter's PCG32 random numbers"),
+    _parameter("pf_threshold_high", 61, "High-weight threshold omega1 of double-threshold splitting, relative to 1/N"),
+    _parameter("pf_threshold_low", 62, "Low-weight threshold omega2 of double-threshold splitting, relative to 1/N"),
+    _parameter("pf_sphere_bins", 63, "Cells per cube-face side of the buffer of field directions (0 = current sample only)"),
+    _parameter("enable_psobp", 64, "Apply the PSO-BP network (temperature and its rate) to the gyro bias "
+               "that the gain/bias polynomial leaves (when the artefact carries one)"),
+    _parameter("pf_rao_blackwell", 65, "Particle filter samples the hard iron only and integrates the soft "
+               "iron out exactly (off: the method's 9-state filter with splitting and restoration network)"),
+    _parameter("pf_min_rotation", 66, "Turn of the field direction since the last sample used before the "
+               "filter uses a sample (thins samples at rest)", "deg"),
+    _parameter("pf_change_spread_hard", 67, "Prior standard deviation of the hard iron around the estimate "
+               "after a declared change of environment"),
+    _parameter("pf_hold_prior", 68, "Particle filter holds the prior (trained) calibration until the first "
+               "declared change of environment"),
+    _parameter("pf_settle_spread", 69, "The attitude filter ignores the magnetometer while the particle "
+               "filter's hard-iron standard deviation exceeds this (0: never)"),
 )
 
 #: Value reference of aux_1 (the auxiliary inputs are contiguous, in training.layout.AUX_INPUTS order).
 _FIRST_AUX_VR = 70
 
 _LAGS: tuple[Variable, ...] = (
-    _parameter("lag_gyr", 74, "s", "How long the gyro input lags true time (negative: it leads, within [-1, 1] s); "
-               "the compensated rates are aligned to true time before the correction terms", _DEFAULTS["lag_gyr"]),
-    _parameter("lag_acc", 75, "s", "How long the accelerometer input lags true time (negative: it leads, within "
-               "[-1, 1] s); the compensated specific force is aligned to true time before the correction terms",
-               _DEFAULTS["lag_acc"]),
-    _parameter("lag_mag", 76, "s", "How long the magnetometer input lags true time (negative: it leads, within "
-               "[-1, 1] s); the compensated field is aligned to true time before the correction terms",
-               _DEFAULTS["lag_mag"]),
+    _parameter("lag_gyr", 74, "How long the gyro input lags true time (negative: it leads, within [-1, 1] s); "
+               "the compensated rates are aligned to true time before the correction terms"),
+    _parameter("lag_acc", 75, "How long the accelerometer input lags true time (negative: it leads, within "
+               "[-1, 1] s); the compensated specific force is aligned to true time before the correction terms"),
+    _parameter("lag_mag", 76, "How long the magnetometer input lags true time (negative: it leads, within "
+               "[-1, 1] s); the compensated field is aligned to true time before the correction terms"),
+)
+
+
+#: Outputs added by layout version 4, after the last value reference of layout 3.
+_LAYOUT_4_OUTPUTS: tuple[Variable, ...] = (
+    _output("calibration_valid", 77, "1", "1 while every model input (temperature, its rate, the correction terms' "
+            "regressors, the field for the ELM) is inside the range the model was calibrated on, 0 while one is "
+            "outside: the model is then evaluated at the range edge (clamped), never extrapolated"),
 )
 
 
@@ -197,7 +186,7 @@ def variable_table(aux_inputs: Sequence[dict] = ()) -> tuple[Variable, ...]:
     (entry k describes input aux_{k+1})."""
     if len(aux_inputs) > len(AUX_INPUTS):
         raise ValueError(f"{len(aux_inputs)} auxiliary inputs mapped, the FMU has {len(AUX_INPUTS)}")
-    return _LAYOUT_2 + _aux_inputs(aux_inputs) + _LAGS
+    return _LAYOUT_2 + _aux_inputs(aux_inputs) + _LAGS + _LAYOUT_4_OUTPUTS
 
 
 VARIABLES: tuple[Variable, ...] = variable_table()
@@ -235,4 +224,13 @@ def markdown_table() -> str:
         if v.display_unit:
             unit += f" (shown in {v.display_unit})"
         lines.append(f"| `{v.name}` | {v.causality} | {unit} | {v.description} |")
+    return "\n".join(lines)
+
+
+def ranges_markdown() -> str:
+    """The parameters' declared types and ranges as Markdown (docs/fmu.md embeds it;
+    tests/test_value_checks.py keeps them equal). ( ) marks a bound that is itself refused."""
+    lines = ["| parameter | type | range | default |", "|---|---|---|---|"]
+    for v in parameters():
+        lines.append(f"| `{v.name}` | {v.type} | {range_text(v.name)} | {_DEFAULTS[v.name]:g} |")
     return "\n".join(lines)

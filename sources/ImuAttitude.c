@@ -151,6 +151,23 @@ void ImuAttitudeReset(ImuAttitude *a)
     a->stepError = 0.0;
 }
 
+/** @brief After a gap [s]: restart the corrections as at power-on, keeping the gyro bias and the
+ *         angles; the variance grows by the untracked motion over the gap. */
+void ImuAttitudeRestart(ImuAttitude *a, double gap)
+{
+    const double untracked = fmin(IMU_ATTITUDE_UNTRACKED_MOTION * gap, IMU_PI); /* rad: no angle is more unknown than +-pi */
+    int i;
+    for (i = 0; i < 3; i++) {
+        a->variance[i] += untracked * untracked;
+    }
+    a->tiltInitialised = 0;
+    a->yawInitialised = 0;
+    ImuRestDetectorReset(&a->rest);
+    a->magRejected = 0.0;
+    a->magSamples = 0.0;
+    a->stepError = 0.0;
+}
+
 /**
  * @brief Rate [rad/s] held over the step: the mean of the previous and current corrected rates
  *        (trapezoidal rule), or the one that is finite; 0 if neither is.

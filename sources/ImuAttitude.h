@@ -76,6 +76,15 @@ IMU_HIDDEN void ImuAttitudeInitialise(ImuAttitude *a, const ImuAttitudeSettings 
 /** @brief Reset the state, keeping the settings. */
 IMU_HIDDEN void ImuAttitudeReset(ImuAttitude *a);
 /**
+ * @brief After a gap of `gap` [s] without samples: the corrections restart as at power-on
+ *        (roll/pitch from the next specific force, yaw from the next field, rest detection anew)
+ *        and the angles' variance grows by the motion nobody measured, (1 rad/s x gap)^2, so the
+ *        following acc/mag samples average the restart down; the gyro bias and the angles are
+ *        kept (without a magnetometer yaw keeps its value from before the gap). Call before the
+ *        first sample after the gap, which must then come with dt = 0.
+ */
+IMU_HIDDEN void ImuAttitudeRestart(ImuAttitude *a, double gap);
+/**
  * @brief Process one sample: gyr [rad/s], acc specific force [m/s^2], mag [uT] (corrected,
  *        body axes); dt [s] since the previous sample (0 on the first; no propagation if <= 0).
  */

@@ -47,7 +47,10 @@ int ImuBatchCheckSettings(const double *settings, size_t nSettings, const char *
 }
 
 /** @brief Run the guarded pipeline (ImuGuard.h, as in the FMU) over nSamples samples (times t [s],
- *         inputs/outputs row-major). */
+ *         inputs/outputs row-major). Sample k comes t[k] - t[k-1] after the previous one: the step
+ *         size of the FMU's previous doStep (fmu/cosim.py: h = diff(t)), so both give the same bits.
+ *         A time that does not increase is an ImuGuardIssueOrder sample; the next step counts from
+ *         the last time that did. */
 int ImuBatchRun(const double *coefficients, size_t nCoefficients, const double *settings,
                 size_t nSettings, size_t nSamples, const double *t, const double *inputs,
                 double *outputs)
@@ -57,6 +60,7 @@ int ImuBatchRun(const double *coefficients, size_t nCoefficients, const double *
     ImuCoefficients c;
     ImuPipelineSettings s;
     const char *message;
+    double last = 0.0; /* s, time of the last sample whose time increased */
     size_t k;
     int result = ImuBatchCoefficients(&c, coefficients, nCoefficients);
     if (result == ImuBatchOk) {
@@ -71,11 +75,11 @@ int ImuBatchRun(const double *coefficients, size_t nCoefficients, const double *
     ImuPipelineInitialise(&pipeline, &s, &c);
     ImuGuardReset(&guard, settings[ImuSetDeclination]);
     for (k = 0; k < nSamples; k++) {
-        double in[IMU_INPUT_COUNT], tPipeline;
-        double *out = outputs + k * IMU_OUTPUT_COUNT;
-        (void)ImuGuardInputs(&guard, settings[ImuSetFieldNorm], t[k], inputs + k * IMU_INPUT_COUNT, in, &tPipeline);
-        ImuPipelineUpdate(&pipeline, tPipeline, in, out);
-        (void)ImuGuardOutputs(&guard, out);
+        const double step = k > 0 ? t[k] - last : 0.0;
+        (void)ImuGuardStep(&guard, &pipeline, step, inputs + k * IMU_INPUT_COUNT, outputs + k * IMU_OUTPUT_COUNT);
+        if (k == 0 || step > 0.0) { /* a time that does not increase is not a sample time to step from */
+            last = t[k];
+        }
     }
     return ImuBatchOk;
 }

@@ -23,8 +23,9 @@ typedef enum {
 
 /**
  * @brief Run the pipeline over nSamples samples behind the FMU's input/time/output guard
- *        (ImuGuard.h), so the outputs equal the FMU's on any input (and are always finite).
- * @param t nSamples times [s]; inputs nSamples x IMU_INPUT_COUNT row-major (rad/s, m/s^2, uT,
+ *        (ImuGuard.h), so the outputs equal the FMU's on any input (finite, except the
+ *        corrected outputs of an absent sensor, which are NaN).
+ * @param t nSamples times [s]: only their differences are used (the steps); inputs nSamples x IMU_INPUT_COUNT row-major (rad/s, m/s^2, uT,
  *        degC, auxiliary inputs); outputs nSamples x IMU_OUTPUT_COUNT row-major (ImuLayout.h).
  * @return ImuBatchOk, or a negative ImuBatchResult (outputs untouched).
  */

@@ -43,6 +43,7 @@ int ImuElmFromBlock(ImuElm *elm, const double *block)
     elm->hidden = elm->enabled ? (int)block[2] : 0;
     for (i = 0; i < 3; i++) {
         elm->inMin[i] = block[3 + i];
+        elm->inMax[i] = block[6 + i];
         elm->inScale[i] = elm->enabled ? 2.0 / (block[6 + i] - block[3 + i]) : 0.0;
         elm->outMin[i] = block[9 + i];
         elm->outHalfSpan[i] = 0.5 * (block[12 + i] - block[9 + i]);
@@ -63,19 +64,32 @@ static double ImuElmActivate(ImuElmActivation activation, double z)
     return activation == ImuElmSigmoid ? 1.0 / (1.0 + exp(-z)) : tanh(z);
 }
 
-/** @brief Map a distorted field in [uT] to the corrected field out [uT] (in and out may alias). */
-void ImuElmApply(const ImuElm *elm, const double in[3], double out[3])
+/** @brief in [uT] clamped into the calibrated box [inMin, inMax] per axis into clamped; 1 if unchanged. */
+static int ImuElmClamp(const ImuElm *elm, const double in[3], double clamped[3])
 {
-    double x[3], y[3] = {0.0, 0.0, 0.0};
-    int i, j;
+    int i, inside = 1;
+    for (i = 0; i < 3; i++) {
+        clamped[i] = in[i] < elm->inMin[i] ? elm->inMin[i] : (in[i] > elm->inMax[i] ? elm->inMax[i] : in[i]);
+        inside = inside && (clamped[i] == in[i] || isnan(in[i]));
+    }
+    return inside;
+}
+
+/** @brief Map a distorted field in [uT] to the corrected field out [uT] (in and out may alias): the
+ *         network's correction at the field clamped into the calibrated box; 1 if it was inside. */
+int ImuElmApply(const ImuElm *elm, const double in[3], double out[3])
+{
+    double x[3], xc[3], y[3] = {0.0, 0.0, 0.0};
+    int i, j, inside;
     if (!elm->enabled) {
         for (i = 0; i < 3; i++) {
             out[i] = in[i];
         }
-        return;
+        return 1;
     }
+    inside = ImuElmClamp(elm, in, xc);
     for (i = 0; i < 3; i++) {
-        x[i] = (in[i] - elm->inMin[i]) * elm->inScale[i] - 1.0;
+        x[i] = (xc[i] - elm->inMin[i]) * elm->inScale[i] - 1.0;
     }
     for (j = 0; j < elm->hidden; j++) {
         const double h = ImuElmActivate(elm->activation,
@@ -85,6 +99,7 @@ void ImuElmApply(const ImuElm *elm, const double in[3], double out[3])
         }
     }
     for (i = 0; i < 3; i++) {
-        out[i] = elm->outMin[i] + (y[i] + 1.0) * elm->outHalfSpan[i];
+        out[i] = elm->outMin[i] + (y[i] + 1.0) * elm->outHalfSpan[i] + (in[i] - xc[i]);
     }
+    return inside;
 }

@@ -6,6 +6,11 @@
  * x_n = 2 (x - inMin) / (inMax - inMin) - 1 and y = outMin + (y_n + 1) (outMax - outMin) / 2.
  * Trained by training/elm.py (growing ELM with back-tuning, docs/elm.md).
  *
+ * Calibrated range: [inMin, inMax] per axis is the box of fields the network was fitted on. A
+ * field outside it is clamped into the box, the network's correction y(xc) - xc is evaluated there
+ * and added to the field itself: inside the box this is y(x) unchanged; outside, the correction at
+ * the box edge is applied instead of an extrapolated network, and ImuElmApply reports the excursion.
+ *
  * Block layout (IMU_ELM_BLOCK doubles, training.elm.to_block):
  *   [0]  enabled (0: the field passes through unchanged, 1: apply)
  *   [1]  activation (ImuElmActivation: 0 tanh, 1 sigmoid)
@@ -41,6 +46,7 @@ typedef struct {
     ImuElmActivation activation;
     int hidden;                                 /* L */
     double inMin[3];                            /* uT */
+    double inMax[3];                            /* uT, the calibrated box is [inMin, inMax] */
     double inScale[3];                          /* 1/uT, 2 / (inMax - inMin) */
     double outMin[3];                           /* uT */
     double outHalfSpan[3];                      /* uT, (outMax - outMin) / 2 */
@@ -56,7 +62,9 @@ typedef struct {
  *         min >= max.
  */
 IMU_HIDDEN int ImuElmFromBlock(ImuElm *elm, const double *block);
-/** @brief Map a distorted field in [uT] to the corrected field out [uT] (in and out may alias). */
-IMU_HIDDEN void ImuElmApply(const ImuElm *elm, const double in[3], double out[3]);
+/** @brief Map a distorted field in [uT] to the corrected field out [uT] (in and out may alias); a
+ *         field outside the calibrated box gets the correction of its clamped value.
+ *  @return 1 if the field was inside the box (or the ELM is disabled, or the field not finite), 0 if clamped. */
+IMU_HIDDEN int ImuElmApply(const ImuElm *elm, const double in[3], double out[3]);
 
 #endif

@@ -22,6 +22,18 @@ static int ImuGuardWithinLimit(const double *x, int n, double limit)
     return 1;
 }
 
+/** @brief 1 if every one of the n values is NaN (a sensor that was not recorded). */
+static int ImuGuardAllNan(const double *x, int n)
+{
+    int i;
+    for (i = 0; i < n; i++) {
+        if (!isnan(x[i])) {
+            return 0;
+        }
+    }
+    return 1;
+}
+
 void ImuGuardInitialOutputs(double declination, double out[IMU_OUTPUT_COUNT])
 {
     int i;
@@ -39,29 +51,17 @@ void ImuGuardReset(ImuGuard *g, double declination)
     ImuGuardInitialOutputs(declination, g->held);
 }
 
-/** @brief Time [s] of the sample at t [s] for the pipeline: jumps beyond IMU_GUARD_MAX_GAP are cut
- *         to it; sets the ImuGuardIssueOrder / ImuGuardIssueGap bits in *issues. */
-static double ImuGuardTime(ImuGuard *g, double t, int *issues)
+int ImuGuardAbsent(const ImuGuard *g)
 {
-    if (g->hasSample && !(t > g->lastSampleTime)) {
-        *issues |= ImuGuardIssueOrder;
-        return t - g->timeShift;
-    }
-    if (g->hasSample && t - g->lastSampleTime > IMU_GUARD_MAX_GAP) {
-        *issues |= ImuGuardIssueGap;
-        g->timeShift += (t - g->lastSampleTime) - IMU_GUARD_MAX_GAP;
-    }
-    g->lastSampleTime = t;
-    g->hasSample = 1;
-    return t - g->timeShift;
+    return IMU_GUARD_SENSORS & ~g->present;
 }
 
-int ImuGuardInputs(ImuGuard *g, double fieldNorm, double t, const double raw[IMU_INPUT_COUNT],
-                   double in[IMU_INPUT_COUNT], double *tPipeline)
+/** @brief The ImuGuardIssue bits of the raw triads and temperature (fieldNorm [uT] scales the
+ *         magnetometer limits). */
+static int ImuGuardSensorIssues(double fieldNorm, const double raw[IMU_INPUT_COUNT])
 {
     const double *mag = &raw[ImuInMagX];
-    int issues = 0, i;
-    memcpy(in, raw, IMU_INPUT_COUNT * sizeof raw[0]);
+    int issues = 0;
     if (!ImuGuardWithinLimit(&raw[ImuInGyrX], 3, IMU_GUARD_GYR_LIMIT)) {
         issues |= ImuGuardIssueGyr;
     }
@@ -73,29 +73,98 @@ int ImuGuardInputs(ImuGuard *g, double fieldNorm, double t, const double raw[IMU
     } else if (!(sqrt(mag[0] * mag[0] + mag[1] * mag[1] + mag[2] * mag[2]) >= IMU_GUARD_MAG_MINIMUM * fieldNorm)) {
         issues |= ImuGuardIssueMagZero;
     }
-    for (i = 0; i < 3; i++) {
-        if (issues & (1 << i)) {
-            in[ImuInGyrX + 3 * i] = in[ImuInGyrX + 3 * i + 1] = in[ImuInGyrX + 3 * i + 2] = NAN;
-        }
-    }
-    if (issues & ImuGuardIssueMagZero) {
-        in[ImuInMagX] = in[ImuInMagY] = in[ImuInMagZ] = NAN;
-    }
-    if (raw[ImuInTemp] >= IMU_GUARD_TEMP_MIN && raw[ImuInTemp] <= IMU_GUARD_TEMP_MAX) {
-        g->lastValidTemp = raw[ImuInTemp];
-    } else {
+    if (!(raw[ImuInTemp] >= IMU_GUARD_TEMP_MIN && raw[ImuInTemp] <= IMU_GUARD_TEMP_MAX)) {
         issues |= ImuGuardIssueTemp;
-        in[ImuInTemp] = g->lastValidTemp;
     }
-    *tPipeline = ImuGuardTime(g, t, &issues);
     return issues;
 }
 
-int ImuGuardOutputs(ImuGuard *g, double out[IMU_OUTPUT_COUNT])
+/** @brief Mark the sensors with a valid sample present; clear the issue bits of the sensors that
+ *         have never delivered one and read all-NaN (absent, not bad). Returns the issues left. */
+static int ImuGuardPresence(ImuGuard *g, const double raw[IMU_INPUT_COUNT], int issues)
 {
+    static const int first[] = {ImuInGyrX, ImuInAccX, ImuInMagX, ImuInTemp};
+    static const int count[] = {3, 3, 3, 1};
+    static const int bit[] = {ImuGuardIssueGyr, ImuGuardIssueAcc, ImuGuardIssueMag, ImuGuardIssueTemp};
+    int s;
+    for (s = 0; s < 4; s++) {
+        const int bad = bit[s] == ImuGuardIssueMag ? (ImuGuardIssueMag | ImuGuardIssueMagZero) : bit[s];
+        if (!(issues & bad)) {
+            g->present |= bit[s];
+        } else if (!(g->present & bit[s]) && ImuGuardAllNan(&raw[first[s]], count[s])) {
+            issues &= ~bad;
+        }
+    }
+    return issues;
+}
+
+/** @brief Sanitise raw into in: bad or absent triads NaN, a bad temperature the last valid one
+ *         (NaN while the sensor is absent); returns the issue bits (fieldNorm [uT]). */
+static int ImuGuardInputs(ImuGuard *g, double fieldNorm, const double raw[IMU_INPUT_COUNT], double in[IMU_INPUT_COUNT])
+{
+    const int found = ImuGuardSensorIssues(fieldNorm, raw);
+    int i;
+    memcpy(in, raw, IMU_INPUT_COUNT * sizeof raw[0]);
+    for (i = 0; i < 3; i++) {
+        if (found & (1 << i)) {
+            in[ImuInGyrX + 3 * i] = in[ImuInGyrX + 3 * i + 1] = in[ImuInGyrX + 3 * i + 2] = NAN;
+        }
+    }
+    if (found & ImuGuardIssueMagZero) {
+        in[ImuInMagX] = in[ImuInMagY] = in[ImuInMagZ] = NAN;
+    }
+    if (found & ImuGuardIssueTemp) {
+        in[ImuInTemp] = g->lastValidTemp;
+    } else {
+        g->lastValidTemp = raw[ImuInTemp];
+    }
+    return ImuGuardPresence(g, raw, found);
+}
+
+/**
+ * @brief Integration step [s] of the sample that follows the previous one after `step` [s]: 0 for
+ *        the first sample, a step that is not finite and > 0 (ImuGuardIssueOrder) and a gap
+ *        (ImuGuardIssueGap: nothing is integrated across it). Advances the clock by the steps
+ *        that are finite and > 0, gaps included (at most IMU_GUARD_MAX_STEP each), and sets the
+ *        issue bits in *issues.
+ */
+static double ImuGuardTime(ImuGuard *g, double step, int *issues)
+{
+    if (!g->hasSample) {
+        g->hasSample = 1;
+        return 0.0;
+    }
+    if (!(step > 0.0 && isfinite(step))) {
+        *issues |= ImuGuardIssueOrder;
+        return 0.0;
+    }
+    g->clock += fmin(step, IMU_GUARD_MAX_STEP); /* the clock stays fine-grained after absurd gaps */
+    if (step > IMU_GUARD_MAX_STEP || (g->nominalStep > 0.0 && step > IMU_GUARD_GAP_STEPS * g->nominalStep)) {
+        *issues |= ImuGuardIssueGap;
+        return 0.0;
+    }
+    g->nominalStep = step;
+    return step;
+}
+
+/** @brief 1 if output j is a corrected output of a sensor in `absent` (IMU_GUARD_SENSORS bits). */
+static int ImuGuardAbsentOutput(int absent, int j)
+{
+    return ((absent & ImuGuardIssueGyr) && j >= ImuOutRateX && j <= ImuOutRateZ)
+           || ((absent & ImuGuardIssueAcc) && j >= ImuOutAccelX && j <= ImuOutAccelZ)
+           || ((absent & ImuGuardIssueMag) && j >= ImuOutFieldX && j <= ImuOutFieldZ);
+}
+
+/** @brief Absent sensors' corrected outputs become NaN; other non-finite entries of out (ImuLayout.h
+ *         units) the last finite ones; remembers out. Returns 1 if an entry was held, else 0. */
+static int ImuGuardOutputs(ImuGuard *g, double out[IMU_OUTPUT_COUNT])
+{
+    const int absent = ImuGuardAbsent(g);
     int j, bad = 0;
     for (j = 0; j < IMU_OUTPUT_COUNT; j++) {
-        if (isfinite(out[j])) {
+        if (ImuGuardAbsentOutput(absent, j)) {
+            out[j] = NAN;
+        } else if (isfinite(out[j])) {
             g->held[j] = out[j];
         } else {
             out[j] = g->held[j];
@@ -103,4 +172,20 @@ int ImuGuardOutputs(ImuGuard *g, double out[IMU_OUTPUT_COUNT])
         }
     }
     return bad;
+}
+
+int ImuGuardStep(ImuGuard *g, ImuPipeline *p, double step, const double raw[IMU_INPUT_COUNT],
+                 double out[IMU_OUTPUT_COUNT])
+{
+    double in[IMU_INPUT_COUNT];
+    int issues = ImuGuardInputs(g, p->settings.fieldNorm, raw, in);
+    const double dt = ImuGuardTime(g, step, &issues);
+    if (issues & ImuGuardIssueGap) {
+        ImuPipelineGap(p, step);
+    }
+    ImuPipelineUpdate(p, g->clock, dt, in, out);
+    if (ImuGuardOutputs(g, out) && issues == 0) {
+        issues |= ImuGuardIssueOutput;
+    }
+    return issues;
 }

@@ -3,15 +3,21 @@
  * @brief Input, time and output guard around ImuPipelineUpdate, shared by the FMU and the batch library.
  *
  * Bad triads become NaN (the pipeline skips them), a bad temperature becomes the last valid one,
- * a non-increasing sample time is flagged and gaps beyond IMU_GUARD_MAX_GAP are cut to it, and
- * non-finite outputs hold their last finite values. The state is one plain struct (no pointers),
- * so it can be copied with the FMU state. Knows nothing of FMI and logs nothing.
+ * and non-finite outputs hold their last finite values. A sensor that has not yet delivered one
+ * valid sample and reads NaN is absent, not bad (imu-csv/1: a sensor that was not recorded is
+ * all-NaN): no issue bit, and its corrected outputs are NaN. Time comes as step sizes (the time
+ * since the previous sample), never as absolute times: the pipeline's clock is the time since the
+ * first sample summed from them, so an importer's clock at 1e14 s loses nothing. A step longer
+ * than IMU_GUARD_GAP_STEPS nominal steps is a gap: the pipeline re-initialises what cannot be
+ * integrated across it (ImuPipelineGap). The state is one plain struct (no pointers), so it can be
+ * copied with the FMU state. Knows nothing of FMI and logs nothing.
  */
 #ifndef IMU_GUARD_H
 #define IMU_GUARD_H
 
 #include "ImuCommon.h"
 #include "ImuLayout.h"
+#include "ImuPipeline.h"
 
 /* Plausibility limits of the raw inputs: beyond them a sensor is saturated, broken or the input
  * is not in the documented unit. The magnetometer limits scale with the field_norm setting. */
@@ -21,7 +27,14 @@
 #define IMU_GUARD_MAG_MINIMUM 0.02     /* x field_norm: a smaller field magnitude means no field */
 #define IMU_GUARD_TEMP_MIN (-60.0)     /* degC, lower end of the valid temperature range */
 #define IMU_GUARD_TEMP_MAX 125.0       /* degC, upper end of the valid temperature range */
-#define IMU_GUARD_MAX_GAP 1.0e6        /* s: larger jumps of the sample time are integrated as this */
+/* A step longer than this many nominal steps (the last step that was not a gap) is a gap: 1 s at
+ * 100 Hz, in which handheld motion turns by up to about 1 rad, so nothing integrated across it is
+ * worth keeping. Shorter losses of samples are left to the attitude filters, which count the lost
+ * time as unmeasured motion (ImuAttitude.c, IMU_ATTITUDE_MISSING_STEPS). */
+#define IMU_GUARD_GAP_STEPS 100.0
+/* s: a step longer than this is a gap even before a nominal step is known (the second sample);
+ * the pipeline's clock advances by at most this much per step, so it stays fine-grained. */
+#define IMU_GUARD_MAX_STEP 1.0e6
 
 /** Kinds of bad input found by the guard (one bit each). */
 typedef enum {
@@ -30,17 +43,22 @@ typedef enum {
     ImuGuardIssueMag = 1 << 2,     /* magnetometer not finite or an axis saturated */
     ImuGuardIssueMagZero = 1 << 3, /* magnetometer reads (almost) no field */
     ImuGuardIssueTemp = 1 << 4,    /* temperature not finite or outside the valid range */
-    ImuGuardIssueOrder = 1 << 5,   /* sample time does not increase */
-    ImuGuardIssueGap = 1 << 6      /* sample time jumps by more than IMU_GUARD_MAX_GAP */
+    ImuGuardIssueOrder = 1 << 5,   /* step since the previous sample not finite and > 0 */
+    ImuGuardIssueGap = 1 << 6,     /* step longer than IMU_GUARD_GAP_STEPS nominal steps (or IMU_GUARD_MAX_STEP) */
+    ImuGuardIssueOutput = 1 << 8   /* an output was not finite although the inputs were valid: held */
 } ImuGuardIssue;
+
+/** The sensors, as the ImuGuardIssue bit of their bad input (ImuGuard.present). */
+#define IMU_GUARD_SENSORS (ImuGuardIssueGyr | ImuGuardIssueAcc | ImuGuardIssueMag | ImuGuardIssueTemp)
 
 /** State of the guard: plain values only, so a copy is a snapshot. */
 typedef struct {
     double lastValidTemp;               /* degC, last valid temperature (NaN before the first) */
-    double lastSampleTime;              /* s, latest sample time consumed */
-    double timeShift;                   /* s, sum of the gap excess cut from the pipeline's time */
+    double clock;                       /* s since the first sample, summed from the steps */
+    double nominalStep;                 /* s, the last step that was not a gap (0 before the second sample) */
     double held[IMU_OUTPUT_COUNT];      /* last finite outputs (initial outputs before the first) */
     int hasSample;                      /* 1 once a sample was consumed */
+    int present;                        /* IMU_GUARD_SENSORS bits of the sensors that delivered a valid sample */
 } ImuGuard;
 
 /** @brief Outputs before the first sample: level, north-facing, zero signals, heading = declination [rad]. */
@@ -48,14 +66,16 @@ IMU_HIDDEN void ImuGuardInitialOutputs(double declination, double out[IMU_OUTPUT
 /** @brief Back to no sample seen; the held outputs become the initial ones (declination [rad]). */
 IMU_HIDDEN void ImuGuardReset(ImuGuard *g, double declination);
 /**
- * @brief Sanitise the sample raw (rad/s, m/s^2, uT, degC) taken at t [s] into in (bad triads NaN,
- *        bad temperature the last valid one) and *tPipeline [s] (gaps cut); fieldNorm [uT] scales
- *        the magnetometer limits. Returns the ImuGuardIssue bits found.
+ * @brief Consume one raw sample (rad/s, m/s^2, uT, degC, auxiliary inputs) through the guard and
+ *        the pipeline p into out (ImuLayout.h units).
+ * @param step time [s] from the previous sample to this one (ignored for the first sample): the FMU
+ *        passes the communication step size of the previous doStep, the batch library the
+ *        difference of its sample times.
+ * @return the ImuGuardIssue bits found (an absent sensor sets none; see ImuGuardAbsent).
  */
-IMU_HIDDEN int ImuGuardInputs(ImuGuard *g, double fieldNorm, double t, const double raw[IMU_INPUT_COUNT],
-                              double in[IMU_INPUT_COUNT], double *tPipeline);
-/** @brief Replace non-finite entries of out (ImuLayout.h units) by the last finite ones and remember
- *         out; returns 1 if any entry was not finite, else 0. */
-IMU_HIDDEN int ImuGuardOutputs(ImuGuard *g, double out[IMU_OUTPUT_COUNT]);
+IMU_HIDDEN int ImuGuardStep(ImuGuard *g, ImuPipeline *p, double step, const double raw[IMU_INPUT_COUNT],
+                            double out[IMU_OUTPUT_COUNT]);
+/** @brief IMU_GUARD_SENSORS bits of the sensors treated as absent (no valid sample yet). */
+IMU_HIDDEN int ImuGuardAbsent(const ImuGuard *g);
 
 #endif

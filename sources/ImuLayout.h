@@ -11,7 +11,7 @@
 #include "ImuElm.h"
 #include "ImuPsoBp.h"
 
-#define IMU_LAYOUT_VERSION 3
+#define IMU_LAYOUT_VERSION 4
 
 /** Runtime inputs per sample (rad/s, m/s^2, uT, degC; auxiliary inputs in their own units). */
 typedef enum {
@@ -38,6 +38,7 @@ typedef enum {
     ImuOutHardIronX, ImuOutHardIronY, ImuOutHardIronZ, /* uT, particle-filter hard iron */
     ImuOutSoftIronXx, ImuOutSoftIronYy, ImuOutSoftIronZz, /* 1, particle-filter soft-iron diagonal */
     ImuOutPfNeff,                                 /* 1, effective sample size (0 when off) */
+    ImuOutCalibrationValid,                       /* 1 while every model input is inside its calibrated range, else 0 (layout 4) */
     IMU_OUTPUT_COUNT
 } ImuOutput;
 
@@ -83,8 +84,9 @@ typedef enum {
 } ImuSetting;
 
 #define IMU_THERMAL_MAX_DEGREE 3
-/** One triad block: enabled, t0, ts, degree, A[9], g[3][MAX], b[3][MAX+1]. */
-#define IMU_THERMAL_BLOCK (4 + 9 + 3 * IMU_THERMAL_MAX_DEGREE + 3 * (IMU_THERMAL_MAX_DEGREE + 1))
+/** One triad block: enabled, t0, ts, degree, A[9], g[3][MAX], b[3][MAX+1], then (layout 4) the
+ *  calibrated temperature range: hasRange (0/1), tMin [degC], tMax [degC]. */
+#define IMU_THERMAL_BLOCK (4 + 9 + 3 * IMU_THERMAL_MAX_DEGREE + 3 * (IMU_THERMAL_MAX_DEGREE + 1) + 3)
 /** Offsets of the blocks in the coefficient array: [version, gyr, acc, mag thermal blocks, terms, elm, psobp]. */
 #define IMU_OFFSET_THERMAL 1
 #define IMU_OFFSET_TERMS (IMU_OFFSET_THERMAL + 3 * IMU_THERMAL_BLOCK)

@@ -4,6 +4,8 @@
  *        terms -> magnetometer stages -> attitude fusion.
  */
 #include <math.h>
+#include <stdio.h>
+#include <string.h>
 #include "ImuPipeline.h"
 #include "ImuMath.h"
 
@@ -92,10 +94,19 @@ int ImuPipelineSettingsFromArray(ImuPipelineSettings *s, const double *a, size_t
     return 0;
 }
 
-/** @brief 1 if x [any unit] is finite and positive (or non-negative when zero is allowed). */
-static int ImuPipelineInRange(double x, int zeroAllowed)
+/* Setting limits [setting unit]: the numbers of training/layout.py SETTING_RANGES, where each is
+ * derived (tests/test_value_checks.py pins every bound of every setting to that table). */
+#define IMU_SET_FIELD_NORM_MIN 5.0        /* uT: gauss values are 100x smaller than the 22-67 uT field */
+#define IMU_SET_FIELD_NORM_MAX 1000.0     /* uT: nT values are 1000x larger */
+#define IMU_SET_GYRO_NOISE_MAX 0.1        /* rad/s/sqrt(Hz): ~60x the noisiest MEMS gyro */
+#define IMU_SET_GYRO_RATE_MAX 1.0         /* rad/s: residual bias and rest threshold */
+#define IMU_SET_TIME_MAX 86400.0          /* s: time constants and rejection time, one day */
+#define IMU_SET_GRAVITY 9.80665           /* m/s^2: the rest threshold's upper bound, 1 g */
+
+/** @brief 1 if x [any unit] is within [lo, hi] (lo excluded when lowOpen), 0 otherwise and for NaN. */
+static int ImuPipelineWithin(double x, double lo, double hi, int lowOpen)
 {
-    return isfinite(x) && (x > 0.0 || (zeroAllowed && x == 0.0));
+    return (lowOpen ? x > lo : x >= lo) && x <= hi;
 }
 
 /** @brief Range problem of an attitude setting (static text naming it and its range), or NULL. */
@@ -105,16 +116,33 @@ static const char *ImuPipelineCheckAttitude(const ImuPipelineSettings *s)
         return "attitude_mode must be 0 (Euler) or 1 (quaternion)";
     } else if (!(fabs(s->fieldDip) <= 0.5 * IMU_PI)) {
         return "field_dip must be within [-pi/2, pi/2] [rad]";
-    } else if (!ImuPipelineInRange(s->tauAcc, 0)) {
-        return "tau_acc must be finite and > 0 [s]";
-    } else if (!ImuPipelineInRange(s->tauMag, 0)) {
-        return "tau_mag must be finite and > 0 [s]";
-    } else if (!ImuPipelineInRange(s->restGyroThreshold, 1)) {
-        return "rest_gyro_threshold must be finite and >= 0 [rad/s]";
-    } else if (!ImuPipelineInRange(s->restAccThreshold, 0)) {
-        return "rest_acc_threshold must be finite and > 0 [m/s^2]";
-    } else if (!ImuPipelineInRange(s->magRejectTime, 1)) {
-        return "mag_reject_time must be finite and >= 0 [s]";
+    } else if (!ImuPipelineWithin(s->tauAcc, 0.0, IMU_SET_TIME_MAX, 1)) {
+        return "tau_acc must be finite and within (0, 86400] [s]";
+    } else if (!ImuPipelineWithin(s->tauMag, 0.0, IMU_SET_TIME_MAX, 1)) {
+        return "tau_mag must be finite and within (0, 86400] [s]";
+    } else if (!ImuPipelineWithin(s->restGyroThreshold, 0.0, IMU_SET_GYRO_RATE_MAX, 0)) {
+        return "rest_gyro_threshold must be finite and within [0, 1] [rad/s]";
+    } else if (!ImuPipelineWithin(s->restAccThreshold, 0.0, IMU_SET_GRAVITY, 1)) {
+        return "rest_acc_threshold must be finite and within (0, 9.80665] [m/s^2]";
+    } else if (!ImuPipelineWithin(s->magRejectTime, 0.0, IMU_SET_TIME_MAX, 0)) {
+        return "mag_reject_time must be finite and within [0, 86400] [s]";
+    }
+    return NULL;
+}
+
+/** @brief Range problem of a flag or of the seed (static text naming it), or NULL. */
+static const char *ImuPipelineCheckFlags(const ImuPipelineSettings *s)
+{
+    if (s->enableThermal != 0 && s->enableThermal != 1) {
+        return "enable_thermal must be 0 or 1";
+    } else if (s->enableElm != 0 && s->enableElm != 1) {
+        return "enable_elm must be 0 or 1";
+    } else if (s->enablePf != 0 && s->enablePf != 1) {
+        return "enable_pf must be 0 or 1";
+    } else if (s->enablePsoBp != 0 && s->enablePsoBp != 1) {
+        return "enable_psobp must be 0 or 1";
+    } else if (s->pfSeed < 0) {
+        return "pf_seed must be a whole number in [0, 2147483647]";
     }
     return NULL;
 }
@@ -123,28 +151,20 @@ static const char *ImuPipelineCheckAttitude(const ImuPipelineSettings *s)
 int ImuPipelineSettingsCheck(const ImuPipelineSettings *s, const char **message)
 {
     const char *problem = NULL;
-    if (!isfinite(s->declination)) {
-        problem = "declination must be finite [rad]";
-    } else if (!ImuPipelineInRange(s->fieldNorm, 0)) {
-        problem = "field_norm must be finite and > 0 [uT]";
-    } else if (!ImuPipelineInRange(s->gyroNoise, 1)) {
-        problem = "gyro_noise must be finite and >= 0 [rad/s/sqrt(Hz)]";
-    } else if (!ImuPipelineInRange(s->gyroBiasResidual, 1)) {
-        problem = "gyro_bias_residual must be finite and >= 0 [rad/s]";
-    } else if (!ImuPipelineInRange(s->mseTimeConstant, 0)) {
-        problem = "mse_time_constant must be finite and > 0 [s]";
-    } else if (!ImuPipelineInRange(s->angleNoise, 0)) {
-        problem = "angle_noise must be finite and > 0 [rad]";
-    } else if (s->enableThermal != 0 && s->enableThermal != 1) {
-        problem = "enable_thermal must be 0 or 1";
-    } else if (s->enableElm != 0 && s->enableElm != 1) {
-        problem = "enable_elm must be 0 or 1";
-    } else if (s->enablePf != 0 && s->enablePf != 1) {
-        problem = "enable_pf must be 0 or 1";
-    } else if (s->enablePsoBp != 0 && s->enablePsoBp != 1) {
-        problem = "enable_psobp must be 0 or 1";
-    } else if (s->pfSeed < 0) {
-        problem = "pf_seed must be a whole number in [0, 2147483647]";
+    if (!(fabs(s->declination) <= IMU_PI)) {
+        problem = "declination must be finite and within [-pi, pi] [rad]";
+    } else if (!ImuPipelineWithin(s->fieldNorm, IMU_SET_FIELD_NORM_MIN, IMU_SET_FIELD_NORM_MAX, 0)) {
+        problem = "field_norm must be finite and within [5, 1000] [uT]";
+    } else if (!ImuPipelineWithin(s->gyroNoise, 0.0, IMU_SET_GYRO_NOISE_MAX, 0)) {
+        problem = "gyro_noise must be finite and within [0, 0.1] [rad/s/sqrt(Hz)]";
+    } else if (!ImuPipelineWithin(s->gyroBiasResidual, 0.0, IMU_SET_GYRO_RATE_MAX, 0)) {
+        problem = "gyro_bias_residual must be finite and within [0, 1] [rad/s]";
+    } else if (!ImuPipelineWithin(s->mseTimeConstant, 0.0, IMU_SET_TIME_MAX, 1)) {
+        problem = "mse_time_constant must be finite and within (0, 86400] [s]";
+    } else if (!ImuPipelineWithin(s->angleNoise, 0.0, IMU_PI, 1)) {
+        problem = "angle_noise must be finite and within (0, pi] [rad]";
+    } else if ((problem = ImuPipelineCheckFlags(s)) != NULL) {
+        /* problem names the flag or the seed */
     } else if (ImuMagPfSettingsCheck(&s->pf, &problem) != 0) {
         /* problem names the particle-filter setting and its range */
     } else if (ImuAlignSettingsCheck(&s->align, &problem) != 0) {
@@ -193,53 +213,46 @@ void ImuPipelineReset(ImuPipeline *p)
     if (p->settings.enablePf) {
         ImuMagPfReset(&p->pf);
     }
-    p->lastTime = 0.0;
-    p->hasLastTime = 0;
+    p->rangeIssues = 0;
 }
 
-/** @brief Step [s] from the previous sample to time t [s]: 0 first, 0 if t does not increase. */
-static double ImuPipelineStep(ImuPipeline *p, double t)
+/** @brief A gap [s]: restart the attitude corrections and empty the time-alignment buffer. */
+void ImuPipelineGap(ImuPipeline *p, double gap)
 {
-    double dt = 0.0;
-    if (!isfinite(t)) {
-        return 0.0;
-    }
-    if (p->hasLastTime && t > p->lastTime) {
-        dt = t - p->lastTime;
-    }
-    if (!p->hasLastTime || t > p->lastTime) {
-        p->lastTime = t;
-        p->hasLastTime = 1;
-    }
-    return dt;
+    ImuAttitudeRestart(&p->attitude, gap);
+    ImuAlignReset(&p->align);
 }
 
-/** @brief Gain/bias temperature compensation of the three raw triads into out[rate..field]. */
-static void ImuPipelineThermal(const ImuPipeline *p, const double in[IMU_INPUT_COUNT], double temperature,
-                               double out[IMU_OUTPUT_COUNT])
+/** @brief Gain/bias temperature compensation of the three raw triads into out[rate..field];
+ *         returns the ImuRangeThermal* bits of the triads whose temperature was clamped. */
+static int ImuPipelineThermal(const ImuPipeline *p, const double in[IMU_INPUT_COUNT], double temperature,
+                              double out[IMU_OUTPUT_COUNT])
 {
-    int i;
+    int i, issues = 0;
     for (i = 0; i < 3; i++) {
         const double *raw = &in[ImuInGyrX + 3 * i];
         double *corrected = &out[ImuOutRateX + 3 * i];
         if (p->settings.enableThermal) {
-            ImuThermalApply(&p->coefficients.thermal[i], raw, temperature, corrected);
+            if (!ImuThermalApply(&p->coefficients.thermal[i], raw, temperature, corrected)) {
+                issues |= ImuRangeThermalGyr << i;
+            }
         } else {
             corrected[0] = raw[0];
             corrected[1] = raw[1];
             corrected[2] = raw[2];
         }
     }
+    return issues;
 }
 
 /** @brief Subtract the diagnosed correction terms from the compensated triads out[rate..field];
- *         aux are the sample's auxiliary inputs. */
-static void ImuPipelineTerms(ImuPipeline *p, double t, double temperature, const double aux[IMU_TERMS_AUX_COUNT],
-                             double out[IMU_OUTPUT_COUNT])
+ *         aux are the sample's auxiliary inputs. Returns ImuRangeTerms if a regressor was clamped, else 0. */
+static int ImuPipelineTerms(ImuPipeline *p, double t, double temperature, const double aux[IMU_TERMS_AUX_COUNT],
+                            double out[IMU_OUTPUT_COUNT])
 {
     double signals[IMU_TERM_SIGNAL_COUNT];
     ImuTermsSignals(&p->terms, t, &out[ImuOutRateX], temperature, aux, signals);
-    ImuTermsApply(&p->coefficients.terms, signals, &out[ImuOutRateX]);
+    return ImuTermsApply(&p->coefficients.terms, signals, &out[ImuOutRateX]) ? 0 : ImuRangeTerms;
 }
 
 /** @brief Online hard/soft-iron filter on the compensated field out[field] and its diagnostic outputs. */
@@ -271,26 +284,72 @@ static const double *ImuPipelineHeadingField(const ImuPipeline *p, const double 
     return p->settings.enablePf && !ImuMagPfSettled(&p->pf) ? unsettled : &out[ImuOutFieldX];
 }
 
-/** @brief Process one sample at time t [s]: raw inputs in (ImuLayout.h units) -> outputs out. */
-void ImuPipelineUpdate(ImuPipeline *p, double t, const double in[IMU_INPUT_COUNT],
+/** @brief Process one sample at time t [s] since the first, dt [s] after the previous one: raw inputs
+ *         in (ImuLayout.h units) -> outputs out. */
+void ImuPipelineUpdate(ImuPipeline *p, double t, double dt, const double in[IMU_INPUT_COUNT],
                        double out[IMU_OUTPUT_COUNT])
 {
     const double temperature = in[ImuInTemp];
-    const double dt = ImuPipelineStep(p, t);
-    ImuPipelineThermal(p, in, temperature, out);
+    p->rangeIssues = ImuPipelineThermal(p, in, temperature, out);
     ImuPsoBpUpdate(&p->psobp, t, temperature);
-    if (p->settings.enablePsoBp) {
-        ImuPsoBpCorrect(&p->coefficients.psobp, &p->psobp, &out[ImuOutRateX]);
+    if (p->settings.enablePsoBp && !ImuPsoBpCorrect(&p->coefficients.psobp, &p->psobp, &out[ImuOutRateX])) {
+        p->rangeIssues |= ImuRangePsoBp;
     }
     ImuAlignUpdate(&p->align, &p->settings.align, t, &out[ImuOutRateX]);
-    ImuPipelineTerms(p, t, temperature, &in[ImuInAux1], out);
+    p->rangeIssues |= ImuPipelineTerms(p, t, temperature, &in[ImuInAux1], out);
     ImuPipelineMagPf(p, out);
-    if (p->settings.enableElm) {
-        ImuElmApply(&p->coefficients.elm, &out[ImuOutFieldX], &out[ImuOutFieldX]);
+    if (p->settings.enableElm && !ImuElmApply(&p->coefficients.elm, &out[ImuOutFieldX], &out[ImuOutFieldX])) {
+        p->rangeIssues |= ImuRangeElm;
     }
+    out[ImuOutCalibrationValid] = p->rangeIssues == 0 ? 1.0 : 0.0;
     ImuAttitudeUpdate(&p->attitude, &out[ImuOutRateX], &out[ImuOutAccelX], ImuPipelineHeadingField(p, out), dt);
     ImuAttitudeGetEuler(&p->attitude, &out[ImuOutRoll]);
     out[ImuOutHeading] = ImuWrapAngle(out[ImuOutYaw] + p->settings.declination);
     ImuAttitudeGetQuaternion(&p->attitude, &out[ImuOutQw]);
     ImuAttitudeGetGains(&p->attitude, &out[ImuOutGainRoll]);
+}
+
+/** @brief The end of the NUL-terminated text in a buffer of size bytes; *left = bytes from there on (>= 1). */
+static char *ImuPipelineTail(char *text, size_t size, size_t *left)
+{
+    const size_t used = strlen(text);
+    *left = size - used;
+    return text + used;
+}
+
+void ImuPipelineDescribeRanges(const ImuPipeline *p, int issues, char *text, size_t size)
+{
+    static const char *const triads[3] = {"gyroscope", "accelerometer", "magnetometer"};
+    const ImuCoefficients *c = &p->coefficients;
+    size_t left;
+    char *tail;
+    int i;
+    if (size == 0) {
+        return;
+    }
+    text[0] = '\0';
+    for (i = 0; i < 3; i++) {
+        if (issues & (ImuRangeThermalGyr << i)) {
+            tail = ImuPipelineTail(text, size, &left);
+            snprintf(tail, left, "%s gain/bias model (temperature [%g, %g] degC); ", triads[i], c->thermal[i].tMin,
+                     c->thermal[i].tMax);
+        }
+    }
+    if (issues & ImuRangePsoBp) {
+        tail = ImuPipelineTail(text, size, &left);
+        snprintf(tail, left, "PSO-BP network (temperature [%g, %g] degC, rate [%g, %g] degC/s); ", c->psobp.tMin,
+                 c->psobp.tMax, c->psobp.rMin, c->psobp.rMax);
+    }
+    if (issues & ImuRangeTerms) {
+        tail = ImuPipelineTail(text, size, &left);
+        snprintf(tail, left, "%s", "correction terms (a regressor outside its fitted [lo, hi]); ");
+    }
+    if (issues & ImuRangeElm) {
+        tail = ImuPipelineTail(text, size, &left);
+        snprintf(tail, left, "ELM field model (field outside its box x [%g, %g], y [%g, %g], z [%g, %g] uT); ",
+                 c->elm.inMin[0], c->elm.inMax[0], c->elm.inMin[1], c->elm.inMax[1], c->elm.inMin[2], c->elm.inMax[2]);
+    }
+    if (strlen(text) >= 2 && text[strlen(text) - 2] == ';') {
+        text[strlen(text) - 2] = '\0';
+    }
 }

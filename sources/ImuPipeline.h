@@ -52,6 +52,18 @@ typedef struct {
     ImuAlignSettings align;  /* lags [s] of the gyr, acc, mag inputs behind true time */
 } ImuPipelineSettings;
 
+/** Models whose input left the range it was calibrated on in the last sample (one bit each); the
+ *  model was evaluated with that input clamped to the range (ImuThermal.h, ImuPsoBp.h, ImuTerms.h,
+ *  ImuElm.h). Output calibration_valid is 1 while none is set. */
+typedef enum {
+    ImuRangeThermalGyr = 1 << 0, /* temperature outside the gyroscope gain/bias model's range */
+    ImuRangeThermalAcc = 1 << 1, /* temperature outside the accelerometer gain/bias model's range */
+    ImuRangeThermalMag = 1 << 2, /* temperature outside the magnetometer gain/bias model's range */
+    ImuRangePsoBp = 1 << 3,      /* temperature or its rate outside the PSO-BP network's ranges */
+    ImuRangeTerms = 1 << 4,      /* a correction term's regressor outside its [lo, hi] */
+    ImuRangeElm = 1 << 5         /* the field outside the ELM's calibrated box */
+} ImuRangeIssue;
+
 /** Whole pipeline: settings, coefficients and evolving state in one plain struct (copyable). */
 typedef struct {
     ImuPipelineSettings settings;
@@ -61,8 +73,7 @@ typedef struct {
     ImuTermsState terms;
     ImuMagPf pf;       /* used when settings.enablePf */
     ImuPsoBpState psobp; /* causal temperature-rate estimate of the PSO-BP model */
-    double lastTime;   /* s, time of the previous sample */
-    int hasLastTime;   /* 0 before the first sample */
+    int rangeIssues;   /* ImuRangeIssue bits of the last sample */
 } ImuPipeline;
 
 /** @brief Unpack a flat coefficient array (layout: ImuLayout.h). @return 0, -1 on bad size/version, -2 on an invalid triad block (ImuThermalFromBlock). */
@@ -76,11 +87,22 @@ IMU_HIDDEN void ImuPipelineInitialise(ImuPipeline *p, const ImuPipelineSettings 
 /** @brief Return to the state right after ImuPipelineInitialise. */
 IMU_HIDDEN void ImuPipelineReset(ImuPipeline *p);
 /**
+ * @brief A gap of `gap` [s] in the samples (ImuGuard.h): re-initialise what cannot be integrated across it. The
+ *        attitude corrections restart as at power-on (the gyro bias is kept; without a field yaw
+ *        keeps its value from before the gap) and the time-alignment buffer empties.
+ */
+IMU_HIDDEN void ImuPipelineGap(ImuPipeline *p, double gap);
+/**
  * @brief Process one sample.
- * @param t time of the sample [s]; the integration step is t minus the previous sample's time.
+ * @param t time of the sample [s] since the first one (the clock of the time-dependent signals:
+ *        alignment, correction terms, PSO-BP temperature rate; it does not decrease).
+ * @param dt integration step [s] from the previous sample (0: nothing is propagated).
  * @param in IMU_INPUT_COUNT raw inputs (rad/s, m/s^2, uT, degC, then the auxiliary inputs).
  * @param out IMU_OUTPUT_COUNT outputs (see ImuLayout.h).
  */
-IMU_HIDDEN void ImuPipelineUpdate(ImuPipeline *p, double t, const double in[IMU_INPUT_COUNT], double out[IMU_OUTPUT_COUNT]);
+IMU_HIDDEN void ImuPipelineUpdate(ImuPipeline *p, double t, double dt, const double in[IMU_INPUT_COUNT], double out[IMU_OUTPUT_COUNT]);
+/** @brief One line naming the models of the ImuRangeIssue bits `issues` with their calibrated
+ *         ranges (degC, degC/s, uT) into text (at most size bytes, NUL-terminated). */
+IMU_HIDDEN void ImuPipelineDescribeRanges(const ImuPipeline *p, int issues, char *text, size_t size);
 
 #endif

@@ -110,10 +110,18 @@ void ImuPsoBpUpdate(ImuPsoBpState *s, double t, double temperature)
     s->temperature = temperature;
 }
 
-void ImuPsoBpEvaluate(const ImuPsoBpCoefficients *c, double temperature, double rate, double bias[3])
+/** @brief x limited to [lo, hi] (x's unit). */
+static double ImuPsoBpClamp(double x, double lo, double hi)
 {
-    const double u0 = 2.0 * (temperature - c->tMin) / (c->tMax - c->tMin) - 1.0;
-    const double u1 = 2.0 * (rate - c->rMin) / (c->rMax - c->rMin) - 1.0;
+    return x < lo ? lo : (x > hi ? hi : x);
+}
+
+int ImuPsoBpEvaluate(const ImuPsoBpCoefficients *c, double temperature, double rate, double bias[3])
+{
+    const double tc = ImuPsoBpClamp(temperature, c->tMin, c->tMax);
+    const double rc = ImuPsoBpClamp(rate, c->rMin, c->rMax);
+    const double u0 = 2.0 * (tc - c->tMin) / (c->tMax - c->tMin) - 1.0;
+    const double u1 = 2.0 * (rc - c->rMin) / (c->rMax - c->rMin) - 1.0;
     int axis, j;
     for (axis = 0; axis < 3; axis++) {
         double sum = c->b2[axis];
@@ -122,19 +130,21 @@ void ImuPsoBpEvaluate(const ImuPsoBpCoefficients *c, double temperature, double 
         }
         bias[axis] = c->mode != ImuPsoBpModeOff ? sum : 0.0;
     }
+    return c->mode == ImuPsoBpModeOff || (tc == temperature && rc == rate);
 }
 
-void ImuPsoBpBias(const ImuPsoBpCoefficients *c, const ImuPsoBpState *s, double bias[3])
+int ImuPsoBpBias(const ImuPsoBpCoefficients *c, const ImuPsoBpState *s, double bias[3])
 {
-    ImuPsoBpEvaluate(c, s->temperature, s->rate, bias);
+    return ImuPsoBpEvaluate(c, s->temperature, s->rate, bias);
 }
 
-void ImuPsoBpCorrect(const ImuPsoBpCoefficients *c, const ImuPsoBpState *s, double gyr[3])
+int ImuPsoBpCorrect(const ImuPsoBpCoefficients *c, const ImuPsoBpState *s, double gyr[3])
 {
     double bias[3];
     int axis;
-    ImuPsoBpBias(c, s, bias);
+    const int inside = ImuPsoBpBias(c, s, bias);
     for (axis = 0; axis < 3; axis++) {
         gyr[axis] -= bias[axis];
     }
+    return inside;
 }

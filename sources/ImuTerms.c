@@ -134,17 +134,20 @@ static double ImuTermsClamp(double x, double lo, double hi)
     return x < lo ? lo : (x > hi ? hi : x);
 }
 
-void ImuTermsApply(const ImuTermsCoefficients *c, const double signals[IMU_TERM_SIGNAL_COUNT], double x[9])
+int ImuTermsApply(const ImuTermsCoefficients *c, const double signals[IMU_TERM_SIGNAL_COUNT], double x[9])
 {
     double correction[9] = {0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0};
-    int k, i;
+    int k, i, inside = 1;
     for (k = 0; k < c->count; k++) {
         const double regressor = signals[c->a[k]] * (c->b[k] < 0 ? 1.0 : signals[c->b[k]]);
         if (isfinite(regressor)) {
-            correction[c->target[k]] += c->coefficient[k] * ImuTermsClamp(regressor, c->lo[k], c->hi[k]);
+            const double clamped = ImuTermsClamp(regressor, c->lo[k], c->hi[k]);
+            correction[c->target[k]] += c->coefficient[k] * clamped;
+            inside = inside && clamped == regressor;
         }
     }
     for (i = 0; i < 9; i++) {
         x[i] -= correction[i];
     }
+    return inside;
 }

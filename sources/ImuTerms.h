@@ -88,8 +88,9 @@ IMU_HIDDEN void ImuTermsReset(ImuTermsState *s);
 IMU_HIDDEN void ImuTermsSignals(ImuTermsState *s, double t, const double x[9], double temperature,
                                 const double aux[IMU_TERMS_AUX_COUNT], double signals[IMU_TERM_SIGNAL_COUNT]);
 /** @brief Subtract every term from x[9] in place: coefficient times the regressor clamped to
- *         [lo, hi]; a term whose regressor is not finite is skipped. */
-IMU_HIDDEN void ImuTermsApply(const ImuTermsCoefficients *c, const double signals[IMU_TERM_SIGNAL_COUNT],
+ *         [lo, hi]; a term whose regressor is not finite is skipped.
+ *  @return 1 if every finite regressor was inside its [lo, hi], 0 if one was clamped. */
+IMU_HIDDEN int ImuTermsApply(const ImuTermsCoefficients *c, const double signals[IMU_TERM_SIGNAL_COUNT],
                               double x[9]);
 
 #endif

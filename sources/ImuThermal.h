@@ -4,6 +4,11 @@
  *
  * Tn = (T - t0) / ts (0 if T is NaN), G_i = 1 + sum_{k=1..P} g[i][k-1] Tn^k,
  * B_i = sum_{k=0..P} b[i][k] Tn^k, A constant symmetric 3x3. Block layout: ImuLayout.h.
+ *
+ * Calibrated range (layout version 4): when the block carries the temperature range [tMin, tMax]
+ * [degC] the model was fitted on, T is clamped to it before Tn is formed, so G and B are never
+ * extrapolated (a polynomial fitted on 13-48 degC evaluated at -30 degC is arbitrary); outside it
+ * the model holds its value at the range edge and ImuThermalApply reports the excursion.
  */
 #ifndef IMU_THERMAL_H
 #define IMU_THERMAL_H
@@ -20,16 +25,25 @@ typedef struct {
     double A[3][3];                                 /* 1, constant misalignment/scale matrix */
     double g[3][IMU_THERMAL_MAX_DEGREE];            /* 1, gain polynomial, g[axis][k-1] */
     double b[3][IMU_THERMAL_MAX_DEGREE + 1];        /* triad unit, bias polynomial, b[axis][k] */
+    int hasRange;                                   /* 1: clamp T to [tMin, tMax]; 0: no range known */
+    double tMin, tMax;                              /* degC, temperature range of the calibration data */
 } ImuThermalCoefficients;
 
 /**
- * @brief Unpack one IMU_THERMAL_BLOCK-long block (enabled, t0 [degC], ts [degC], degree, A, g, b).
- * @return 0, or -1 if enabled is not 0/1, an entry is not finite, or (when enabled) the degree
- *         is not an integer in 0..IMU_THERMAL_MAX_DEGREE or ts <= 0.
+ * @brief Unpack one IMU_THERMAL_BLOCK-long block (enabled, t0 [degC], ts [degC], degree, A, g, b,
+ *        hasRange, tMin [degC], tMax [degC]).
+ * @return 0, or -1 if enabled or hasRange is not 0/1, an entry is not finite, (when enabled) the
+ *         degree is not an integer in 0..IMU_THERMAL_MAX_DEGREE or ts <= 0, or (with a range)
+ *         tMin > tMax.
  */
 IMU_HIDDEN int ImuThermalFromBlock(ImuThermalCoefficients *c, const double *block);
-/** @brief Compensate one sample x (triad unit) at temperature [degC] (NaN -> Tn = 0) into out. */
-IMU_HIDDEN void ImuThermalApply(const ImuThermalCoefficients *c, const double x[3], double temperature,
+/**
+ * @brief Compensate one sample x (triad unit) at temperature [degC] (NaN -> Tn = 0) into out; a
+ *        finite temperature is clamped to the calibrated range first.
+ * @return 1 if the model's input is inside its calibrated range (or the model does not depend on
+ *         the temperature: disabled, degree 0, no range known, NaN temperature), 0 if it was clamped.
+ */
+IMU_HIDDEN int ImuThermalApply(const ImuThermalCoefficients *c, const double x[3], double temperature,
                                 double out[3]);
 
 #endif

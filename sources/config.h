@@ -96,13 +96,15 @@ typedef enum {
     /* parameters (layout version 3): triad lags (ImuSetLagGyr..) */
     vr_lag_gyr = 74,
     vr_lag_acc = 75,
-    vr_lag_mag = 76
+    vr_lag_mag = 76,
+    /* outputs (layout version 4): calibrated-range flag (ImuOutCalibrationValid) */
+    vr_calibration_valid = 77
 } ValueReference;
 
 /** Parameters of type Boolean; every other variable is Real (FMI 3: Float64) unless VR_IS_INTEGER. */
 #define VR_IS_BOOLEAN(vr) ((vr) == vr_enable_thermal || (vr) == vr_enable_elm || (vr) == vr_enable_pf || (vr) == vr_enable_psobp || (vr) == vr_pf_rao_blackwell || (vr) == vr_pf_hold_prior)
 /** Parameters of type Integer (FMI 3: Int32), stored as whole numbers in the settings array. */
-#define VR_IS_INTEGER(vr) ((vr) == vr_pf_particles || (vr) == vr_pf_decimation || (vr) == vr_pf_seed || (vr) == vr_pf_sphere_bins)
+#define VR_IS_INTEGER(vr) ((vr) == vr_attitude_mode || (vr) == vr_pf_particles || (vr) == vr_pf_decimation || (vr) == vr_pf_seed || (vr) == vr_pf_sphere_bins)
 
 /** FMI 3 only: the independent variable "time" [s], outside the variable table's range. */
 #define VR_TIME 1000000u
@@ -112,6 +114,7 @@ typedef enum {
 #define VR_FIRST_SETTING vr_declination
 #define VR_FIRST_AUX vr_aux_1
 #define VR_FIRST_LAG vr_lag_gyr
-#define VR_COUNT (vr_lag_mag + 1)
+#define VR_FIRST_VALIDITY vr_calibration_valid
+#define VR_COUNT (vr_calibration_valid + 1)
 
 #endif

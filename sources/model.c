@@ -22,18 +22,20 @@ typedef struct {
 /** The value-reference groups in value-reference order; together they cover 0..VR_COUNT - 1. */
 static const VariableGroup variableGroups[] = {
     {VR_FIRST_INPUT, ImuInAux1, 'i', 0},
-    {VR_FIRST_OUTPUT, IMU_OUTPUT_COUNT, 'o', 0},
+    {VR_FIRST_OUTPUT, ImuOutCalibrationValid, 'o', 0},
     {VR_FIRST_SETTING, ImuSetLagGyr, 's', 0},
     {VR_FIRST_AUX, IMU_INPUT_COUNT - ImuInAux1, 'i', ImuInAux1},
-    {VR_FIRST_LAG, IMU_SETTING_COUNT - ImuSetLagGyr, 's', ImuSetLagGyr}
+    {VR_FIRST_LAG, IMU_SETTING_COUNT - ImuSetLagGyr, 's', ImuSetLagGyr},
+    {VR_FIRST_VALIDITY, IMU_OUTPUT_COUNT - ImuOutCalibrationValid, 'o', ImuOutCalibrationValid}
 };
 
 /* The groups of config.h must be contiguous and match the array sizes of ImuLayout.h. */
 typedef char ModelCheckInputs[(VR_FIRST_OUTPUT - VR_FIRST_INPUT == ImuInAux1) ? 1 : -1];
-typedef char ModelCheckOutputs[(VR_FIRST_SETTING - VR_FIRST_OUTPUT == IMU_OUTPUT_COUNT) ? 1 : -1];
+typedef char ModelCheckOutputs[(VR_FIRST_SETTING - VR_FIRST_OUTPUT == ImuOutCalibrationValid) ? 1 : -1];
 typedef char ModelCheckSettings[(VR_FIRST_AUX - VR_FIRST_SETTING == ImuSetLagGyr) ? 1 : -1];
 typedef char ModelCheckAux[(VR_FIRST_LAG - VR_FIRST_AUX == IMU_INPUT_COUNT - ImuInAux1) ? 1 : -1];
-typedef char ModelCheckLags[(VR_COUNT - VR_FIRST_LAG == IMU_SETTING_COUNT - ImuSetLagGyr) ? 1 : -1];
+typedef char ModelCheckLags[(VR_FIRST_VALIDITY - VR_FIRST_LAG == IMU_SETTING_COUNT - ImuSetLagGyr) ? 1 : -1];
+typedef char ModelCheckValidity[(VR_COUNT - VR_FIRST_VALIDITY == IMU_OUTPUT_COUNT - ImuOutCalibrationValid) ? 1 : -1];
 
 #define MODEL_STATE_MAGIC 0x494D5546u /* "IMUF" */
 #define MODEL_LOG_BUFFER_SIZE 640
@@ -45,10 +47,10 @@ static const char *const logCategoryNames[MODEL_LOG_CATEGORY_COUNT] = {
 /** Short names of the ModelIssue kinds, in bit order (for the recovery messages). */
 static const char *const issueNames[MODEL_ISSUE_COUNT] = {
     "gyroscope", "accelerometer", "magnetometer", "magnetometer field", "temperature",
-    "sample time order", "sample time gap", "step size", "non-finite output"
+    "sample time order", "sample time gap", "step size", "non-finite output", "calibrated-range"
 };
 
-typedef char ModelCheckIssues[(1 << (MODEL_ISSUE_COUNT - 1)) == ModelIssueOutput ? 1 : -1];
+typedef char ModelCheckIssues[(1 << (MODEL_ISSUE_COUNT - 1)) == ModelIssueCalibration ? 1 : -1];
 
 const char *ModelGuid(void) {
     return IMU_MODEL_GUID;
@@ -63,6 +65,7 @@ const char *ModelLogCategoryName(ModelLogCategory c) {
 /** @brief Outputs before the first sample: level, north-facing, zero signals, heading = declination [rad]. */
 static void setInitialOutputs(ModelData *m) {
     ImuGuardInitialOutputs(m->settings[ImuSetDeclination], m->outputs);
+    m->outputs[ImuOutCalibrationValid] = 1.0; /* no model has been evaluated outside its range */
 }
 
 /** @brief Every variable at its start value (the state right after instantiation). */
@@ -352,17 +355,26 @@ static void logIssue(const ModelInstance *mi, const char *function, int issue, d
                  function, t, x[ImuInTemp], IMU_GUARD_TEMP_MIN, IMU_GUARD_TEMP_MAX, m->guard.lastValidTemp);
         break;
     case ModelIssueOrder:
-        ModelLog(mi, ModelWarning, LogBadInput, "%s: sample time t = %.17g s does not increase (last sample at %.17g s): the sample is fused without propagating the attitude",
-                 function, t, m->guard.lastSampleTime);
+        ModelLog(mi, ModelWarning, LogBadInput, "%s: t = %g s: the time since the previous sample (%g s) is not finite and > 0: the sample is fused without propagating the attitude",
+                 function, t, m->stepSize);
         break;
     case ModelIssueGap:
-        ModelLog(mi, ModelWarning, LogBadInput, "%s: t = %g s: the sample time jumped by more than %g s: the gap is integrated as %g s",
-                 function, t, IMU_GUARD_MAX_GAP, IMU_GUARD_MAX_GAP);
+        ModelLog(mi, ModelWarning, LogBadInput, "%s: t = %g s: a gap of %g s since the previous sample (more than %g x the nominal step %g s): "
+                 "nothing is integrated across it, the attitude restarts from the accelerometer and magnetometer as at power-on (gyro bias kept)",
+                 function, t, m->stepSize, IMU_GUARD_GAP_STEPS, m->guard.nominalStep);
         break;
     case ModelIssueStep:
         ModelLog(mi, ModelWarning, LogBadInput, "%s: t = %g s: communicationStepSize = %g s must be finite and > 0 (and t and t + h finite): the step is discarded, outputs hold their last values",
                  function, t, h);
         break;
+    case ModelIssueCalibration: {
+        char ranges[MODEL_LOG_BUFFER_SIZE / 2];
+        ImuPipelineDescribeRanges(&m->pipeline, m->pipeline.rangeIssues, ranges, sizeof ranges);
+        ModelLog(mi, ModelWarning, LogBadInput, "%s: t = %g s: temperature %g degC: outside the calibrated range of the %s: "
+                 "each model is evaluated with its inputs clamped to that range (no extrapolation) and calibration_valid = 0 until they return",
+                 function, t, x[ImuInTemp], ranges);
+        break;
+    }
     default:
         ModelLog(mi, ModelWarning, LogBadInput, "%s: t = %g s: an output was not finite for valid inputs: the outputs hold their last finite values",
                  function, t);
@@ -387,22 +399,55 @@ static ModelStatus updateIssues(ModelInstance *mi, const char *function, int iss
     return issues ? ModelWarning : ModelOk;
 }
 
+/** @brief One OK message (logEvents) per sensor that becomes absent at the first sample or delivers
+ *         its first valid sample later (presentBefore: ImuGuard.present before the step). */
+static void logPresence(const ModelInstance *mi, const char *function, int firstSample, int presentBefore, double t) {
+    static const char *const name[] = {"gyroscope", "accelerometer", "magnetometer", "magnetometer field", "temperature"};
+    static const char *const consequence[] = {
+        "rate_x, rate_y, rate_z are NaN and the attitude comes from the accelerometer and magnetometer alone",
+        "accel_x, accel_y, accel_z are NaN and roll and pitch come from the gyroscope alone, from a level start",
+        "field_x, field_y, field_z are NaN and yaw comes from the gyroscope alone, relative to the heading at the first sample, and drifts with the residual gyro bias",
+        "", /* ImuGuardIssueMagZero is no sensor */
+        "the gain/bias models are evaluated at their reference temperature t0 (the centre of the range they were fitted on), the PSO-BP network at the centre of its range with rate 0, and correction terms on the temperature are skipped"
+    };
+    const int present = mi->state.model.guard.present;
+    int k;
+    for (k = 0; k < 5; k++) {
+        const int bit = 1 << k;
+        if (!(IMU_GUARD_SENSORS & bit)) {
+            continue;
+        }
+        if (firstSample && !(present & bit)) {
+            ModelLog(mi, ModelOk, LogEvents, "%s: t = %g s: no %s input (NaN): treated as an absent sensor until it delivers a valid sample: %s",
+                     function, t, name[k], consequence[k]);
+        } else if (!firstSample && (present & bit) && !(presentBefore & bit)) {
+            ModelLog(mi, ModelOk, LogEvents, "%s: t = %g s: first valid %s sample: no longer absent", function, t, name[k]);
+        }
+    }
+}
+
 ModelStatus ModelDoStep(ModelInstance *mi, const char *function, double t, double h) {
     ModelData *m = &mi->state.model;
-    double in[IMU_INPUT_COUNT], out[IMU_OUTPUT_COUNT], tPipeline;
+    const int presentBefore = m->guard.present, firstSample = !m->guard.hasSample;
+    double out[IMU_OUTPUT_COUNT];
+    ModelStatus status;
     int issues;
     if (!isfinite(t) || !isfinite(h) || !(h > 0.0) || !isfinite(t + h)) {
         updateIssues(mi, function, m->issues | ModelIssueStep, t, h);
         return ModelDiscard;
     }
-    issues = ImuGuardInputs(&m->guard, m->settings[ImuSetFieldNorm], t, m->inputs, in, &tPipeline);
-    ImuPipelineUpdate(&m->pipeline, tPipeline, in, out);
-    if (ImuGuardOutputs(&m->guard, out) && issues == 0) {
-        issues |= ModelIssueOutput;
+    /* The sample consumed now was taken the previous step size after the previous one: the
+     * importer's h, never a difference of absolute times (which loses the step beyond ~1e13 s). */
+    issues = ImuGuardStep(&m->guard, &m->pipeline, m->stepSize, m->inputs, out);
+    if (m->pipeline.rangeIssues != 0) {
+        issues |= ModelIssueCalibration;
     }
     memcpy(m->outputs, out, sizeof m->outputs);
     mi->state.time = t + h;
-    return updateIssues(mi, function, issues, t, h);
+    logPresence(mi, function, firstSample, presentBefore, t);
+    status = updateIssues(mi, function, issues, t, h);
+    m->stepSize = h;
+    return status;
 }
 
 /* ---- FMU state ------------------------------------------------------------------------------- */

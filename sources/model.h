@@ -55,20 +55,24 @@ typedef enum {
     ModelIssueMag = ImuGuardIssueMag,         /* magnetometer not finite or an axis saturated */
     ModelIssueMagZero = ImuGuardIssueMagZero, /* magnetometer reads (almost) no field */
     ModelIssueTemp = ImuGuardIssueTemp,       /* temperature not finite or outside the valid range */
-    ModelIssueOrder = ImuGuardIssueOrder,     /* sample time does not increase */
-    ModelIssueGap = ImuGuardIssueGap,         /* sample time jumps by more than IMU_GUARD_MAX_GAP */
+    ModelIssueOrder = ImuGuardIssueOrder,     /* time since the previous sample not finite and > 0 */
+    ModelIssueGap = ImuGuardIssueGap,         /* a gap: step longer than IMU_GUARD_GAP_STEPS nominal steps */
     ModelIssueStep = 1 << 7,    /* step size not finite and > 0: the step is discarded */
-    ModelIssueOutput = 1 << 8   /* an output was not finite although the inputs were valid */
+    ModelIssueOutput = ImuGuardIssueOutput, /* an output was not finite although the inputs were valid */
+    ModelIssueCalibration = 1 << 9 /* a model input left its calibrated range (ImuRangeIssue): evaluated clamped */
 } ModelIssue;
 
-#define MODEL_ISSUE_COUNT 9
+#define MODEL_ISSUE_COUNT 10
 
 /** Every value of the model and the pipeline that produces the outputs. */
 typedef struct {
     double inputs[IMU_INPUT_COUNT];     /* raw sample as set: rad/s, m/s^2, uT, degC, auxiliary inputs */
-    double outputs[IMU_OUTPUT_COUNT];   /* estimate for the last consumed sample, always finite */
+    double outputs[IMU_OUTPUT_COUNT];   /* estimate for the last consumed sample: finite, except the
+                                         * corrected outputs of an absent sensor (NaN, ImuGuard.h) */
     double settings[IMU_SETTING_COUNT]; /* parameters in user units (ImuLayout.h order) */
     int issues;                         /* ModelIssue bits of the last step */
+    double stepSize;                    /* s, communicationStepSize of the last doStep: the time from
+                                         * the last consumed sample to the next (ImuGuardStep) */
     int initialised;                    /* 1 once settings are applied: parameters are locked */
     ImuGuard guard;                     /* input/time/output guard, shared with ImuBatch.c */
     ImuPipeline pipeline;

@@ -113,3 +113,27 @@ def test_build_fmu_rejects_unknown_fmi_version():
     with pytest.raises(SystemExit) as e:
         main(["build-fmu", "--model", "m.json", "--out", "x.fmu", "--fmi", "4"])
     assert e.value.code == 2
+
+
+def test_compare_thermal_without_gyro_reference(tmp_path, capsys):
+    p = _csv(tmp_path, "noref.csv", [_row(0.01 * k) for k in range(50)])
+    fails(capsys, ["compare-thermal", str(p), "--out", str(tmp_path / "c")], "noref.csv", "static")
+
+
+def test_validate_names_the_first_problem(tmp_path, capsys):
+    import zipfile
+    f = tmp_path / "escape.fmu"
+    with zipfile.ZipFile(f, "w") as zf:
+        zf.writestr("modelDescription.xml", "<x/>")
+        zf.writestr("../../escape.txt", "x")
+    fails(capsys, ["validate", str(f)], "escape.fmu", "1 problem(s)", "contains '..'")
+
+
+def test_run_refuses_an_fmu_archive_with_an_absolute_entry(tmp_path, capsys):
+    import zipfile
+    p = _csv(tmp_path, "ok.csv", [_row(0.01 * k) for k in range(50)])
+    f = tmp_path / "abs.fmu"
+    with zipfile.ZipFile(f, "w") as zf:
+        zf.writestr("modelDescription.xml", "<x/>")
+        zf.writestr("/tmp/imufusion-escape.txt", "x")
+    fails(capsys, ["run", str(f), str(p), "--out", str(tmp_path / "o.csv")], "abs.fmu", "absolute path")

@@ -216,7 +216,7 @@ def test_c_inference_equals_python_on_10000_random_inputs(activation):
     block = elm.to_block(model)
     assert block.shape == (elm.BLOCK_SIZE,)
     x = np.random.default_rng(14).uniform(-80.0, 80.0, size=(10000, 3))
-    np.testing.assert_allclose(elm.c_apply(block, x), elm.elm_apply(model, x), rtol=0, atol=C_VS_PYTHON_UT)
+    np.testing.assert_allclose(elm.c_apply(block, x), elm.field_apply(model, x), rtol=0, atol=C_VS_PYTHON_UT)
     back = elm.from_block(block)
     np.testing.assert_allclose(elm.elm_apply(back, x), elm.elm_apply(model, x), rtol=0, atol=1e-12)
 

@@ -2,6 +2,8 @@
 from __future__ import annotations
 
 import re
+import subprocess
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -44,7 +46,7 @@ def trained_coefficients() -> np.ndarray:
         c[o + 4:o + 13] = ((a + a.T) / 2).ravel()
         g = c[o + 13:o + 13 + 3 * MAX_DEGREE].reshape(3, MAX_DEGREE)
         g[:, :2] = 1e-3 * rng.standard_normal((3, 2))
-        b = c[o + 13 + 3 * MAX_DEGREE:o + TRIAD_BLOCK].reshape(3, MAX_DEGREE + 1)
+        b = c[o + 13 + 3 * MAX_DEGREE:o + TRIAD_BLOCK - 3].reshape(3, MAX_DEGREE + 1)
         b[:, :3] = 1e-2 * rng.standard_normal((3, 3))
     return c
 
@@ -168,6 +170,15 @@ def test_invalid_field_norm_fails_initialisation_naming_it(trained_fmu):
     assert "field_norm" in str(info.value)
 
 
+@pytest.mark.parametrize("name, value", [("pf_particles", 2.9), ("pf_particles", 4294967298.0),
+                                         ("enable_pf", 0.5), ("enable_thermal", 2.0)])
+def test_run_fmu_refuses_integer_and_boolean_values_it_would_have_to_round(trained_fmu, name, value):
+    """int(2.9) = 2 particles, bool(0.5) = filter on: the library path refuses, naming the parameter."""
+    t, raw = synthetic_recording(5)
+    with pytest.raises(FmuError, match=name):
+        run_fmu(trained_fmu, t, raw, parameters={name: value})
+
+
 def test_parameters_cannot_be_set_after_initialisation(trained_fmu):
     with pytest.raises(FmuError, match="parameters are fixed"):
         with initialised_fmu(trained_fmu) as fmu:
@@ -277,6 +288,38 @@ def test_instantiate_rejects_a_foreign_guid(trained_fmu, tmp_path):
     with pytest.raises(Exception, match="Failed to instantiate"):
         fmu.instantiate()
     fmu.freeLibrary()
+
+
+_FMPY_DEFAULT_LOGGER_AFTER_RUN = """
+import gc, sys
+import numpy as np
+from fmpy import extract, read_model_description
+from fmpy.fmi2 import FMU2Slave
+from fmu.cosim import run_fmu
+from training.layout import INPUTS
+path, unzipped = sys.argv[1], sys.argv[2]
+for _ in range(3):
+    run_fmu(path, np.arange(3) * 0.01, np.zeros((3, len(INPUTS))))
+gc.collect()
+md = read_model_description(path)
+fmu = FMU2Slave(guid="{not-this-fmu}", unzipDirectory=extract(path, unzipped),
+                modelIdentifier=md.coSimulation.modelIdentifier)
+try:
+    fmu.instantiate()
+except Exception:
+    print("refused")
+"""
+
+
+def test_fmpy_default_logger_still_works_after_runs_in_the_same_process(trained_fmu, tmp_path):
+    """fmpy's message proxy keeps one static pointer to a Python logger: a logger made per run and
+    freed afterwards left it dangling, and the next FMU logging through fmpy's defaults crashed the
+    process (fmu/fmi2_logger.py). In a child process, so that a crash is a failure, not the end."""
+    result = subprocess.run([sys.executable, "-c", _FMPY_DEFAULT_LOGGER_AFTER_RUN, str(trained_fmu),
+                             str(tmp_path / "unzipped")], capture_output=True, text=True, timeout=300,
+                            cwd=Path(__file__).resolve().parents[1])
+    assert result.returncode == 0, result.stderr[-2000:]
+    assert result.stdout.strip().splitlines()[-1] == "refused"
 
 
 def test_start_values_in_binary_match_model_description(trained_fmu, tmp_path):

@@ -159,4 +159,4 @@ def test_invalid_parameter_fails_initialisation_naming_it(fmu3):
     t, raw = synthetic_recording(5)
     with pytest.raises(FmuError, match="fmi3ExitInitializationMode") as info:
         run_fmu(fmu3, t, raw, parameters={"gyro_noise": -1.0})
-    assert "gyro_noise must be finite and >= 0" in str(info.value)
+    assert "gyro_noise must be finite and within [0, 0.1]" in str(info.value)

@@ -260,7 +260,7 @@ def test_wrong_unit_in_reference_triad_is_rejected(tmp_path):
 
 
 def test_too_few_finite_samples_are_not_judged(tmp_path):
-    data = scaled("mag", 1000.0)
+    data = scaled("mag", 0.01)  # gauss-like, but within the runtime's input limits
     data.mag[5:] = np.nan
     back = read_imu_csv(write_imu_csv(data, tmp_path / "few.csv"))
     assert np.isfinite(back.mag).all(axis=1).sum() == 4  # row 3 has a NaN from make_data
@@ -268,7 +268,7 @@ def test_too_few_finite_samples_are_not_judged(tmp_path):
 
 @pytest.mark.parametrize("sidecar, words", [
     ({"format": "imu-csv/0"}, "expected 'imu-csv/1'"),
-    ({"rate_hz": 100}, "'format' is None"),
+    ({"rate_hz": 100}, "'format' is null"),
     ("[1, 2]", "JSON object"),
     ("{not json", "not valid JSON"),
 ])
@@ -372,3 +372,106 @@ def check_pan_thermal(data: ImuData, path: Path) -> None:
     assert PAN_TEMPERATURE_RANGE_C[0] < data.temp.min() < data.temp.max() < PAN_TEMPERATURE_RANGE_C[1]
     with pytest.raises(DataError, match="sensor 'acc' is all-NaN"):
         require_sensors(data, ["acc"], path, "attitude estimation")
+
+
+# ------------------------------------------------------- issue 15: inputs checked as they stream
+
+C_GUARD = Path(__file__).resolve().parents[1] / "sources" / "ImuGuard.h"
+
+
+def test_input_limits_are_the_c_guards():
+    """training.input_limits mirrors sources/ImuGuard.h: one range for the loader and the runtime."""
+    import re
+    from training import input_limits
+    text = C_GUARD.read_text()
+    for py_name, c_name in input_limits.C_NAMES.items():
+        match = re.search(rf"#define {c_name} \(?(-?[0-9.e+]+)\)?", text)
+        assert match, c_name
+        assert getattr(input_limits, py_name) == float(match.group(1)), c_name
+
+
+@pytest.mark.parametrize("temp, text", [(-273.0, "-273 °C"), (1e6, "1e6 °C"), (125.5, "125.5 °C")])
+def test_temperature_outside_the_runtime_range_is_refused(tmp_path, temp, text):
+    data = make_data()
+    data.temp[4] = temp                 # editor line 6
+    err = rejection(write_imu_csv(data, tmp_path / "hot.csv"))
+    assert (err.row, err.column) == (6, "temp")
+    assert f"{text} is outside -60..125 °C" in str(err) and "IMU_GUARD_TEMP" in str(err)
+
+
+@pytest.mark.parametrize("triad, axis, value", [("gyr", 0, 1e308), ("acc", 2, -2500.0), ("mag", 1, 1e4),
+                                                ("ref_gyr", 1, np.inf)])
+def test_values_beyond_the_runtime_limits_are_refused(tmp_path, triad, axis, value):
+    data = make_data()
+    getattr(data, triad)[9, axis] = value
+    err = rejection(write_imu_csv(data, tmp_path / "big.csv"))
+    assert (err.row, err.column) == (11, f"{triad}_{'xyz'[axis]}")
+    assert "the range the runtime accepts" in str(err)
+
+
+def test_sidecar_with_a_bom_is_accepted(tmp_path):
+    path = write_imu_csv(make_data(), tmp_path / "bom.csv")
+    side = tmp_path / "bom.json"
+    side.write_bytes(b"\xef\xbb\xbf" + side.read_bytes())
+    assert read_imu_csv(path).meta["rate_hz"] == META["rate_hz"]
+
+
+@pytest.mark.parametrize("sep, name", [(";", "';'"), ("\t", "a tab")])
+def test_another_delimiter_is_named(tmp_path, sep, name):
+    path = write_imu_csv(make_data(), tmp_path / "semi.csv")
+    path.write_text(path.read_text().replace(",", sep))
+    err = rejection(path)
+    assert err.row == 1 and f"separated by {name}" in str(err)
+
+
+def test_a_line_longer_than_the_cap_is_refused_at_its_row(tmp_path):
+    from training.io import MAX_LINE_CHARS
+    path = write_imu_csv(make_data(), tmp_path / "long.csv")
+    lines = path.read_text().splitlines()
+    path.write_text("\n".join(lines[:4] + ["1" * (MAX_LINE_CHARS + 1)]) + "\n")
+    err = rejection(path)
+    assert err.row == 5 and "longer than" in str(err)
+
+
+def test_gzip_bomb_is_refused_at_its_bad_row(tmp_path):
+    """1 GiB of inflated text after a bad third row: refused at row 3 having allocated far less
+    than it inflates to (bound: a quarter of it; the loader reads 4 Mi characters at a time and
+    reserves one 1 Mi-row storage segment)."""
+    import tracemalloc
+    from training.io import REQUIRED_COLUMNS
+    path = tmp_path / "bomb.csv.gz"
+    head = gzip.compress((",".join(REQUIRED_COLUMNS) + "\n0,0,0,0,0,0,-9.8,20,0,40,25\nx\n").encode(), mtime=0)
+    path.write_bytes(head + gzip.compress(b"1" * 2**24, mtime=0) * 64)
+    tracemalloc.start()
+    try:
+        err = rejection(path)
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    assert err.row == 3 and "cells" in str(err)
+    assert peak < 2**30 / 4, f"{peak / 2**20:.0f} MiB"
+
+
+def test_messages_show_plain_numbers(tmp_path):
+    data = make_data()
+    path = write_imu_csv(data, tmp_path / "order.csv")
+    lines = path.read_text().splitlines()
+    lines[3], lines[4] = lines[4], lines[3]
+    path.write_text("\n".join(lines) + "\n")
+    err = str(rejection(path))
+    assert "time is not strictly increasing" in err and "np." not in err
+
+
+def test_streaming_across_blocks_and_segments_is_exact(tmp_path, monkeypatch):
+    """Tiny blocks and segments: rows spanning many of each read back exactly, and a bad row deep
+    in the file is named by its editor line."""
+    import training.io as imu_io
+    monkeypatch.setattr(imu_io, "BLOCK_CHARS", 700)
+    monkeypatch.setattr(imu_io, "SEGMENT_ROWS", 7)
+    data = make_data(n=200)
+    path = write_imu_csv(data, tmp_path / "blocks.csv.gz")
+    assert_same(read_imu_csv(path), data)
+    text = gzip.decompress(path.read_bytes()).decode().splitlines()
+    text[150] = text[150].replace(",", ";", 1)             # editor line 151
+    path.write_bytes(gzip.compress(("\n".join(text) + "\n").encode()))
+    assert rejection(path).row == 151

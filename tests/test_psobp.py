@@ -336,9 +336,11 @@ NOISE_SHRINKAGE_MAX = 0.2
 #: network output of the walk's size adds well under 2 %; s = 0 makes them equal).
 NOT_WORSE_FRACTION = 0.02
 #: On this seeded recording the unshrunk network (s = 1), fitted to the walk, is at least this
-#: factor worse held-out than the polynomial (1.33x), so the test fails without the shrinkage;
-#: an in-sample scale (fitted on the same windows) would be ~1 and fail the bound on s.
-UNSHRUNK_WORSE_FACTOR = 1.2
+#: factor worse held-out than the polynomial (1.046x; 1.33x before the runtime clamped the network's
+#: inputs to its training range, which the held-out 46/60 °C blocks leave), beyond NOT_WORSE_FRACTION,
+#: so the test fails without the shrinkage; an in-sample scale (fitted on the same windows) would be
+#: ~1 and fail the bound on s.
+UNSHRUNK_WORSE_FACTOR = 1.03
 #: With the rate term (10 °C/min warm-ups in every block) the network predicts out of block:
 #: s stays near 1, and the hybrid is clearly better held-out than the polynomial.
 RATE_SHRINKAGE_MIN = 0.8

@@ -168,7 +168,7 @@ def thermal_block(rng, degree: int) -> np.ndarray:
     g[:, :degree] = 0.01 * rng.normal(size=(3, degree))
     b[:, :degree + 1] = rng.normal(size=(3, degree + 1))
     return np.concatenate([[1.0, rng.uniform(15, 35), rng.uniform(5, 30), degree],
-                           a.ravel(), g.ravel(), b.ravel()])
+                           a.ravel(), g.ravel(), b.ravel(), [0.0, 0.0, 0.0]])  # no calibrated range: unclamped
 
 
 def thermal_reference(block: np.ndarray, x: np.ndarray, temp: np.ndarray) -> np.ndarray:
@@ -178,7 +178,7 @@ def thermal_reference(block: np.ndarray, x: np.ndarray, temp: np.ndarray) -> np.
     t0, ts, degree = block[1], block[2], int(block[3])
     a = block[4:13].reshape(3, 3)
     g = block[13:13 + 3 * layout.MAX_DEGREE].reshape(3, layout.MAX_DEGREE)
-    b = block[13 + 3 * layout.MAX_DEGREE:].reshape(3, layout.MAX_DEGREE + 1)
+    b = block[13 + 3 * layout.MAX_DEGREE:layout.TRIAD_BLOCK - 3].reshape(3, layout.MAX_DEGREE + 1)
     tn = np.where(np.isnan(temp), 0.0, (temp - t0) / ts)[:, None]
     gain = 1.0 + sum(g[:, k - 1] * tn ** k for k in range(1, degree + 1))
     bias = sum(b[:, k] * tn ** k for k in range(degree + 1))

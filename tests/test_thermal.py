@@ -130,7 +130,7 @@ def test_block_round_trip(degree):
     (lambda b: b[:-1], "shape"),
     (lambda b: [b[0], b[1], b[2], 4.0] + b[4:], "degree"),
     (lambda b: [0.5] + b[1:], "enabled"),
-    (lambda b: b[:-1] + [1.0], "above degree"),
+    (lambda b: b[:-4] + [1.0] + b[-3:], "above degree"),  # the last b entry, before the range
 ])
 def test_from_block_rejects_malformed(edit, problem):
     with pytest.raises(ValueError, match=problem):

@@ -150,8 +150,9 @@ def test_one_hour_gap_is_reported_and_the_data_loads(tmp_path):
     back, notes = loads_with_notes(path)
     assert np.array_equal(back.t, data.t)
     assert notes == [f"{path}: 1 gap in time (longest 3600 s at t = 2 s; steps > {GAP_STEP_FACTOR:g} × "
-                     "the nominal 0.01 s); the attitude filters count the lost time as unmeasured motion and "
-                     "restart once it could amount to 10° (README, 'Recovery from transients')"]
+                     "the nominal 0.01 s); the runtime restarts the attitude across a step longer than 100 nominal "
+                     "steps and counts a shorter loss as unmeasured motion, restarting once it could amount to "
+                     "10° (docs/fmu.md, 'Time steps')"]
 
 
 def test_gaps_are_counted_and_the_longest_named():
@@ -186,5 +187,6 @@ def test_cli_prints_one_gap_line_per_file(tmp_path, capsys, verb):
     out = capsys.readouterr().out.splitlines()
     lines = [line for line in out if "gap in time" in line]
     assert lines == [f"{path}: 1 gap in time (longest 3600 s at t = 2 s; steps > {GAP_STEP_FACTOR:g} × "
-                     "the nominal 0.01 s); the attitude filters count the lost time as unmeasured motion and "
-                     "restart once it could amount to 10° (README, 'Recovery from transients')"]
+                     "the nominal 0.01 s); the runtime restarts the attitude across a step longer than 100 nominal "
+                     "steps and counts a shorter loss as unmeasured motion, restarting once it could amount to "
+                     "10° (docs/fmu.md, 'Time steps')"]

@@ -16,6 +16,8 @@ from pathlib import Path
 import numpy as np
 
 from .errors import ModelError
+from .model_checks import flag_problem, term_problem, thermal_problem
+from .schema import setting_problem
 from .layout import (AUX_INPUTS, MAX_DEGREE, STAGE_BLOCKS, TERM_SIGNALS, TERM_TARGETS, TERMS_MAX,
                      TRIAD_ORDER, pack_coefficients, settings_defaults, terms_block)
 from .thermal import ThermalModel
@@ -103,9 +105,31 @@ class ModelArtefact:
 
 
 def _thermal_to_json(model: ThermalModel) -> dict:
-    """ThermalModel -> JSON object with nested lists (rows = axes)."""
+    """ThermalModel -> JSON object with nested lists (rows = axes); t_range [°C] is [t_min, t_max]
+    or null (no range known)."""
     return {"enabled": model.enabled, "t0": model.t0, "ts": model.ts, "degree": model.degree,
-            "A": model.A.tolist(), "g": model.g.tolist(), "b": model.b.tolist()}
+            "A": model.A.tolist(), "g": model.g.tolist(), "b": model.b.tolist(),
+            "t_range": None if model.t_range is None else list(model.t_range)}
+
+
+def _t_range_from_json(doc: dict, where: str, path) -> tuple[float, float] | None:
+    """The optional calibrated temperature range [t_min, t_max] [°C] of a thermal model; None when
+    absent or null (an artefact from before layout version 4: no clamping)."""
+    value = doc.get("t_range")
+    if value is None:
+        return None
+    if not (isinstance(value, list) and len(value) == 2 and all(_is_number(v) for v in value)
+            and value[0] <= value[1]):
+        _fail(path, f"'{where}.t_range' is {value!r}, expected [t_min, t_max] in °C with t_min <= t_max")
+    return float(value[0]), float(value[1])
+
+
+def unranged_notes(thermal: dict[str, ThermalModel]) -> list[str]:
+    """A note for each triad whose temperature polynomial has no calibrated range (no clamping)."""
+    return [f"thermal.{triad}: no calibrated temperature range (an artefact from before layout version 4): "
+            "the runtime evaluates its polynomial at any temperature without clamping; re-run imufmu train "
+            "to record the range" for triad in TRIAD_ORDER
+            if thermal[triad].enabled and thermal[triad].degree > 0 and thermal[triad].t_range is None]
 
 
 def _fail(path, problem: str):
@@ -131,20 +155,35 @@ def _thermal_from_json(doc: dict, triad: str, path) -> ThermalModel:
         _fail(path, f"'{where}.degree' is {degree!r}, expected an integer in 0..{MAX_DEGREE}")
     for name, shape in (("A", (3, 3)), ("g", (3, degree)), ("b", (3, degree + 1))):
         _check_shape(doc[name], shape, f"{where}.{name}", path)
+    if flag_problem(doc["enabled"]):
+        _fail(path, f"'{where}.enabled' {flag_problem(doc['enabled'])}")
     try:
-        return ThermalModel(bool(doc["enabled"]), doc["t0"], doc["ts"], degree,
-                            np.array(doc["A"], dtype=float), np.array(doc["g"], dtype=float),
-                            np.array(doc["b"], dtype=float))
+        model = ThermalModel(bool(doc["enabled"]), doc["t0"], doc["ts"], degree,
+                             np.array(doc["A"], dtype=float), np.array(doc["g"], dtype=float),
+                             np.array(doc["b"], dtype=float), _t_range_from_json(doc, where, path))
     except (TypeError, ValueError) as exc:
         _fail(path, f"'{where}': {exc}")
+    if thermal_problem(model, triad):
+        _fail(path, thermal_problem(model, triad))
+    return model
+
+
+def _shape_text(value) -> str:
+    """The shape of a JSON value for a message: '(3, 1)', 'ragged (rows of 3, 2, 3)' or a type name."""
+    if not isinstance(value, list):
+        return type(value).__name__
+    try:
+        return str(np.shape(value))
+    except ValueError:  # a ragged list
+        return "ragged (rows of " + ", ".join(str(len(r)) if isinstance(r, list) else type(r).__name__
+                                              for r in value) + ")"
 
 
 def _check_shape(value, shape: tuple[int, int], where: str, path) -> None:
     """ModelError unless `value` is a list of `shape[0]` numeric lists of length `shape[1]`."""
     rows_ok = isinstance(value, list) and len(value) == shape[0]
     if not rows_ok or not all(isinstance(r, list) and len(r) == shape[1] for r in value):
-        got = np.shape(value) if isinstance(value, list) else type(value).__name__
-        _fail(path, f"'{where}' has shape {got}, expected {shape}")
+        _fail(path, f"'{where}' has shape {_shape_text(value)}, expected {shape}")
     if not all(isinstance(v, (int, float)) and not isinstance(v, bool) for r in value for v in r):
         _fail(path, f"'{where}' has non-numeric entries")
 
@@ -156,7 +195,7 @@ def _read_document(path) -> dict:
         _fail(path, "no such model file")
     try:
         doc = json.loads(path.read_text(encoding="utf-8"))
-    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+    except (json.JSONDecodeError, UnicodeDecodeError, RecursionError) as exc:
         _fail(path, f"not a JSON file ({exc})")
     if not isinstance(doc, dict):
         _fail(path, "not a model artefact (top level is not a JSON object)")
@@ -176,15 +215,17 @@ def _check_header(doc: dict, path) -> None:
 
 
 def _settings_from_json(doc, path) -> dict[str, float]:
-    """Settings object -> dict; ModelError for an unknown name or a non-numeric value."""
-    known = settings_defaults()
+    """Settings object -> dict; ModelError for an unknown name or a value outside the setting's
+    declared type and range (training.layout.SETTING_RANGES; a Boolean may be true/false)."""
     if not isinstance(doc, dict):
         _fail(path, "'settings' is not an object")
+    known = settings_defaults()
     for name, value in doc.items():
         if name not in known:
             _fail(path, f"unknown setting 'settings.{name}' (known: {', '.join(known)})")
-        if not isinstance(value, (int, float)) or isinstance(value, bool):
-            _fail(path, f"'settings.{name}' is {value!r}, expected a number")
+        problem = setting_problem(name, value)
+        if problem:
+            _fail(path, f"settings: {problem}")
     return {k: float(v) for k, v in doc.items()}
 
 
@@ -201,7 +242,9 @@ def load_artefact(path) -> ModelArtefact:
     """Read a model artefact written by `ModelArtefact.save`.
 
     Raises ModelError naming the file and the problem: missing file, not JSON, wrong
-    format/format_version/model_type, missing keys, wrong coefficient shapes.
+    format/format_version/model_type, missing keys, wrong coefficient shapes. A thermal model
+    without 't_range' (written before layout version 4) loads without a range: the runtime does
+    not clamp its temperature, and the notes say so (`unranged_notes`).
     """
     doc = _read_document(path)
     _check_header(doc, path)
@@ -211,7 +254,8 @@ def load_artefact(path) -> ModelArtefact:
     _check_types(doc, path)
     return ModelArtefact(
         seed=doc["seed"], thermal=thermal, settings=_settings_from_json(doc["settings"], path),
-        training_data=doc["training_data"], fit_stats=doc["fit_stats"], notes=doc["notes"],
+        training_data=doc["training_data"], fit_stats=doc["fit_stats"],
+        notes=doc["notes"] + [n for n in unranged_notes(thermal) if n not in doc["notes"]],
         terms=_terms_from_json(doc.get("terms", []), path),
         aux_inputs=_aux_inputs_from_json(doc.get("aux_inputs", []), doc.get("terms", []), path),
         blocks=_blocks_from_json(doc.get("blocks", {}), path),
@@ -242,6 +286,8 @@ def _terms_from_json(terms, path) -> list[dict]:
         if not (_is_number(term["lo"]) and _is_number(term["hi"]) and term["lo"] <= term["hi"]):
             _fail(path, f"terms[{k}] ({name}) needs finite regressor bounds lo <= hi, got lo = {term['lo']!r}, "
                         f"hi = {term['hi']!r}: re-run imufmu diagnose")
+        if term_problem(term):
+            _fail(path, f"terms[{k}] ({name}) {term_problem(term)}")
     return [dict(t) for t in terms]
 
 

@@ -10,7 +10,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from .errors import ImuFusionError
+from .errors import ImuFusionError, one_line
 
 
 def _existing_file(path: str, what: str) -> Path:
@@ -22,14 +22,24 @@ def _existing_file(path: str, what: str) -> Path:
 
 
 def _param(text: str) -> tuple[str, float]:
-    """Parse NAME=VALUE (VALUE a number) for --param."""
+    """Parse NAME=VALUE for --param: a known setting with a value of its declared type and range
+    (training.schema); a value that looks like the wrong unit is taken, with a warning on stderr."""
+    from .schema import check_setting, unit_warning
     name, sep, value = text.partition("=")
     try:
         if not sep:
             raise ValueError
-        return name.strip(), float(value)
+        number = float(value)
     except ValueError:
         raise argparse.ArgumentTypeError(f"expected NAME=NUMBER, got '{text}'") from None
+    try:
+        number = check_setting(name.strip(), number)
+    except ValueError as e:
+        raise argparse.ArgumentTypeError(f"'{text}': {e}") from None
+    warning = unit_warning(name.strip(), number)
+    if warning:
+        print(f"imufmu: warning: --param {warning}", file=sys.stderr)
+    return name.strip(), number
 
 
 def _degree(text: str):
@@ -82,19 +92,22 @@ def cmd_validate(args) -> None:
     for p in problems:
         print(f"problem: {p}")
     if problems:
-        raise ImuFusionError(f"{args.fmu}: {len(problems)} problem(s)")
+        first = problems[0].removeprefix(f"{args.fmu}: ")
+        raise ImuFusionError(f"{args.fmu}: {len(problems)} problem(s); the first: {first}")
     print(f"{args.fmu}: 0 problems")
 
 
 def cmd_run(args) -> None:
     """imufmu run FILE.fmu DATA --out OUT.csv [--param NAME=VALUE ...]: the recording's aux_*
     columns go into the auxiliary inputs the FMU's model maps them to."""
+    from fmu.archive import read_description
     from fmu.cosim import run_fmu
     from fmu.packer import fmu_aux_columns
     from .io import read_imu_csv
     from .pipeline import recording_parameters, write_outputs_csv
     fmu_path = _existing_file(args.fmu, "FMU")
     data = read_imu_csv(_existing_file(args.data, "data file"))
+    read_description(fmu_path)  # the archive checks (fmu.archive) before any member is read
     params = recording_parameters(data) | dict(args.param or [])
     try:
         inputs = data.inputs(aux_columns=fmu_aux_columns(fmu_path))
@@ -234,11 +247,11 @@ def main(argv: list[str] | None = None) -> int:
     try:
         with report_load_notes(lambda note: print(note, flush=True)):
             args.func(args)
-    except ImuFusionError as e:
-        print(f"imufmu {args.verb}: error: {e}", file=sys.stderr)
+    except ImuFusionError as e:  # messages embedding a tool's output may span lines: one line
+        print(f"imufmu {args.verb}: error: {one_line(str(e))}", file=sys.stderr)
         return 1
     except OSError as e:  # unwritable output folder, disk full, ...
-        print(f"imufmu {args.verb}: error: {e.filename or ''}: {e.strerror or e}", file=sys.stderr)
+        print(f"imufmu {args.verb}: error: {e.filename or ''}: {one_line(e.strerror or str(e))}", file=sys.stderr)
         return 1
     return 0
 

@@ -39,6 +39,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from .errors import DataError
 from .io import read_imu_csv
 from .psobp import (PsoBpFitter, apply_psobp, bias_targets, fit_gyro_residual_psobp,
                     temperature_rate)
@@ -207,7 +208,8 @@ def _compare_one(path: Path, out_dir: Path, runs: int, seed: int, settings: dict
     data = read_imu_csv(path)
     if data.ref_gyr is None:
         if data.meta.get("reference") != "static":
-            raise ValueError(f"{path}: no ref_gyr columns and the sidecar does not say 'static'")
+            raise DataError(path, "no ref_gyr columns and the sidecar does not say \"reference\": \"static\"; "
+                                  "compare-thermal needs the true rate of the gyro")
         data.ref_gyr = np.zeros_like(data.gyr)
     train = _split(data.t, settings["train_fraction"])
     valid = ~train & np.all(np.isfinite(data.gyr - data.ref_gyr), axis=1)

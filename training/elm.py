@@ -177,6 +177,16 @@ def elm_apply(model: ElmModel, x: np.ndarray) -> np.ndarray:
     return model.y_norm.inverse(hidden_layer(model.activation, model.w, model.b, xn) @ model.beta)
 
 
+def field_apply(model: ElmModel, x: np.ndarray) -> np.ndarray:
+    """The runtime's field form (ImuElmApply, sources/ImuElm.h), corrected field (N, 3) [µT] for
+    fields x (N, 3) [µT]: x clamped per axis into the calibrated box [x_norm.lo, x_norm.hi], the
+    network's correction elm(xc) - xc evaluated there and added to x. Inside the box it is
+    elm_apply(model, x); outside, the correction at the box edge replaces an extrapolation."""
+    x = np.asarray(x, dtype=np.float64)
+    xc = np.clip(x, model.x_norm.lo, model.x_norm.hi)
+    return elm_apply(model, xc) + (x - xc)
+
+
 def solve_output_weights(h: np.ndarray, t: np.ndarray) -> np.ndarray:
     """Stage one: β = H⁺ T, the minimum-norm least-squares solution (H (N, L), T (N, n_out))."""
     return np.linalg.lstsq(h, t, rcond=None)[0]

@@ -28,3 +28,9 @@ class ScenarioError(ImuFusionError):
 
 class BuildError(ImuFusionError):
     """Compiling the C runtime or the FMU failed; the message carries the compiler output."""
+
+
+def one_line(text: str) -> str:
+    """`text` on one line: its non-blank lines joined by ' | ' (for messages that embed a tool's
+    or an FMU's multi-line output)."""
+    return " | ".join(line.strip() for line in str(text).splitlines() if line.strip())

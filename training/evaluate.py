@@ -2,6 +2,12 @@
 
 Every metric is an RMS over the samples that count (`eval_mask`, finite reference), in the unit
 users read: °/s for rates, m/s² for specific force, µT for the field, degrees for angles.
+
+A sensor that has not delivered a valid sample yet is absent (docs/fmu.md, "Absent sensors"): the
+runtime outputs NaN for its corrected triad. Those samples are left out of the metrics that depend
+on the sensor (its triad; roll, pitch and inclination need the accelerometer; yaw and heading the
+magnetometer, without which yaw is relative to the first sample), and `absent_outputs` names them
+so that reports can say so.
 """
 from __future__ import annotations
 
@@ -45,6 +51,46 @@ def _rms(e: np.ndarray) -> float:
     """RMS over all finite entries of e (any shape); NaN when there are none."""
     e = e[np.isfinite(e)]
     return float(np.sqrt(np.mean(e * e))) if e.size else float("nan")
+
+
+#: The corrected triads of the runtime outputs and the sensor each comes from.
+TRIADS = {"rate": ("gyroscope", ("rate_x", "rate_y", "rate_z")),
+          "accel": ("accelerometer", ("accel_x", "accel_y", "accel_z")),
+          "field": ("magnetometer", ("field_x", "field_y", "field_z"))}
+
+
+def present(out: np.ndarray, triad: str) -> np.ndarray:
+    """(N,) bool: samples whose corrected `triad` outputs are finite (its sensor is not absent)."""
+    return np.all(np.isfinite(out[:, [_COL[n] for n in TRIADS[triad][1]]]), axis=1)
+
+
+def absent_outputs(out: np.ndarray) -> dict[str, int]:
+    """Corrected triads ("rate", "accel", "field") with NaN outputs (absent sensor) in runtime
+    outputs `out` ((N, len(OUTPUTS))), each with its number of such samples; empty when none."""
+    counts = {triad: int(np.count_nonzero(~present(out, triad))) for triad in TRIADS}
+    return {triad: n for triad, n in counts.items() if n}
+
+
+def absent_note(out: np.ndarray) -> str | None:
+    """One sentence naming the absent-sensor outputs of `out` and what the metrics leave out; None
+    when every sensor delivered."""
+    absent = absent_outputs(out)
+    if not absent:
+        return None
+    parts = [f"{triad}_* NaN in {n} of {len(out)} samples ({TRIADS[triad][0]} absent)" for triad, n in absent.items()]
+    return ("; ".join(parts) + ": those samples are left out of the metrics that need the sensor "
+            "(roll, pitch and inclination: accelerometer; yaw and heading: magnetometer)")
+
+
+def max_abs_difference(a: np.ndarray, b: np.ndarray) -> float:
+    """Largest |a − b| over equal-shaped arrays; NaN at the same place in both counts as equal
+    (an absent sensor's outputs), NaN in only one as infinitely different."""
+    a, b = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
+    both = np.isnan(a) & np.isnan(b)
+    if np.any(np.isnan(a) ^ np.isnan(b)):
+        return float("inf")
+    d = np.abs(a[~both] - b[~both])
+    return float(d.max()) if d.size else 0.0
 
 
 def _mask(data: ImuData) -> np.ndarray:
@@ -100,7 +146,9 @@ def compute_metrics(out: np.ndarray, data: ImuData) -> Metrics:
         e = np.rad2deg(attitude_errors(out, data))
         defined = m & (np.abs(np.rad2deg(reference_euler_magnetic(data)[:, 1])) < EULER_PITCH_LIMIT_DEG)
         tilt, heading = np.rad2deg(tilt_heading_errors(out, data)).T
-        ang = [_rms(e[defined, 0]), _rms(e[m, 1]), _rms(e[defined, 2]), _rms(tilt[m]), _rms(heading[m])]
+        level, north = present(out, "accel"), present(out, "field")  # absent sensor: left out
+        ang = [_rms(e[defined & level, 0]), _rms(e[m & level, 1]), _rms(e[defined & north, 2]),
+               _rms(tilt[m & level]), _rms(heading[m & north])]
     return Metrics(np.rad2deg(rate), accel, field, *ang)
 
 

@@ -11,6 +11,7 @@ from __future__ import annotations
 import gzip
 import io
 import json
+import zlib
 from collections.abc import Callable, Iterable, Iterator, Sequence
 from contextlib import contextmanager
 from contextvars import ContextVar
@@ -19,8 +20,11 @@ from pathlib import Path
 
 import numpy as np
 
+from training import input_limits as limits
 from training.dataset import REF_Q_COLUMNS, TRIADS, ImuData, triad_columns
 from training.errors import DataError
+from training.layout import SETTINGS
+from training.sidecar import check_sidecar
 
 FORMAT = "imu-csv/1"
 REQUIRED_COLUMNS = ("t", *triad_columns("gyr"), *triad_columns("acc"),
@@ -46,6 +50,15 @@ MIN_MEDIAN_STEP_S = 1e-5     # without rate_hz: a smaller median step (faster th
 #: gap in time. The one definition of the threshold: the loader reports such gaps, and the runtime's
 #: gap handling (re-initialising the attitude across a gap) is to use the same factor.
 GAP_STEP_FACTOR = 5.0
+#: Streaming and size limits: a malformed file costs at most one block of rows before it is refused.
+MAX_LINE_CHARS = 100_000     # a longer line is refused (an imu-csv/1 row is a few hundred characters)
+BLOCK_CHARS = 4 * 2**20      # characters of text parsed at a time (about 40 k rows)
+SEGMENT_ROWS = 2**20         # rows per storage segment (8 MiB per column: each one its own memory map)
+MAX_SIDECAR_BYTES = 2**20    # a larger sidecar is refused (a sidecar is a few hundred bytes)
+#: The runtime's field_norm setting [µT] when the sidecar gives no earth_field.norm_ut (training/layout.py).
+DEFAULT_FIELD_NORM_UT = dict(SETTINGS)["field_norm"]
+#: (column index, low, high, unit, the C limit it mirrors) of a column the loader checks cell by cell.
+ValueLimit = tuple[int, float, float, str, str]
 TIME_UNITS = (("milliseconds", 1e3), ("microseconds", 1e6), ("nanoseconds", 1e9))  # t given in these
 
 
@@ -72,16 +85,17 @@ def read_imu_csv(path: str | Path) -> ImuData:
 
     Returns an ImuData named after the file stem, with optional arrays None when absent.
     Raw triads may be all-NaN (a sensor that was not recorded); use `require_sensors` where a
-    computation needs one.
+    computation needs one. The file is streamed: each block of rows is checked as it is read
+    (cells, time order, eval_mask, the runtime's input limits), so a malformed file fails at its
+    first bad row, and memory stays near the size of the returned arrays (8 bytes per cell).
     """
     path = Path(path)
     meta = read_sidecar(path)
-    header, body = _read_text(path)
-    columns = _parse_header(path, header)
-    table = _parse_body(path, body, columns)
-    data = _to_imu_data(path, columns, table, meta)
-    _check_time(path, data.t)
-    rate_hz = _sidecar_rate(path, meta)
+    rate_hz = meta.get("rate_hz")
+    with _open_text(path) as stream:
+        columns = _parse_header(path, _read_header(path, stream))
+        store = _read_blocks(path, stream, columns, _value_limits(columns, meta))
+    data = _to_imu_data(path, columns, store, meta)
     _check_time_unit(path, data.t, rate_hz)
     _check_units(path, data)
     _report_load_note(time_gap_note(path, time_gaps(data.t, rate_hz)))
@@ -89,43 +103,69 @@ def read_imu_csv(path: str | Path) -> ImuData:
 
 
 def read_sidecar(path: str | Path) -> dict:
-    """The sidecar metadata of recording `path` ({} when there is no sidecar)."""
+    """The sidecar metadata of recording `path` ({} when there is no sidecar; at most
+    MAX_SIDECAR_BYTES; a UTF-8 BOM is accepted), its fields checked (training/sidecar.py)."""
     side = sidecar_path(path)
     if not side.is_file():
         return {}
+    with open(side, "rb") as f:
+        raw = f.read(MAX_SIDECAR_BYTES + 1)
+    if len(raw) > MAX_SIDECAR_BYTES:
+        raise DataError(side, f"sidecar is larger than {MAX_SIDECAR_BYTES // 1024} KiB")
     try:
-        meta = json.loads(side.read_text(encoding="utf-8"))
-    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+        meta = json.loads(raw.decode("utf-8-sig"))
+    except (json.JSONDecodeError, UnicodeDecodeError, RecursionError) as exc:
         raise DataError(side, f"sidecar is not valid JSON ({exc})") from None
     if not isinstance(meta, dict):
         raise DataError(side, "sidecar must be a JSON object")
     if meta.get("format") != FORMAT:
-        raise DataError(side, f"sidecar 'format' is {meta.get('format')!r}, expected '{FORMAT}'")
+        raise DataError(side, f"sidecar 'format' is {_json_text(meta.get('format'))}, expected '{FORMAT}'")
+    check_sidecar(side, meta)  # field types and ranges (training/sidecar.py)
     return meta
 
 
-def _read_text(path: Path) -> tuple[str, str]:
-    """Decompressed text of the file split into (header line, data lines)."""
+def _json_text(value) -> str:
+    """Short JSON text of a sidecar value for a message (at most 60 characters)."""
+    text = json.dumps(value, ensure_ascii=False)
+    return text if len(text) <= 60 else text[:57] + "..."
+
+
+@contextmanager
+def _open_text(path: Path) -> Iterator[io.TextIOBase]:
+    """The recording as a text stream (gunzipped for '.gz', UTF-8 with an optional BOM, any
+    newline convention read as '\\n'); a decompression or decoding failure becomes a DataError."""
     try:
-        raw = path.read_bytes()
+        binary = gzip.open(path, "rb") if path.name.endswith(".gz") else open(path, "rb")
     except FileNotFoundError:
         raise DataError(path, "file not found") from None
-    try:
-        if path.name.endswith(".gz"):
-            raw = gzip.decompress(raw)
-        text = raw.decode("utf-8-sig")
-    except (OSError, EOFError, UnicodeDecodeError) as exc:
-        raise DataError(path, f"cannot read as UTF-8 CSV ({exc})") from None
-    if "\r" in text:
-        text = text.replace("\r\n", "\n").replace("\r", "\n")
-    header, _, body = text.partition("\n")
+    except IsADirectoryError:
+        raise DataError(path, "is a folder, not a file") from None
+    with binary, io.TextIOWrapper(binary, encoding="utf-8-sig", newline=None) as text:
+        try:
+            yield text
+        except (OSError, EOFError, zlib.error, UnicodeDecodeError) as exc:
+            raise DataError(path, f"cannot read as {'gzip-compressed ' if path.name.endswith('.gz') else ''}"
+                                  f"UTF-8 CSV ({exc})") from None
+
+
+def _read_header(path: Path, stream: io.TextIOBase) -> str:
+    """The header line (without newline); DataError when empty or longer than MAX_LINE_CHARS."""
+    header = stream.readline(MAX_LINE_CHARS + 1)
+    if len(header) > MAX_LINE_CHARS:
+        raise DataError(path, f"line longer than {MAX_LINE_CHARS} characters", row=1)
+    header = header.rstrip("\n")
     if not header.strip():
         raise DataError(path, "file is empty (no header row)", row=1)
-    return header, body
+    return header
 
 
 def _parse_header(path: Path, header: str) -> list[str]:
     """Column names of the header line, checked against the imu-csv/1 schema."""
+    if "," not in header:
+        for name, sep in (("';'", ";"), ("a tab", "\t"), ("'|'", "|"), ("spaces", " ")):
+            if sep in header.strip():
+                raise DataError(path, f"columns are separated by {name}; imu-csv/1 separates them "
+                                      "by ',' (and uses '.' as the decimal point)", row=1)
     columns = [c.strip().strip('"') for c in header.split(",")]
     seen: set[str] = set()
     for name in columns:
@@ -154,12 +194,89 @@ def _is_known_column(name: str) -> bool:
     return name in known or (name.startswith(AUX_PREFIX) and len(name) > len(AUX_PREFIX))
 
 
-def _parse_body(path: Path, body: str, columns: Sequence[str]) -> np.ndarray:
-    """(N, len(columns)) float64 table of the data lines; empty cells and 'nan' are NaN."""
-    body = body.rstrip("\n")
-    if not body:
+def _text_blocks(path: Path, stream: io.TextIOBase) -> Iterator[tuple[int, str]]:
+    """(editor line of its first row, text) of consecutive blocks of whole data lines (about
+    BLOCK_CHARS characters each, ending with '\\n'); DataError at a line longer than MAX_LINE_CHARS."""
+    row, pending = FIRST_DATA_LINE, ""
+    while True:
+        piece = stream.read(BLOCK_CHARS)
+        text = pending + piece
+        cut = text.rfind("\n") + 1 if piece else len(text)
+        block, pending = text[:cut], text[cut:]
+        if block:
+            lengths = list(map(len, block.split("\n")))
+            if max(lengths) > MAX_LINE_CHARS:
+                first = next(i for i, n in enumerate(lengths) if n > MAX_LINE_CHARS)
+                raise DataError(path, f"line longer than {MAX_LINE_CHARS} characters", row=row + first)
+            yield row, block if block.endswith("\n") else block + "\n"
+            row += block.count("\n") + (not block.endswith("\n"))
+        if len(pending) > MAX_LINE_CHARS:  # after the whole lines before it were checked
+            raise DataError(path, f"line longer than {MAX_LINE_CHARS} characters", row=row)
+        if not piece:
+            return
+
+
+class _RowStore:
+    """Rows of float64 cells collected in segments of SEGMENT_ROWS rows. A segment is large enough
+    for the allocator to give it its own memory map, so each one is returned to the system as soon
+    as it is released: moving the rows out segment by segment never holds two copies of the data."""
+
+    def __init__(self, width: int) -> None:
+        self.width, self.rows, self._segments = width, 0, []
+
+    def append(self, table: np.ndarray) -> None:
+        """Copy the (k, width) table after the rows stored so far."""
+        done = 0
+        while done < len(table):
+            used = self.rows % SEGMENT_ROWS
+            if used == 0:
+                self._segments.append(np.empty((SEGMENT_ROWS, self.width)))
+            take = min(SEGMENT_ROWS - used, len(table) - done)
+            self._segments[-1][used:used + take] = table[done:done + take]
+            done += take
+            self.rows += take
+
+    def release(self) -> Iterator[np.ndarray]:
+        """The stored rows, one segment at a time (first to last); each segment is dropped from the
+        store before it is yielded, so it is freed once the caller lets go of it."""
+        self._segments.reverse()
+        left = self.rows
+        while self._segments:
+            segment = self._segments.pop()
+            yield segment[:min(SEGMENT_ROWS, left)]
+            left -= SEGMENT_ROWS
+
+
+def _read_blocks(path: Path, stream: io.TextIOBase, columns: Sequence[str],
+                 limits: list[ValueLimit]) -> _RowStore:
+    """The data rows, each block checked as it is read:
+    cells, blank lines (allowed only at the end), time finite and strictly increasing, eval_mask
+    0/1 and the runtime's input limits."""
+    store = _RowStore(len(columns))
+    blank_row = None            # editor line of a blank line seen so far (an error if data follows)
+    last_t = -np.inf
+    for row, block in _text_blocks(path, stream):
+        body = block.rstrip("\n")
+        if body and blank_row is not None:
+            raise DataError(path, "blank line inside the data", row=blank_row)
+        if not body:
+            blank_row = row if blank_row is None else blank_row
+            continue
+        _reject_blank_lines(path, body, row)
+        if len(block) - len(body) > 1:
+            blank_row = row + body.count("\n") + 1
+        table = _parse_rows(path, body, columns, row)
+        last_t = _check_time_block(path, table[:, 0], last_t, row)
+        _check_block_values(path, table, columns, limits, row)
+        store.append(table)
+    if not store.rows:
         raise DataError(path, "no data rows after the header", row=FIRST_DATA_LINE)
-    _reject_blank_lines(path, body)
+    return store
+
+
+def _parse_rows(path: Path, body: str, columns: Sequence[str], first_row: int) -> np.ndarray:
+    """(rows, len(columns)) float64 table of data lines starting at editor line first_row; empty
+    cells and 'nan' are NaN."""
     try:
         table = np.loadtxt(io.StringIO(_fill_empty_cells(body)), delimiter=",", comments=None,
                            ndmin=2, dtype=np.float64)
@@ -168,19 +285,19 @@ def _parse_body(path: Path, body: str, columns: Sequence[str]) -> np.ndarray:
         problem = f"rows have {table.shape[1]} cells, expected {len(columns)}"
     except ValueError as exc:
         problem = f"cannot parse the data rows ({exc})"
-    _locate_bad_cell(path, body, columns)
-    raise DataError(path, problem)
+    _locate_bad_cell(path, body, columns, first_row)
+    raise DataError(path, problem, row=first_row)
 
 
-def _reject_blank_lines(path: Path, body: str) -> None:
-    """Raise DataError at the first blank line inside the data (it would shift row numbers)."""
+def _reject_blank_lines(path: Path, body: str, first_row: int) -> None:
+    """Raise DataError at the first blank line inside `body` (it would shift row numbers)."""
     if body.startswith("\n"):
-        line = FIRST_DATA_LINE
+        line = first_row
     else:
         pos = body.find("\n\n")
         if pos < 0:
             return
-        line = FIRST_DATA_LINE + body.count("\n", 0, pos) + 1
+        line = first_row + body.count("\n", 0, pos) + 1
     raise DataError(path, "blank line inside the data", row=line)
 
 
@@ -196,16 +313,16 @@ def _fill_empty_cells(body: str) -> str:
     return body
 
 
-def _locate_bad_cell(path: Path, body: str, columns: Sequence[str]) -> None:
+def _locate_bad_cell(path: Path, body: str, columns: Sequence[str], first_row: int) -> None:
     """Scan the data lines and raise DataError at the first ragged row or non-numeric cell."""
     for index, line in enumerate(body.split("\n")):
-        row = FIRST_DATA_LINE + index
+        row = first_row + index
         cells = line.split(",")
         if len(cells) != len(columns):
             raise DataError(path, f"row has {len(cells)} cells, expected {len(columns)}", row=row)
         for name, cell in zip(columns, cells):
             if cell.strip() and not _is_number(cell):
-                raise DataError(path, f"not a number: {cell!r}", row=row, column=name)
+                raise DataError(path, f"not a number: {cell[:40]!r}", row=row, column=name)
 
 
 def _is_number(cell: str) -> bool:
@@ -217,66 +334,105 @@ def _is_number(cell: str) -> bool:
     return "_" not in cell
 
 
-def _to_imu_data(path: Path, columns: Sequence[str], table: np.ndarray, meta: dict) -> ImuData:
-    """Assemble the parsed table into an ImuData (optional groups None when absent)."""
+def _check_time_block(path: Path, t: np.ndarray, last_t: float, first_row: int) -> float:
+    """DataError at the first time that is not finite or not after its predecessor (last_t: the
+    last time of the previous block); returns the block's last time."""
+    not_finite = np.flatnonzero(~np.isfinite(t))
+    if not_finite.size:
+        raise DataError(path, "time is not a finite number", row=first_row + int(not_finite[0]), column="t")
+    previous = np.concatenate(([last_t], t[:-1]))
+    not_increasing = np.flatnonzero(t <= previous)
+    if not_increasing.size:
+        i = int(not_increasing[0])
+        raise DataError(path, f"time is not strictly increasing ({_num(t[i], 12)} s after "
+                              f"{_num(previous[i], 12)} s)", row=first_row + i, column="t")
+    return float(t[-1])
+
+
+def _value_limits(columns: Sequence[str], meta: dict) -> list[ValueLimit]:
+    """(column index, low, high, unit, where the limit comes from) of every column the runtime's
+    input guard limits (training.input_limits): raw and reference triads, temperature."""
+    field = (meta.get("earth_field") or {}).get("norm_ut") or DEFAULT_FIELD_NORM_UT
+    per_triad = {"gyr": (limits.GYR_LIMIT_RAD_S, "rad/s", "IMU_GUARD_GYR_LIMIT"),
+                 "acc": (limits.ACC_LIMIT_M_S2, "m/s²", "IMU_GUARD_ACC_LIMIT"),
+                 "mag": (limits.MAG_SATURATION * field, "µT",
+                         f"IMU_GUARD_MAG_SATURATION × field norm {_num(field)} µT")}
+    out = []
+    for i, name in enumerate(columns):
+        triad = name.removeprefix("ref_")[:3]
+        if name == "temp":
+            out.append((i, limits.TEMP_MIN_C, limits.TEMP_MAX_C, "°C",
+                        "IMU_GUARD_TEMP_MIN..IMU_GUARD_TEMP_MAX"))
+        elif triad in per_triad and name.removeprefix("ref_")[3:] in ("_x", "_y", "_z"):
+            bound, unit, source = per_triad[triad]
+            out.append((i, -bound, bound, unit, source))
+    return out
+
+
+def _check_block_values(path: Path, table: np.ndarray, columns: Sequence[str], value_limits: list[ValueLimit],
+                        first_row: int) -> None:
+    """DataError at the first cell beyond the runtime's input limits (NaN is a missing value, not
+    out of range) and at the first eval_mask that is not 0 or 1."""
+    for i, low, high, unit, source in value_limits:
+        values = table[:, i]
+        bad = np.flatnonzero((values < low) | (values > high) | np.isinf(values))
+        if bad.size:
+            _check_block_unit(path, table, columns, columns[i])
+            raise DataError(path, f"{_num(values[bad[0]])} {unit} is outside {_num(low)}..{_num(high)} {unit}, "
+                                  f"the range the runtime accepts (sources/ImuGuard.h {source}); write an "
+                                  "empty cell for a missing value", row=first_row + int(bad[0]), column=columns[i])
+    if EVAL_MASK_COLUMN in columns:
+        values = table[:, columns.index(EVAL_MASK_COLUMN)]
+        bad = np.flatnonzero((values != 0) & (values != 1))
+        if bad.size:
+            raise DataError(path, f"eval_mask must be 0 or 1, found {_num(values[bad[0]])}",
+                            row=first_row + int(bad[0]), column=EVAL_MASK_COLUMN)
+
+
+def _check_block_unit(path: Path, table: np.ndarray, columns: Sequence[str], column: str) -> None:
+    """DataError naming the suspected unit when the triad of `column` (e.g. 'mag_x', 'ref_gyr_y')
+    in this block of rows betrays a wrong unit: a clearer message than its first out-of-range cell."""
+    prefix = column.rsplit("_", 1)[0]
+    if prefix not in (*TRIADS, *REF_TRIADS):
+        return
+    norms = _finite_norms(table[:, [columns.index(c) for c in triad_columns(prefix)]])
+    problem = _unit_problem(prefix.removeprefix("ref_"), norms) if norms.size >= MIN_SAMPLES_FOR_UNIT_CHECK else None
+    if problem:
+        raise DataError(path, problem, column=f"{prefix}_*")
+
+
+def _to_imu_data(path: Path, columns: Sequence[str], store: _RowStore, meta: dict) -> ImuData:
+    """Move the stored rows into an ImuData (optional groups None when absent), segment by segment:
+    the peak memory is about one copy of the data plus one segment."""
     index = {name: i for i, name in enumerate(columns)}
-
-    def take(names: Sequence[str]) -> np.ndarray:
-        return np.ascontiguousarray(table[:, [index[n] for n in names]])
-
-    def optional(names: Sequence[str]) -> np.ndarray | None:
-        return take(names) if names[0] in index else None
-
+    groups = {"t": ["t"], "gyr": triad_columns("gyr"), "acc": triad_columns("acc"),
+              "mag": triad_columns("mag"), "temp": ["temp"], "ref_q": list(REF_Q_COLUMNS),
+              **{p: triad_columns(p) for p in REF_TRIADS}, EVAL_MASK_COLUMN: [EVAL_MASK_COLUMN],
+              **{n: [n] for n in columns if n.startswith(AUX_PREFIX)}}
+    groups = {g: names for g, names in groups.items() if names[0] in index}
+    arrays = {g: np.empty((store.rows, len(names))) for g, names in groups.items()}
+    start = 0
+    for block in store.release():
+        for g, names in groups.items():
+            arrays[g][start:start + len(block)] = block[:, [index[c] for c in names]]
+        start += len(block)
+    flat = {g: a[:, 0] for g, a in arrays.items() if len(groups[g]) == 1}
     return ImuData(
-        t=take(["t"])[:, 0], gyr=take(triad_columns("gyr")), acc=take(triad_columns("acc")),
-        mag=take(triad_columns("mag")), temp=take(["temp"])[:, 0],
-        ref_q=optional(REF_Q_COLUMNS), ref_gyr=optional(triad_columns("ref_gyr")),
-        ref_acc=optional(triad_columns("ref_acc")), ref_mag=optional(triad_columns("ref_mag")),
-        eval_mask=_eval_mask(path, table[:, index[EVAL_MASK_COLUMN]])
-        if EVAL_MASK_COLUMN in index else None,
-        aux={n: table[:, i].copy() for n, i in index.items() if n.startswith(AUX_PREFIX)},
+        t=flat["t"], gyr=arrays["gyr"], acc=arrays["acc"], mag=arrays["mag"], temp=flat["temp"],
+        ref_q=arrays.get("ref_q"), ref_gyr=arrays.get("ref_gyr"), ref_acc=arrays.get("ref_acc"),
+        ref_mag=arrays.get("ref_mag"),
+        eval_mask=flat[EVAL_MASK_COLUMN] == 1 if EVAL_MASK_COLUMN in flat else None,
+        aux={n: flat[n] for n in groups if n.startswith(AUX_PREFIX)},
         meta=meta, name=recording_stem(path))
-
-
-def _eval_mask(path: Path, values: np.ndarray) -> np.ndarray:
-    """(N,) bool mask from a column of 0/1 values; anything else is a DataError."""
-    bad = np.flatnonzero((values != 0) & (values != 1))
-    if bad.size:
-        raise DataError(path, f"eval_mask must be 0 or 1, found {values[bad[0]]!r}",
-                        row=FIRST_DATA_LINE + int(bad[0]), column=EVAL_MASK_COLUMN)
-    return values == 1
 
 
 # -------------------------------------------------------------------------- validation
 
 
-def _check_time(path: Path, t: np.ndarray) -> None:
-    """Raise DataError at the first row whose time is not finite or not after its predecessor."""
-    not_finite = np.flatnonzero(~np.isfinite(t))
-    if not_finite.size:
-        raise DataError(path, "time is not a finite number",
-                        row=FIRST_DATA_LINE + int(not_finite[0]), column="t")
-    not_increasing = np.flatnonzero(np.diff(t) <= 0)
-    if not_increasing.size:
-        i = int(not_increasing[0]) + 1
-        raise DataError(path, f"time is not strictly increasing ({t[i]!r} s after {t[i - 1]!r} s)",
-                        row=FIRST_DATA_LINE + i, column="t")
-
-
-def _sidecar_rate(path: Path, meta: dict) -> float | None:
-    """The sidecar's rate_hz [Hz], None when absent; DataError (naming the sidecar) when not a
-    positive finite number."""
-    rate = meta.get("rate_hz")
-    if rate is None:
-        return None
-    if isinstance(rate, bool) or not isinstance(rate, (int, float)) or not np.isfinite(rate) or rate <= 0:
-        raise DataError(sidecar_path(path), f"sidecar 'rate_hz' is {rate!r}, expected a positive number [Hz]")
-    return float(rate)
-
-
-def _num(x: float) -> str:
-    """Short text of a number: 4 significant digits, exponents without '+' or leading zeros."""
-    text = f"{x:.4g}"
+def _num(x: float, digits: int = 4) -> str:
+    """Short plain text of a number: `digits` significant digits, exponents without '+' or
+    leading zeros (never a numpy repr)."""
+    text = f"{float(x):.{digits}g}"
     mantissa, e, exponent = text.partition("e")
     return mantissa + (f"e{int(exponent)}" if e else "")
 
@@ -343,8 +499,9 @@ def time_gap_note(path: str | Path, gaps: TimeGaps) -> str | None:
         return None
     return (f"{path}: {gaps.count} gap{'s' if gaps.count > 1 else ''} in time (longest "
             f"{_num(gaps.longest_s)} s at t = {_num(gaps.longest_at_s)} s; steps > {_num(GAP_STEP_FACTOR)} × "
-            f"the nominal {_num(gaps.nominal_step_s)} s); the attitude filters count the lost time as "
-            "unmeasured motion and restart once it could amount to 10° (README, 'Recovery from transients')")
+            f"the nominal {_num(gaps.nominal_step_s)} s); the runtime restarts the attitude across a step "
+            f"longer than {_num(limits.GAP_STEPS)} nominal steps and counts a shorter loss as unmeasured motion, "
+            "restarting once it could amount to 10° (docs/fmu.md, 'Time steps')")
 
 
 _LOAD_NOTE_SINK: ContextVar[Callable[[str], None] | None] = ContextVar("imu_load_note_sink", default=None)
@@ -369,9 +526,11 @@ def _report_load_note(note: str | None) -> None:
 
 
 def _finite_norms(xyz: np.ndarray) -> np.ndarray:
-    """Euclidean norms of the rows of an (N, 3) array whose three values are finite."""
-    rows = xyz[np.isfinite(xyz).all(axis=1)]
-    return np.sqrt(np.einsum("ij,ij->i", rows, rows))
+    """Euclidean norms of the rows of an (N, 3) array whose three values are finite (an overflow
+    to inf counts as not finite)."""
+    with np.errstate(over="ignore", invalid="ignore"):
+        norms = np.sqrt(np.einsum("ij,ij->i", xyz, xyz))
+    return norms[np.isfinite(norms)]
 
 
 def _check_units(path: Path, data: ImuData) -> None:

@@ -7,7 +7,10 @@ through `ImuBatchLayout()`.
 """
 from __future__ import annotations
 
-LAYOUT_VERSION = 3
+import math
+from dataclasses import dataclass
+
+LAYOUT_VERSION = 4
 
 #: Auxiliary inputs: signals from outside the IMU (motor current, heater power, supply voltage, …)
 #: that diagnosed correction terms may use, in their own units; 0 where a model maps none.
@@ -28,6 +31,7 @@ OUTPUTS = (
     "hard_iron_x", "hard_iron_y", "hard_iron_z",    # particle-filter hard iron [µT] (0 when off)
     "soft_iron_xx", "soft_iron_yy", "soft_iron_zz",  # particle-filter soft-iron diagonal [1]
     "pf_neff",                             # particle-filter effective sample size [1] (0 when off)
+    "calibration_valid",                   # 1 while every model input is inside its calibrated range, else 0 (layout 4)
 )
 
 #: Settings (FMU parameters), in order, with default values.
@@ -70,11 +74,113 @@ SETTINGS = (
     ("lag_mag", 0.0),                 # s, how long the magnetometer input lags true time
 )
 
+@dataclass(frozen=True)
+class SettingRange:
+    """Declared type and range of one setting: Real, Integer (whole numbers) or Boolean (0 or 1).
+
+    min/max [unit] are inclusive unless min_open/max_open (the bound itself is refused; FMI's
+    min/max attributes cannot say so, so the FMU refuses it at initialisation). unit: the FMI unit
+    of a Real (None: dimensionless). typical (angles in rad only): a |value| above it is legal but
+    looks like degrees given as rad (warned about in degrees, not refused).
+    """
+
+    type: str
+    min: float
+    max: float
+    unit: str | None = None
+    min_open: bool = False
+    max_open: bool = False
+    typical: float | None = None
+
+
+#: Named bounds of the settings, from physics and from the runtime's fixed-size arrays.
+#: Declination: ±180° by definition; beyond 30° it occurs only near the magnetic poles (IGRF),
+#: so a larger value more likely is degrees given as rad (2.5 "degrees" would be 143°).
+DECLINATION_TYPICAL_RAD = math.radians(30.0)
+#: Earth-field magnitude [µT]: the surface field is 22–67 µT; the bounds are the loader's
+#: (training/io.py MAG_MEDIAN_NORM_MIN_UT/MAX_UT, pinned by tests/test_value_checks.py): a value
+#: in gauss is 100× smaller, one in nT 1000× larger.
+FIELD_NORM_MIN_UT = 5.0
+FIELD_NORM_MAX_UT = 1000.0
+#: Gyro white-noise density [rad/s/√Hz]: 0.1 is about 60× the noisiest MEMS gyro (~0.1 °/s/√Hz).
+GYRO_NOISE_MAX = 0.1
+#: Gyro rates of settings [rad/s] (residual bias, rest threshold): 1 rad/s = 57 °/s is no bias and no rest.
+GYRO_RATE_SETTING_MAX = 1.0
+#: Time constants and rejection time [s]: at most one day.
+TIME_SETTING_MAX_S = 86400.0
+#: Standard gravity [m/s²]: a rest threshold on the specific-force deviation above 1 g detects nothing.
+STANDARD_GRAVITY = 9.80665
+#: Particle filter (sources/ImuMagPf.h/.c ImuMagPfSettingsCheck): fixed array sizes and its ranges.
+PF_MAX_PARTICLES = 512          # IMU_MAG_PF_MAX_PARTICLES
+PF_MAX_DECIMATION = 1000
+PF_MAX_SPHERE_BINS = 4          # IMU_MAG_PF_MAX_BIN_SIDE
+PF_NOISE_MAX_UT = 100.0         # measurement and hard-iron process noise [µT]
+PF_SPREAD_MAX_UT = 1.0e4        # hard-iron spreads [µT] (10 mT saturates any magnetometer)
+PF_THRESHOLD_HIGH_MAX = 100.0   # ω1 relative to 1/N
+#: Time alignment (sources/ImuAlign.h IMU_ALIGN_MAX_LAG) [s].
+LAG_MAX_S = 1.0
+#: Largest FMI Integer (Int32): the seed's upper bound.
+INT32_MAX = 2**31 - 1
+
+_REAL, _INTEGER, _BOOLEAN = "Real", "Integer", "Boolean"
+_FLAG = SettingRange(_BOOLEAN, 0.0, 1.0)
+_TIME = SettingRange(_REAL, 0.0, TIME_SETTING_MAX_S, "s", min_open=True)
+_UNIT_FRACTION = SettingRange(_REAL, 0.0, 1.0)
+_LAG = SettingRange(_REAL, -LAG_MAX_S, LAG_MAX_S, "s")
+_PF_SPREAD = SettingRange(_REAL, 0.0, PF_SPREAD_MAX_UT, "uT")
+
+#: Type, range and unit (FMI spelling) of every setting, by name (SETTINGS order). The one source:
+#: fmu/variables.py takes the FMI types, units and the modelDescription.xml min/max from it,
+#: training/schema.py checks --param values and model.json against it, tests/test_value_checks.py
+#: pins the C runtime's ImuPipelineSettingsCheck to it.
+SETTING_RANGES = {
+    "declination": SettingRange(_REAL, -math.pi, math.pi, "rad", typical=DECLINATION_TYPICAL_RAD),
+    "field_norm": SettingRange(_REAL, FIELD_NORM_MIN_UT, FIELD_NORM_MAX_UT, "uT"),
+    "gyro_noise": SettingRange(_REAL, 0.0, GYRO_NOISE_MAX, "rad/s/sqrt(Hz)"),
+    "gyro_bias_residual": SettingRange(_REAL, 0.0, GYRO_RATE_SETTING_MAX, "rad/s"),
+    "mse_time_constant": _TIME,
+    "angle_noise": SettingRange(_REAL, 0.0, math.pi, "rad", min_open=True),
+    "enable_thermal": _FLAG,
+    "attitude_mode": SettingRange(_INTEGER, 0.0, 1.0),
+    "field_dip": SettingRange(_REAL, -0.5 * math.pi, 0.5 * math.pi, "rad"),
+    "tau_acc": _TIME,
+    "tau_mag": _TIME,
+    "rest_gyro_threshold": SettingRange(_REAL, 0.0, GYRO_RATE_SETTING_MAX, "rad/s"),
+    "rest_acc_threshold": SettingRange(_REAL, 0.0, STANDARD_GRAVITY, "m/s2", min_open=True),
+    "mag_reject_time": SettingRange(_REAL, 0.0, TIME_SETTING_MAX_S, "s"),
+    "enable_elm": _FLAG,
+    "enable_pf": _FLAG,
+    "pf_particles": SettingRange(_INTEGER, 2.0, PF_MAX_PARTICLES),
+    "pf_measurement_noise": SettingRange(_REAL, 0.0, PF_NOISE_MAX_UT, "uT", min_open=True),
+    "pf_process_noise_hard": SettingRange(_REAL, 0.0, PF_NOISE_MAX_UT, "uT"),
+    "pf_process_noise_soft": _UNIT_FRACTION,
+    "pf_prior_spread_hard": _PF_SPREAD,
+    "pf_prior_spread_soft": _UNIT_FRACTION,
+    "pf_decimation": SettingRange(_INTEGER, 1.0, PF_MAX_DECIMATION),
+    "pf_seed": SettingRange(_INTEGER, 0.0, INT32_MAX),
+    "pf_threshold_high": SettingRange(_REAL, 1.0, PF_THRESHOLD_HIGH_MAX, min_open=True),
+    "pf_threshold_low": SettingRange(_REAL, 0.0, 1.0, min_open=True, max_open=True),
+    "pf_sphere_bins": SettingRange(_INTEGER, 0.0, PF_MAX_SPHERE_BINS),
+    "enable_psobp": _FLAG,
+    "pf_rao_blackwell": _FLAG,
+    "pf_min_rotation": SettingRange(_REAL, 0.0, 0.5 * math.pi, "rad"),
+    "pf_change_spread_hard": _PF_SPREAD,
+    "pf_hold_prior": _FLAG,
+    "pf_settle_spread": _PF_SPREAD,
+    "lag_gyr": _LAG,
+    "lag_acc": _LAG,
+    "lag_mag": _LAG,
+}
+#: Settings that are only valid together (ImuMagPfSettingsCheck): with pf_rao_blackwell = 1 the
+#: hard-iron spreads must be > 0 µT.
+RAO_BLACKWELL_POSITIVE = ("pf_prior_spread_hard", "pf_change_spread_hard")
+
 TRIAD_ORDER = ("gyr", "acc", "mag")
 MAX_DEGREE = 3
 #: One triad block: enabled, t0 [°C], ts [°C], degree, A (3x3 row-major),
-#: g[axis][k-1] for k = 1..MAX_DEGREE, b[axis][k] for k = 0..MAX_DEGREE.
-TRIAD_BLOCK = 4 + 9 + 3 * MAX_DEGREE + 3 * (MAX_DEGREE + 1)
+#: g[axis][k-1] for k = 1..MAX_DEGREE, b[axis][k] for k = 0..MAX_DEGREE, then (layout 4) the calibrated
+#: temperature range: has_range (0/1), t_min [°C], t_max [°C] (the runtime clamps T to it).
+TRIAD_BLOCK = 4 + 9 + 3 * MAX_DEGREE + 3 * (MAX_DEGREE + 1) + 3
 #: Components a term may correct (index = target in the terms block): the compensated triads.
 TERM_TARGETS = INPUTS[:9]
 #: Signals that diagnosed correction terms may use (sources/ImuTerms.h ImuTermSignal, same order):
@@ -119,9 +225,9 @@ def settings_array(overrides: dict[str, float] | None = None) -> list[float]:
 
 
 def identity_block() -> list[float]:
-    """A triad block that changes nothing: enabled, t0=25 °C, ts=1 °C, degree 0, A=I, g=b=0."""
+    """A triad block that changes nothing: enabled, t0=25 °C, ts=1 °C, degree 0, A=I, g=b=0, no range."""
     a = [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0]
-    return [1.0, 25.0, 1.0, 0.0] + a + [0.0] * (3 * MAX_DEGREE) + [0.0] * (3 * (MAX_DEGREE + 1))
+    return [1.0, 25.0, 1.0, 0.0] + a + [0.0] * (3 * MAX_DEGREE) + [0.0] * (3 * (MAX_DEGREE + 1)) + [0.0] * 3
 
 
 def terms_block(terms: list[tuple[str, str, str | None, float, float, float]]) -> list[float]:

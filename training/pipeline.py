@@ -14,7 +14,7 @@ import numpy as np
 
 from .dataset import ImuData
 from .errors import ImuFusionError
-from .evaluate import compute_metrics, raw_sensor_metrics
+from .evaluate import absent_outputs, compute_metrics, max_abs_difference, raw_sensor_metrics
 
 SCENARIO_DIR = Path(__file__).resolve().parents[1] / "scenarios"
 DEFAULT_CALIBRATION = "calibration.toml"
@@ -41,12 +41,13 @@ class ScenarioResult:
     data: ImuData = field(repr=False)           # the recording (for plots)
     out: np.ndarray = field(repr=False)         # (N, len(OUTPUTS)) FMU outputs
     out_raw: np.ndarray = field(repr=False)     # (N, len(OUTPUTS)) runtime outputs without compensation
+    absent: dict[str, int] = field(default_factory=dict)  # NaN triads of an absent sensor: samples (evaluate.absent_outputs)
 
     def as_dict(self) -> dict:
         """JSON-ready figures (no arrays)."""
         return {"name": self.name, "samples": self.samples, "corrected": self.corrected,
                 "raw": self.raw, "fmu_vs_batch_max_diff": self.fmu_vs_batch_max_diff,
-                "outputs_csv": self.outputs_csv, "passed": self.passed()}
+                "outputs_csv": self.outputs_csv, "absent_outputs": self.absent, "passed": self.passed()}
 
     def passed(self) -> bool:
         """True when every acceptance figure is met."""
@@ -88,14 +89,14 @@ def evaluate_recording(fmu_path: Path, coefficients: np.ndarray, settings: np.nd
     inputs = data.inputs(aux_columns)
     out_fmu = run_fmu(fmu_path, data.t, inputs, parameters=params, progress=True)
     out_batch = run_batch(coefficients, s, data.t, inputs)
-    diff = float(np.max(np.abs(out_fmu - out_batch)))
+    diff = max_abs_difference(out_fmu, out_batch)  # an absent sensor's NaN outputs match
     raw_out = run_batch(coefficients, uncompensated_settings(s), data.t, inputs)
     raw = raw_sensor_metrics(data)
     raw_att = compute_metrics(raw_out, data)
     raw.update({k: v for k, v in raw_att.as_dict().items() if k.endswith("_deg")})
     write_outputs_csv(out_csv, data.t, out_fmu)
     return ScenarioResult(data.name, len(data), compute_metrics(out_fmu, data).as_dict(), raw,
-                          diff, str(out_csv), data, out_fmu, raw_out)
+                          diff, str(out_csv), data, out_fmu, raw_out, absent_outputs(out_fmu))
 
 
 def recording_parameters(data: ImuData) -> dict[str, float]:

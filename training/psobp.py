@@ -7,6 +7,9 @@ its rate of change, both min-max normalised to [-1, 1] with the training ranges)
     u0 = 2 (T - t_min) / (t_max - t_min) - 1,   u1 = 2 (r - r_min) / (r_max - r_min) - 1
     b_i = b2[i] + sum_j w2[i][j] tanh(w1[i][j][0] u0 + w1[i][j][1] u1 + b1[i][j])   [rad/s]
 
+T and r are clamped to the training ranges [t_min, t_max] and [r_min, r_max] before they are
+normalised, so the networks are never evaluated outside what they were fitted on.
+
 The output normalisation of the training targets is folded into w2, b2, so the stored model
 gives rad/s directly. `sources/ImuPsoBp.c` evaluates the identical formula in the identical
 order, and runs the identical causal temperature-rate estimator (`temperature_rate`).
@@ -174,10 +177,11 @@ def temperature_rate(t: np.ndarray, temp: np.ndarray, tau_s: float,
 
 
 def evaluate_psobp(model: PsoBpModel, temp: np.ndarray, rate: np.ndarray) -> np.ndarray:
-    """Bias (N, 3) [rad/s] of the networks at temperatures (N,) [°C] and rates (N,) [°C/s].
-    Same operation order as ImuPsoBpEvaluate in C."""
-    temp = np.asarray(temp, dtype=np.float64)
-    rate = np.asarray(rate, dtype=np.float64)
+    """Bias (N, 3) [rad/s] of the networks at temperatures (N,) [°C] and rates (N,) [°C/s], each
+    clamped to the training range [t_min, t_max], [r_min, r_max] first (the networks are never
+    extrapolated). Same operation order as ImuPsoBpEvaluate in C."""
+    temp = np.clip(np.asarray(temp, dtype=np.float64), model.t_min, model.t_max)
+    rate = np.clip(np.asarray(rate, dtype=np.float64), model.r_min, model.r_max)
     if not model.enabled:
         return np.zeros((temp.shape[0], 3))
     u0 = 2.0 * (temp - model.t_min) / (model.t_max - model.t_min) - 1.0

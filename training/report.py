@@ -5,7 +5,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .evaluate import tilt_heading_errors
+from .evaluate import absent_note, present, tilt_heading_errors
 from .layout import OUTPUTS
 
 #: Rows of the summary table: metric key, label with unit.
@@ -38,6 +38,15 @@ def summary_table(summary) -> str:
     return "\n".join(lines)
 
 
+def _tilt_heading_deg(out: np.ndarray, data) -> np.ndarray:
+    """(N, 2) inclination and heading errors [°] of runtime outputs `out`; NaN (a gap in the plot,
+    not a figure) where the accelerometer resp. magnetometer is absent (see the report's note)."""
+    err = np.rad2deg(tilt_heading_errors(out, data))
+    err[~present(out, "accel"), 0] = np.nan
+    err[~present(out, "field"), 1] = np.nan
+    return err
+
+
 def _plot_scenario(s, path: Path) -> Path:
     """Attitude error and rate error over time for one scenario, raw vs corrected."""
     import matplotlib
@@ -47,8 +56,8 @@ def _plot_scenario(s, path: Path) -> Path:
     fig, axes = plt.subplots(3, 1, figsize=(10, 8.5), sharex=True)
     # Inclination and heading errors are defined at every attitude (roll and yaw are not at
     # pitch ±90°, which rotation scenarios pass through).
-    err = np.rad2deg(tilt_heading_errors(s.out, s.data))
-    err_raw = np.rad2deg(tilt_heading_errors(s.out_raw, s.data))
+    err = _tilt_heading_deg(s.out, s.data)
+    err_raw = _tilt_heading_deg(s.out_raw, s.data)
     for i, name in enumerate(("inclination", "heading")):
         axes[0].plot(t, err_raw[:, i], lw=0.6, label=name)
         axes[1].plot(t, err[:, i], lw=0.8, label=name)
@@ -88,6 +97,10 @@ def write_report(summary, out_dir: Path) -> Path:
              summary_table(summary), "",
              "| scenario | samples | FMU vs batch runtime, max abs difference |", "|---|---:|---:|"]
     parts += [f"| {s.name} | {s.samples} | {s.fmu_vs_batch_max_diff:.3g} |" for s in summary.scenarios]
+    notes = [(s.name, absent_note(s.out)) for s in summary.scenarios]
+    if any(note for _, note in notes):
+        parts += ["", "## Absent sensors", ""]
+        parts += [f"- {name}: {note}; the plots leave gaps there." for name, note in notes if note]
     parts += ["", "## Timings", "", "| step | s |", "|---|---:|"]
     parts += [f"| {k} | {v:.1f} |" for k, v in summary.timings_s.items()]
     parts += ["", "## Plots", ""]

@@ -148,8 +148,10 @@ def run_batch(coefficients, settings, t, inputs) -> np.ndarray:
     coefficients: (N_COEFFICIENTS,) flat coefficient array (training.layout); settings: flat settings
     array (training.layout.settings_array()); t: (N,) times [s]; inputs: (N, len(INPUTS)) raw
     gyr [rad/s], acc [m/s²], mag [µT], temp [°C] and the auxiliary inputs (ImuData.inputs). Returns (N, len(OUTPUTS)) outputs in the order of
-    training.layout.OUTPUTS. Raises ValueError on bad shapes or when the runtime rejects the
-    coefficients or settings.
+    training.layout.OUTPUTS, finite except the corrected triad of an absent sensor (NaN; docs/fmu.md,
+    "Absent sensors"). Only the differences of t are used: sample k is integrated over t[k] − t[k−1],
+    the step size the FMU gets from fmu.cosim.run_fmu. Raises ValueError on bad shapes or when the
+    runtime rejects the coefficients or settings.
     """
     lib = load_runtime()
     c = _as_array("coefficients", coefficients, (-1,))

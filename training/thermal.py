@@ -8,6 +8,10 @@ Model (adaptive-gain fusion paper, 'gain/bias temperature compensation'; the C r
     B_i = sum_{k=0..P} b[i][k] * Tn^k          per-axis bias polynomial [triad unit]
     x_c = A . (G (.) (x - B))                  A constant symmetric 3x3, (.) element-wise
 
+A model that carries the temperature range it was calibrated on (t_range, layout version 4) is
+evaluated with a finite T clamped to that range first: the polynomials hold their value at the
+range edge instead of being extrapolated (a fit on 13-48 °C evaluated at -30 °C is arbitrary).
+
 Polynomials are evaluated by Horner's scheme from k = P down to k = 0. The fit is full-batch
 gradient descent with per-coefficient adaptive step sizes (Rprop, Riedmiller & Braun 1993).
 Because G(t0) = 1 and A is symmetric, the representable family depends on t0: models fitted
@@ -57,6 +61,8 @@ class ThermalModel:
     degree: polynomial degree P, 0..MAX_DEGREE.
     A: (3, 3) constant symmetric matrix [1].  g: (3, P) gain coefficients [1], row = axis,
     column k-1 for Tn^k.  b: (3, P+1) bias coefficients [triad unit], column k for Tn^k.
+    t_range: (t_min, t_max) [°C], the temperatures of the calibration data, t_min <= t_max; the
+    model clamps T to it. None: no range known (an artefact from before layout version 4), no clamping.
     """
 
     enabled: bool
@@ -66,6 +72,7 @@ class ThermalModel:
     A: np.ndarray
     g: np.ndarray
     b: np.ndarray
+    t_range: tuple[float, float] | None = None
 
     def __post_init__(self):
         if not 0 <= int(self.degree) <= MAX_DEGREE or int(self.degree) != self.degree:
@@ -80,6 +87,20 @@ class ThermalModel:
         object.__setattr__(self, "A", _readonly(self.A, (3, 3), "A"))
         object.__setattr__(self, "g", _readonly(self.g, (3, p), "g"))
         object.__setattr__(self, "b", _readonly(self.b, (3, p + 1), "b"))
+        if self.t_range is not None:
+            lo, hi = (float(v) for v in self.t_range)
+            if not (np.isfinite(lo) and np.isfinite(hi) and lo <= hi):
+                raise ValueError(f"t_range {self.t_range}: need finite t_min <= t_max [°C]")
+            object.__setattr__(self, "t_range", (lo, hi))
+
+    def with_range(self, temp: np.ndarray) -> "ThermalModel":
+        """This model with t_range = (min, max) of the finite temperatures `temp` [°C]; None when
+        none is finite or the model does not depend on the temperature (disabled, degree 0)."""
+        finite = np.asarray(temp, dtype=np.float64)
+        finite = finite[np.isfinite(finite)]
+        uses_temperature = self.enabled and self.degree > 0 and finite.size > 0
+        t_range = (float(finite.min()), float(finite.max())) if uses_temperature else None
+        return ThermalModel(self.enabled, self.t0, self.ts, self.degree, self.A, self.g, self.b, t_range)
 
     @classmethod
     def identity(cls, enabled: bool = True) -> "ThermalModel":
@@ -94,7 +115,8 @@ class ThermalModel:
         b = np.zeros((3, MAX_DEGREE + 1))
         b[:, :self.degree + 1] = self.b
         head = [1.0 if self.enabled else 0.0, self.t0, self.ts, float(self.degree)]
-        return head + [float(v) for v in np.concatenate([self.A.ravel(), g.ravel(), b.ravel()])]
+        tail = [0.0, 0.0, 0.0] if self.t_range is None else [1.0, *self.t_range]
+        return head + [float(v) for v in np.concatenate([self.A.ravel(), g.ravel(), b.ravel()])] + tail
 
     @classmethod
     def from_block(cls, block) -> "ThermalModel":
@@ -109,10 +131,14 @@ class ThermalModel:
             raise ValueError(f"degree {p} is not an integer in 0..{MAX_DEGREE}")
         p = int(p)
         g = v[13:13 + 3 * MAX_DEGREE].reshape(3, MAX_DEGREE)
-        b = v[13 + 3 * MAX_DEGREE:].reshape(3, MAX_DEGREE + 1)
+        b = v[13 + 3 * MAX_DEGREE:TRIAD_BLOCK - 3].reshape(3, MAX_DEGREE + 1)
         if np.any(g[:, p:] != 0) or np.any(b[:, p + 1:] != 0):
             raise ValueError(f"coefficients above degree {p} are not zero")
-        return cls(bool(v[0]), v[1], v[2], p, v[4:13].reshape(3, 3), g[:, :p], b[:, :p + 1])
+        has_range, t_min, t_max = v[TRIAD_BLOCK - 3:]
+        if has_range not in (0.0, 1.0):
+            raise ValueError(f"range flag is {has_range}, expected 0 or 1")
+        return cls(bool(v[0]), v[1], v[2], p, v[4:13].reshape(3, 3), g[:, :p], b[:, :p + 1],
+                   (t_min, t_max) if has_range else None)
 
 
 def normalised_temperature(temp: np.ndarray, t0: float, ts: float) -> np.ndarray:
@@ -129,17 +155,27 @@ def _horner(coefficients: np.ndarray, tn: np.ndarray) -> np.ndarray:
     return acc
 
 
+def calibrated_temperature(model: ThermalModel, temp: np.ndarray) -> np.ndarray:
+    """The temperature (N,) [°C] the model is evaluated at: `temp` clamped to model.t_range when
+    the model has one and depends on T (degree >= 1); NaN stays NaN (ImuThermalClampTemperature)."""
+    temp = np.asarray(temp, dtype=np.float64)
+    if model.t_range is None or model.degree == 0:
+        return temp
+    return np.clip(temp, *model.t_range)
+
+
 def apply_thermal(model: ThermalModel, x: np.ndarray, temp: np.ndarray) -> np.ndarray:
     """Corrected triad x_c = A . (G(Tn) (.) (x - B(Tn))), (N, 3) in the triad's unit.
 
-    x: (N, 3) raw triad; temp: (N,) °C (NaN -> Tn = 0). Pure: returns a new array.
+    x: (N, 3) raw triad; temp: (N,) °C (NaN -> Tn = 0), clamped to model.t_range when it has one.
+    Pure: returns a new array.
     Same operation order as ImuThermalApply in C: Horner per axis, then row i of A times
     y summed as A[i,0]*y0 + A[i,1]*y1 + A[i,2]*y2.
     """
     x = np.asarray(x, dtype=np.float64)
     if not model.enabled:
         return x.copy()
-    tn = normalised_temperature(temp, model.t0, model.ts)
+    tn = normalised_temperature(calibrated_temperature(model, temp), model.t0, model.ts)
     y = np.empty_like(x)
     for i in range(3):
         gain = _horner(np.concatenate([[1.0], model.g[i]]), tn)

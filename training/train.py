@@ -9,6 +9,7 @@ import torch
 from tqdm import tqdm
 
 from .artefact import ModelArtefact
+from .calibrated_range import range_notes
 from .dataset import ImuData
 from .degree import AUTO, ceiling, choose_degree, parse_degree
 from .errors import ModelError
@@ -128,6 +129,12 @@ def _fit_stats(fit: ThermalFit) -> dict:
             "iterations": fit.iterations, "converged": fit.converged,
             "final_loss": fit.loss_history[-1], "rms_before": fit.rms_before,
             "rms_after": fit.rms_after}
+
+
+def _calibrated_range(model: ThermalModel, datasets) -> ThermalModel:
+    """`model` with the temperature range [°C] of the recordings it was calibrated on: the runtime
+    clamps the temperature to it (ThermalModel.t_range)."""
+    return model.with_range(np.concatenate([d.temp for d in datasets]))
 
 
 def _compensated(d: ImuData, thermal: dict[str, ThermalModel]) -> ImuData:
@@ -400,6 +407,7 @@ def train(datasets: list[ImuData], seed: int = 0, degree: int | str = AUTO,
         selfcal = _self_calibrated(datasets, blind, ceiling(degree), progress, notes) if blind else None
         for triad in blind:
             thermal[triad], stats[triad] = selfcal.thermal[triad], selfcal.report.get(triad, {})
+        thermal = {triad: _calibrated_range(thermal[triad], refs[triad].datasets) for triad in TRIAD_ORDER}
         for triad in TRIAD_ORDER:
             stats.setdefault(triad, {})["reference"] = refs[triad].source
         prepared = _prepared_datasets(datasets, refs)
@@ -419,6 +427,7 @@ def train(datasets: list[ImuData], seed: int = 0, degree: int | str = AUTO,
     notes += fit_warnings(thermal, settings)
     settings["enable_elm"] = float(elm_on)
     settings["enable_psobp"] = float(psobp_on)
+    notes += range_notes(thermal, blocks, settings)
     return ModelArtefact(seed=seed, thermal=thermal, settings=settings, fit_stats=stats,
                          training_data=[{"name": d.name, "samples": len(d)} for d in datasets],
                          notes=notes, blocks=blocks)

@@ -271,7 +271,7 @@ static void testBadInputIsHeld(void) {
     }
 }
 
-/** No field at all and a huge time gap: Warning, finite outputs. */
+/** No field at all and huge gaps (the step size of the previous doStep): Warning, finite outputs. */
 static void testZeroFieldAndHugeGap(void) {
     LogCount log = {0, 0, 0, ""};
     fmi3Instance s = start(&log, 50.0);
@@ -279,11 +279,11 @@ static void testZeroFieldAndHugeGap(void) {
     sample(0, x);
     CHECK(step(s, x, 0.0, STEP_SIZE, out) == fmi3OK);
     x[ImuInMagX] = x[ImuInMagY] = x[ImuInMagZ] = 0.0;
-    CHECK(step(s, x, 0.01, 1e300, out) == fmi3Warning && allFinite(out));
+    CHECK(step(s, x, 0.01, 1e300, out) == fmi3Warning && allFinite(out)); /* the next sample comes 1e300 s later */
     sample(2, x);
-    CHECK(step(s, x, 1e12, STEP_SIZE, out) == fmi3Warning && allFinite(out)); /* gap of 1e12 s */
-    CHECK(step(s, x, 1e12 + STEP_SIZE, STEP_SIZE, out) == fmi3OK && allFinite(out));
     CHECK(step(s, x, 1e300, STEP_SIZE, out) == fmi3Warning && allFinite(out)); /* gap of 1e300 s */
+    CHECK(step(s, x, 1e300, 1e12, out) == fmi3OK && allFinite(out));
+    CHECK(step(s, x, 1e300, STEP_SIZE, out) == fmi3Warning && allFinite(out)); /* gap of 1e12 s */
     CHECK(log.badInput == 3);
     fmi3FreeInstance(s);
 }

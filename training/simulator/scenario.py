@@ -36,6 +36,13 @@ DEFAULT_WARMUP_TAU_S = 60.0
 NAME_PATTERN = re.compile(r"^[A-Za-z0-9_.-]+$")
 #: Tolerance on the symmetry of the soft-iron matrix [1].
 SYMMETRY_TOLERANCE = 1e-12
+#: Sample rate range [Hz]: from one sample per 100 s (a slow thermal log) to 100 kHz.
+RATE_RANGE_HZ = (0.01, 1.0e5)
+#: Most samples a scenario may have (duration × rate_hz; about 5.6 h at 100 Hz): the simulator holds
+#: every sample's truth and measurements in memory.
+MAX_SAMPLES = 2_000_000
+#: Largest scenario or sensor file read [bytes]; a scenario is a few kB.
+MAX_TOML_BYTES = 2**20
 
 
 @dataclass(frozen=True)
@@ -81,7 +88,7 @@ def load_scenario(path: str | Path) -> Scenario:
     name = head.string("name")
     if not NAME_PATTERN.match(name):
         raise head.fail("name", f"use only letters, digits, '_', '-', '.', got {name!r}")
-    rate_hz = head.number("rate_hz", positive=True)
+    rate_hz = head.number("rate_hz", low=RATE_RANGE_HZ[0], high=RATE_RANGE_HZ[1])
     seed = head.integer("seed")
     notes = head.string("notes", default="", allow_empty=True)
     head.close()
@@ -95,17 +102,34 @@ def load_scenario(path: str | Path) -> Scenario:
     sensor = _sensor(top, path)
     segments = tuple(_segment(t) for t in top.tables("segment"))
     top.close()
+    _check_sample_count(path, sum(s.duration_s for s in segments), rate_hz)
     return Scenario(path, name, rate_hz, seed, notes, earth, sensor, attitude, temp_c, rise_c,
                     tau_s, segments)
 
 
+def _check_sample_count(path: Path, duration_s: float, rate_hz: float) -> None:
+    """ScenarioError unless duration [s] × rate [Hz] gives 2..MAX_SAMPLES samples."""
+    count = duration_s * rate_hz
+    if not 2 <= count <= MAX_SAMPLES:
+        raise ScenarioError(f"{path}: the segments last {duration_s:.6g} s, at rate_hz {rate_hz:.6g} that is "
+                            f"{count:.3g} samples; a scenario has 2..{MAX_SAMPLES} samples")
+
+
 def _read_toml(path: Path) -> dict:
-    """Parse a TOML file; ScenarioError when missing or malformed."""
+    """Parse a TOML file (a regular file of at most MAX_TOML_BYTES); ScenarioError when missing,
+    not a file, too large or malformed."""
+    if not path.exists():
+        raise ScenarioError(f"{path}: scenario file not found")
+    if not path.is_file():
+        raise ScenarioError(f"{path}: not a regular file")
     try:
         with open(path, "rb") as f:
-            return tomllib.load(f)
-    except FileNotFoundError:
-        raise ScenarioError(f"{path}: scenario file not found") from None
+            raw = f.read(MAX_TOML_BYTES + 1)
+        if len(raw) > MAX_TOML_BYTES:
+            raise ScenarioError(f"{path}: larger than {MAX_TOML_BYTES // 1024} KiB; not a scenario file")
+        return tomllib.loads(raw.decode("utf-8"))
+    except UnicodeDecodeError as e:
+        raise ScenarioError(f"{path}: not UTF-8 text ({e})") from None
     except tomllib.TOMLDecodeError as e:
         raise ScenarioError(f"{path}: not valid TOML: {e}") from None
 

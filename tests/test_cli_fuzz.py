@@ -1,0 +1,514 @@
+"""CLI fuzz test: >= 300 generated malformed inputs across every verb and file kind.
+
+Every case must exit with status 1 (or 2 for a usage error), print no traceback, and print its error
+as one line `imufmu VERB: error: ...` naming the culprit file (or the parameter), numbers written
+plainly (no numpy repr such as np.float64(0.99)). The cases are
+generated from one seed into a temporary folder, then run in ONE child process that calls
+training.cli.main(argv) in-process per case (stderr captured, SystemExit caught) and reports its
+peak RSS (resource.getrusage ru_maxrss), which must stay below 1 GB: a 1 GB gzip bomb and a 2 GB
+zip member are among the inputs.
+
+Run the child alone: python tests/test_cli_fuzz.py CASES.json RESULTS.json
+"""
+from __future__ import annotations
+
+import collections
+import contextlib
+import gzip
+import io
+import json
+import math
+import os
+import resource
+import subprocess
+import sys
+import zipfile
+from pathlib import Path
+
+import numpy as np
+
+SEED = 15
+MIN_CASES = 300
+MAX_RSS_BYTES = 2**30              # 1 GiB: no case may cost more (acceptance of issue 15)
+CHILD_TIMEOUT_S = 300              # a hung case fails the test instead of hanging it
+HEADER = "t,gyr_x,gyr_y,gyr_z,acc_x,acc_y,acc_z,mag_x,mag_y,mag_z,temp"
+N_ROWS = 300                       # enough rows for the loader's unit checks (>= 10)
+BOMB_INFLATED_BYTES = 2**30        # the gzip bomb inflates to 1 GiB
+ZIP_BOMB_MEMBER_BYTES = 2 * 2**30  # a zip member declaring 2 GiB
+REPO = Path(__file__).resolve().parents[1]
+MODEL = REPO / "docs" / "diagnosis" / "broad" / "model.json"
+
+
+# ------------------------------------------------------------------------- valid material
+
+
+def _row(rng: np.random.Generator, k: int) -> list[float]:
+    """One plausible sample at 100 Hz: level, at rest, 25 °C, in a 20/40 µT field."""
+    return [k / 100.0, *rng.normal(0.0, 0.01, 3), *rng.normal(0.0, 0.05, 2), -9.81 + rng.normal(0.0, 0.05),
+            *(np.array([20.0, 0.0, 40.0]) + rng.normal(0.0, 0.3, 3)), 25.0 + rng.normal(0.0, 0.1)]
+
+
+def _table(rng: np.random.Generator) -> list[list[str]]:
+    """Header cells then N_ROWS rows of cell texts."""
+    return [HEADER.split(",")] + [[repr(round(float(v), 6)) for v in _row(rng, k)] for k in range(N_ROWS)]
+
+
+def _text(table: list[list[str]], sep: str = ",") -> str:
+    return "".join(sep.join(r) + "\n" for r in table)
+
+
+def _meta(**extra) -> dict:
+    return {"format": "imu-csv/1", "rate_hz": 100.0, "reference": "none",
+            "earth_field": {"norm_ut": 44.7, "dip_deg": 63.4, "declination_deg": 0.0}, **extra}
+
+
+# --------------------------------------------------------------------- malformed CSV bodies
+
+
+def _csv_mutations(rng: np.random.Generator) -> list[tuple[str, str | bytes]]:
+    """(mutation name, malformed file content) — each one certainly malformed."""
+    cols = HEADER.split(",")
+    out: list[tuple[str, str | bytes]] = []
+
+    def fresh():
+        return _table(rng)
+
+    def row_index():
+        return int(rng.integers(1, N_ROWS + 1))
+
+    for name in cols:                                            # a required column missing
+        t = fresh()
+        j = cols.index(name)
+        out.append((f"missing {name}", _text([r[:j] + r[j + 1:] for r in t])))
+    for _ in range(6):                                           # non-numeric cell
+        t = fresh()
+        t[row_index()][int(rng.integers(0, 11))] = str(rng.choice(["abc", "1,5e", "--3", "0x1Z", "1_000", "nan nan"]))
+        out.append(("non-numeric cell", _text(t)))
+    for _ in range(6):                                           # ragged row
+        t = fresh()
+        i = row_index()
+        t[i] = t[i][:-int(rng.integers(1, 5))] if rng.random() < 0.5 else t[i] + ["1.0"] * int(rng.integers(1, 4))
+        out.append(("ragged row", _text(t)))
+    for sep in (";", "\t", "|", " "):                            # another delimiter
+        out.append((f"delimiter {sep!r}", _text(fresh(), sep)))
+    for _ in range(4):                                           # time not increasing / not finite
+        t = fresh()
+        i = int(rng.integers(2, N_ROWS + 1))
+        t[i][0] = t[i - 1][0]
+        out.append(("time repeated", _text(t)))
+        t = fresh()
+        t[row_index()][0] = str(rng.choice(["nan", "inf", "-inf", ""]))
+        out.append(("time not finite", _text(t)))
+    for value in ("1e308", "-1e308", "inf", "-inf", "1e300"):   # beyond the runtime's input limits
+        for j in range(1, 11):
+            t = fresh()
+            t[row_index()][j] = value
+            out.append((f"{value} in {cols[j]}", _text(t)))
+    for temp in ("-273", "-273.15", "1e6", "126", "-61"):        # temperature outside the guard range
+        t = fresh()
+        for r in t[1:]:
+            r[10] = temp
+        out.append((f"temp {temp}", _text(t)))
+    for _ in range(3):                                           # blank line inside
+        t = fresh()
+        lines = _text(t).splitlines(keepends=True)
+        lines.insert(int(rng.integers(1, N_ROWS)), "\n")
+        out.append(("blank line", "".join(lines)))
+    t = fresh()                                                  # time in milliseconds with rate_hz 100
+    for r in t[1:]:
+        r[0] = repr(float(r[0]) * 1000.0)
+    out.append(("t in ms", _text(t)))
+    body = _text(fresh())
+    out += [("empty file", ""), ("header only", HEADER + "\n"), ("whitespace only", "\n\n  \n"),
+            ("unknown column", body.replace("temp", "temperature", 1)),
+            ("duplicate column", body.replace("gyr_y", "gyr_x", 1)),
+            ("partial ref_q", body.replace("temp\n", "temp,ref_qw\n", 1)),
+            ("invalid UTF-8", body.encode()[:200] + b"\xff\xfe\xfa" + body.encode()[200:]),
+            ("binary garbage", rng.bytes(4096)),
+            ("NUL bytes", body.replace("\n", "\x00\n")),
+            ("line longer than the cap", HEADER + "\n" + "1" * 200_000 + "\n"),
+            ("header longer than the cap", "t" * 200_000 + "\n" + body),
+            ("truncated mid-row", body[: len(body) // 2 - 7])]
+    t = [r + ["eval_mask" if i == 0 else ("2" if i == 5 else "1")] for i, r in enumerate(fresh())]
+    out.append(("eval_mask 2", _text(t)))                       # eval_mask neither 0 nor 1
+    return out
+
+
+# ------------------------------------------------------------------------------- writers
+
+
+class Cases:
+    """Writes inputs into a folder and records (verb, kind, argv, needle) per case."""
+
+    def __init__(self, folder: Path, rng: np.random.Generator) -> None:
+        self.folder, self.rng, self.items = folder, rng, []
+        self.n = 0
+        self.good_csv = self.recording("good", _text(_table(rng)), _meta())
+        self.fmu = self._shell_fmu(folder / "shell.fmu")
+        self.model = folder / "model.json"
+        self.model.write_bytes(MODEL.read_bytes())
+
+    def name(self, stem: str) -> str:
+        self.n += 1
+        return f"c{self.n:03d}_{stem}"
+
+    def add(self, verb: str, kind: str, what: str, argv: list[str], needle: str) -> None:
+        self.items.append({"verb": verb, "kind": kind, "what": what, "argv": argv, "needle": needle})
+
+    def recording(self, stem: str, content: str | bytes, meta: dict | str | bytes | None,
+                  suffix: str = ".csv") -> Path:
+        path = self.folder / f"{stem}{suffix}"
+        data = content.encode() if isinstance(content, str) else content
+        path.write_bytes(gzip.compress(data, mtime=0) if suffix == ".csv.gz" and isinstance(content, str) else data)
+        if meta is not None:
+            side = self.folder / f"{stem}.json"
+            side.write_bytes(meta if isinstance(meta, bytes) else
+                             (meta if isinstance(meta, str) else json.dumps(meta)).encode())
+        return path
+
+    def _shell_fmu(self, path: Path, drop: str | None = None, extra: dict | None = None) -> Path:
+        """An FMU archive with a real modelDescription.xml and aux_inputs.json but a placeholder
+        binary: enough for every check made before the binary is loaded."""
+        from fmu.model_description import model_description_xml
+        from fmu.packer import AUX_INPUTS_FILE
+        from fmu.validator import binary_member
+        members = {"modelDescription.xml": model_description_xml({}, "{fuzz}", "fuzz shell"),
+                   binary_member(2): b"\x7fELF placeholder", AUX_INPUTS_FILE: "[]"}
+        members = {k: v for k, v in members.items() if k != drop} | (extra or {})
+        with zipfile.ZipFile(path, "w", zipfile.ZIP_DEFLATED) as zf:
+            for member, content in members.items():
+                zf.writestr(member, content)
+        return path
+
+    # -- per file kind
+
+    def csv_cases(self) -> None:
+        for what, content in _csv_mutations(self.rng):
+            stem = self.name("bad")
+            meta = _meta() if what != "t in ms" else _meta(rate_hz=100.0)
+            path = self.recording(stem, content, meta)
+            verb = ("train", "run", "diagnose", "compare-thermal")[self.n % 4]
+            self.add(verb, "csv", what, self._data_argv(verb, path), path.name)
+
+    def csv_gz_cases(self) -> None:
+        body = _text(_table(self.rng)).encode()
+        packed = gzip.compress(body, mtime=0)
+        variants = [("truncated gzip", packed[: int(self.rng.integers(20, len(packed) - 8))]) for _ in range(8)]
+        for _ in range(8):
+            flipped = bytearray(packed)
+            i = int(self.rng.integers(20, len(packed) - 8))
+            flipped[i] ^= 1 + int(self.rng.integers(0, 255))
+            variants.append(("corrupt deflate data", bytes(flipped)))
+        variants += [("plain text named .gz", body), ("random bytes named .gz", self.rng.bytes(2048)),
+                     ("gzip header only", packed[:10]), ("bad CRC", packed[:-8] + b"\0\0\0\0" + packed[-4:]),
+                     ("gzip bomb, bad row 3", self._bomb(b"0.0,0,0,0,0,0,-9.8,20,0,40,25\nx\n")),
+                     ("gzip bomb, one endless line", self._bomb(b"")),
+                     ("gzip of a malformed CSV", gzip.compress(body.replace(b",", b";"), mtime=0))]
+        for what, content in variants:
+            stem = self.name("bad")
+            path = self.recording(stem, content, _meta(), suffix=".csv.gz")
+            verb = ("train", "run", "compare-thermal", "diagnose")[self.n % 4]
+            self.add(verb, "csv.gz", what, self._data_argv(verb, path), path.name)
+
+    def _bomb(self, head: bytes) -> bytes:
+        """A small .gz (one gzip member per block) that inflates to BOMB_INFLATED_BYTES: `head`
+        then '1' digits without a newline."""
+        block = gzip.compress(b"1" * 2**24, mtime=0)
+        header = gzip.compress(HEADER.encode() + b"\n" + head, mtime=0)
+        return header + block * (BOMB_INFLATED_BYTES // 2**24)
+
+    def sidecar_cases(self) -> None:
+        ef = _meta()["earth_field"]
+        bad_fields = [("earth_field", v) for v in ("abc", [1, 2, 3], 5, True, 44.7)]
+        for key in ("norm_ut", "dip_deg", "declination_deg"):
+            bad_fields += [(f"earth_field.{key}", v) for v in ("48", [48], {}, -1e300, 1e300, True, "NaN")]
+        bad_fields += [("rate_hz", v) for v in ("100 Hz", -1, 0, 1e300, [100], True, {})]
+        bad_fields += [("reference", v) for v in (5, "magic", [], {"a": 1})]
+        bad_fields += [("format", v) for v in (None, "imu-csv/2", 1)]
+        for key, value in bad_fields:
+            meta = _meta()
+            if key.startswith("earth_field."):
+                meta["earth_field"] = dict(ef, **{key.split(".")[1]: value})
+            else:
+                meta[key] = value
+            self._sidecar(f"{key}={json.dumps(value)}", meta)
+        self._sidecar("not JSON", "{not json")
+        self._sidecar("JSON array", "[1, 2]")
+        self._sidecar("BOM then garbage", b"\xef\xbb\xbf{garbage")
+        self._sidecar("invalid UTF-8", b'{"format": "imu-csv/1\xff"}')
+        self._sidecar("NaN literal", json.dumps(_meta(rate_hz=math.nan)))
+        self._sidecar("sidecar over the size cap", json.dumps(_meta(notes="x" * (2**20 + 10))))
+        self._sidecar("deeply nested", "[" * 100_000 + "]" * 100_000)
+
+    def _sidecar(self, what: str, meta) -> None:
+        stem = self.name("side")
+        path = self.recording(stem, _text(_table(self.rng)), meta)
+        verb = ("train", "run", "compare-thermal", "diagnose")[self.n % 4]
+        self.add(verb, "sidecar", what, self._data_argv(verb, path), f"{stem}.json")
+
+    def model_cases(self) -> None:
+        doc = json.loads(MODEL.read_text())
+
+        def variant(what: str, mutate) -> None:
+            d = json.loads(json.dumps(doc))
+            content = mutate(d)
+            stem = self.name("model")
+            path = self.folder / f"{stem}.json"
+            path.write_bytes(content if isinstance(content, bytes) else json.dumps(content if content is not None else d).encode())
+            for verb in ("build-fmu", "diagnose"):
+                argv = (["build-fmu", "--model", str(path), "--out", str(self.folder / f"{stem}.fmu")]
+                        if verb == "build-fmu" else
+                        ["diagnose", str(self.good_csv), "--model", str(path), "--out", str(self.folder / stem)])
+                self.add(verb, "model.json", what, argv, path.name)
+
+        for triad in ("gyr", "acc", "mag"):
+            variant(f"ragged {triad}.A", lambda d, t=triad: d["thermal"][t].__setitem__("A", [[1, 0, 0], [0, 1], [0, 0, 1]]))
+            variant(f"{triad}.A a string", lambda d, t=triad: d["thermal"][t].__setitem__("A", "identity"))
+            variant(f"{triad}.b ragged", lambda d, t=triad: d["thermal"][t].__setitem__("b", [[0.0], [0.0, 1.0], 3]))
+            variant(f"{triad} missing", lambda d, t=triad: d["thermal"].pop(t) and None)
+        variant("not JSON", lambda d: b"{ not json")
+        variant("empty file", lambda d: b"")
+        variant("top-level array", lambda d: [1, 2])
+        variant("format_version 99", lambda d: d.__setitem__("format_version", 99))
+        variant("thermal a list", lambda d: d.__setitem__("thermal", []))
+        variant("invalid UTF-8", lambda d: b'{"format": "\xff"}')
+        variant("deeply nested", lambda d: b"[" * 100_000 + b"]" * 100_000)
+
+    def fmu_cases(self) -> None:
+        f = self.folder
+        variants: list[tuple[str, Path]] = []
+
+        def raw(what: str, content: bytes) -> None:
+            p = f / f"{self.name('fmu')}.fmu"
+            p.write_bytes(content)
+            variants.append((what, p))
+
+        def zipped(what: str, members: dict) -> None:
+            p = f / f"{self.name('fmu')}.fmu"
+            with zipfile.ZipFile(p, "w", zipfile.ZIP_DEFLATED) as zf:
+                for member, content in members.items():
+                    zf.writestr(member, content)
+            variants.append((what, p))
+
+        def shell(what: str, **kw) -> None:
+            variants.append((what, self._shell_fmu(f / f"{self.name('fmu')}.fmu", **kw)))
+
+        shell_bytes = self.fmu.read_bytes()
+        raw("not a zip", b"this is not a zip archive")
+        raw("empty file", b"")
+        raw("random bytes", self.rng.bytes(4096))
+        for _ in range(6):
+            raw("truncated zip", shell_bytes[: int(self.rng.integers(1, len(shell_bytes) - 1))])
+        zipped("empty zip", {})
+        zipped("no modelDescription.xml", {"binaries/linux64/x.so": b"x"})
+        zipped("nested FMU", {"ImuFusion.fmu": shell_bytes})
+        md = model_description_xml_text()
+        for _ in range(5):
+            zipped("truncated modelDescription.xml", {"modelDescription.xml": md[: int(self.rng.integers(1, len(md) - 1))]})
+        zipped("modelDescription.xml not XML", {"modelDescription.xml": "hello"})
+        zipped("modelDescription.xml binary", {"modelDescription.xml": self.rng.bytes(512)})
+        shell("missing binary", drop="binaries/linux64/ImuFusion.so")
+        for what, content in (("aux_inputs.json not JSON", "{"), ("aux_inputs.json a number", "5"),
+                              ("aux_inputs.json entries without 'column'", "[{}]")):
+            shell(what, extra={"extra/imufusion/aux_inputs.json": content})
+        shell("absolute-path entry", extra={"/tmp/imufusion-fuzz-escape": "x"})
+        shell("'..' entry", extra={"../../imufusion-fuzz-escape": "x"})
+        shell("'..' inside a path", extra={"sources/../../escape": "x"})
+        shell("backslash entry", extra={"..\\escape": "x"})
+        shell("drive-letter entry", extra={"C:/escape": "x"})
+        p = f / f"{self.name('fmu')}.fmu"
+        _zip_with_declared_member(p, self._shell_fmu(f / "tmp_shell.fmu"), ZIP_BOMB_MEMBER_BYTES)
+        variants.append(("2 GiB member", p))
+        for what, path in variants:
+            self.add("validate", "fmu", what, ["validate", str(path)], path.name)
+            self.add("run", "fmu", what, ["run", str(path), str(self.good_csv), "--out", str(f / "o.csv")], path.name)
+
+    def scenario_cases(self) -> None:
+        base = {"sensor": json.dumps(str(REPO / "scenarios" / "sensors" / "mems_grade.toml")), "rate": "100.0",
+                "seed": "1", "duration": "10.0", "extra": ""}
+        variants = [("rate", v) for v in ("1e-300", "0.0", "-1.0", '"100"', "inf", "nan", "1e300", "true")]
+        variants += [("duration", v) for v in ("1e300", "-1.0", "0.0", "inf", '"10 s"', "1e6")]
+        variants += [("seed", v) for v in ("-1", "1.5", '"one"')]
+        variants += [("sensor", v) for v in ('"/dev/zero"', '"missing.toml"', f'"{REPO / "scenarios"}"', "42",
+                                              f'"{REPO / "README.md"}"')]
+        variants += [("extra", v) for v in ("bogus_key = 3", "[scenario2]\nx = 1", "= broken")]
+        for key, value in variants:
+            fields = dict(base, **{key: value})
+            path = self.folder / f"{self.name('scenario')}.toml"
+            path.write_text(SCENARIO.format(**fields))
+            needle = path.name if key != "sensor" or value in ("42",) else value.strip('"').split("/")[-1]
+            self.add("simulate", "scenario", f"{key} = {value}", ["simulate", str(path), "--out", str(self.folder / "sim")],
+                     needle)
+        good = SCENARIO.format(**base)
+        for _ in range(8):
+            path = self.folder / f"{self.name('scenario')}.toml"
+            path.write_text(good[: int(self.rng.integers(1, len(good) - 60))])
+            self.add("simulate", "scenario", "truncated", ["simulate", str(path), "--out", str(self.folder / "sim")], path.name)
+        for what, content in (("binary", self.rng.bytes(1024)), ("over the size cap", b"# " + b"x" * (2**20 + 10))):
+            path = self.folder / f"{self.name('scenario')}.toml"
+            path.write_bytes(content)
+            self.add("simulate", "scenario", what, ["simulate", str(path), "--out", str(self.folder / "sim")], path.name)
+
+    def param_cases(self) -> None:
+        from training.layout import SETTINGS
+        names = [n for n, _ in SETTINGS]
+        values = ["nan", "inf", "-inf", "abc", "", "1e400", "4294967298", "0x10"]
+        for k in range(30):
+            name = names[int(self.rng.integers(0, len(names)))]
+            value = values[k % len(values)]
+            self.add("run", "param", f"{name}={value}", ["run", str(self.fmu), str(self.good_csv), "--out",
+                                                          str(self.folder / "o.csv"), "--param", f"{name}={value}"], name)
+        for text in ("noequals", "unknown_setting=1", "=5", "pf_particles=2.9", "enable_pf=0.5", "enable_thermal=2"):
+            self.add("run", "param", text, ["run", str(self.fmu), str(self.good_csv), "--out", str(self.folder / "o.csv"),
+                                            "--param", text], text.split("=")[0] or "=5")
+
+    def missing_file_cases(self) -> None:
+        gone = str(self.folder / "gone.csv")
+        for argv in (["train", gone, "--out", str(self.folder / "t")], ["run", str(self.fmu), gone, "--out", "o.csv"],
+                     ["run", str(self.folder / "gone.fmu"), str(self.good_csv), "--out", "o.csv"],
+                     ["validate", str(self.folder / "gone.fmu")], ["compare-thermal", gone, "--out", "c"],
+                     ["diagnose", gone, "--model", str(self.model), "--out", "d"],
+                     ["build-fmu", "--model", str(self.folder / "gone.json"), "--out", "x.fmu"],
+                     ["simulate", str(self.folder / "gone.toml"), "--out", "s"]):
+            self.add(argv[0], "missing file", "missing", argv, "gone")
+
+    def _data_argv(self, verb: str, path: Path) -> list[str]:
+        out = str(self.folder / f"out_{path.name}")
+        return {"train": ["train", str(path), "--out", out],
+                "run": ["run", str(self.fmu), str(path), "--out", out + ".csv"],
+                "diagnose": ["diagnose", str(path), "--model", str(self.model), "--out", out],
+                "compare-thermal": ["compare-thermal", str(path), "--out", out, "--runs", "1"]}[verb]
+
+
+SCENARIO = """sensor = {sensor}
+{extra}
+[scenario]
+name = "fuzz"
+rate_hz = {rate}
+seed = {seed}
+[earth_field]
+norm_ut = 50.0
+dip_deg = 60.0
+declination_deg = 3.0
+[start]
+temp_c = 20.0
+[[segment]]
+type = "hold"
+duration_s = {duration}
+"""
+
+
+def model_description_xml_text() -> str:
+    from fmu.model_description import model_description_xml
+    return model_description_xml({}, "{fuzz}", "fuzz shell")
+
+
+def _zip_with_declared_member(path: Path, shell: Path, declared: int) -> None:
+    """Copy the shell FMU and add a stored member whose headers declare `declared` bytes (the data
+    is a few bytes: the archive stays small, a reader trusting the headers would inflate 2 GiB)."""
+    data = shell.read_bytes()
+    path.write_bytes(data)
+    with zipfile.ZipFile(path, "a") as zf:
+        info = zipfile.ZipInfo("resources/huge.bin")
+        zf.writestr(info, b"0" * 1024)
+    raw = bytearray(path.read_bytes())
+    # The uncompressed-size fields of the last member: local header offset 22, central entry offset 24.
+    local = raw.rfind(b"PK\x03\x04", 0, raw.rfind(b"resources/huge.bin"))
+    central = raw.rfind(b"PK\x01\x02")
+    for offset in (local + 22, central + 24):
+        raw[offset:offset + 4] = declared.to_bytes(4, "little")
+    path.write_bytes(bytes(raw))
+
+
+def generate(folder: Path) -> list[dict]:
+    """Write every case's inputs into folder; returns the cases."""
+    cases = Cases(folder, np.random.default_rng(SEED))
+    for kind in (cases.csv_cases, cases.csv_gz_cases, cases.sidecar_cases, cases.model_cases, cases.fmu_cases,
+                 cases.scenario_cases, cases.param_cases, cases.missing_file_cases):
+        kind()
+    return cases.items
+
+
+# ---------------------------------------------------------------------------------- child
+
+
+def run_case(argv: list[str]) -> tuple[int, str]:
+    """training.cli.main(argv) in this process: (exit status, stderr); a traceback is reported in
+    stderr as 'Traceback ...' (the contract forbids it)."""
+    import traceback
+    from training.cli import main
+    err, out = io.StringIO(), io.StringIO()
+    with contextlib.redirect_stderr(err), contextlib.redirect_stdout(out):
+        try:
+            code = main(argv)
+        except SystemExit as e:
+            code = e.code if isinstance(e.code, int) else 1
+        except BaseException:  # noqa: BLE001 - the test reports it
+            code = -1
+            err.write(traceback.format_exc())
+    return code, err.getvalue()
+
+
+def child(cases_path: str, results_path: str) -> None:
+    """Run every case of cases_path in-process; write results with the peak RSS."""
+    os.environ.setdefault("OMP_NUM_THREADS", "1")
+    cases = json.loads(Path(cases_path).read_text())
+    results = []
+    for case in cases:
+        Path(results_path + ".current").write_text(json.dumps(case))
+        code, err = run_case(case["argv"])
+        results.append({"code": code, "stderr": err})
+    rss = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024  # Linux: kB
+    Path(results_path).write_text(json.dumps({"results": results, "max_rss_bytes": rss}))
+
+
+# ----------------------------------------------------------------------------------- test
+
+
+def _problem(case: dict, code: int, err: str) -> str | None:
+    """Why the case breaks the CLI error contract, or None."""
+    lines = [l for l in err.splitlines() if l.strip() and "%|" not in l]
+    prefix = f"imufmu {case['verb']}: error:"
+    if "Traceback" in err or code not in (1, 2):
+        return f"exit {code}: {err.strip()[-400:]}"
+    errors = [l for l in lines if l.startswith(prefix)]
+    if code == 1 and (len(lines) != 1 or not errors):
+        return f"expected one line '{prefix} ...', got {lines!r}"
+    if code == 2 and len(errors) != 1:
+        return f"usage error without one '{prefix}' line: {lines!r}"
+    if case["needle"] not in errors[0]:
+        return f"the message does not name {case['needle']!r}: {errors[0]}"
+    if "np.float" in errors[0] or "np.int" in errors[0]:
+        return f"a numpy repr instead of a plain number: {errors[0]}"
+    return None
+
+
+def _summary(cases: list[dict]) -> str:
+    counts = collections.Counter((c["verb"], c["kind"]) for c in cases)
+    lines = [f"{'verb':<16}{'file kind':<14}cases"] + [f"{v:<16}{k:<14}{n}" for (v, k), n in sorted(counts.items())]
+    return "\n".join(lines + [f"{'total':<30}{len(cases)}"])
+
+
+def test_cli_fuzz(tmp_path):
+    cases = generate(tmp_path)
+    assert len(cases) >= MIN_CASES, _summary(cases)
+    cases_file, results_file = tmp_path / "cases.json", tmp_path / "results.json"
+    cases_file.write_text(json.dumps(cases))
+    env = dict(os.environ, OMP_NUM_THREADS="1", PYTHONPATH=os.pathsep.join([str(REPO), str(REPO / "tests")]))
+    proc = subprocess.run([sys.executable, __file__, str(cases_file), str(results_file)], env=env, cwd=tmp_path,
+                          capture_output=True, text=True, timeout=CHILD_TIMEOUT_S)
+    assert proc.returncode == 0 and results_file.is_file(), (
+        f"child failed at {Path(str(results_file) + '.current').read_text() if Path(str(results_file) + '.current').is_file() else '?'}"
+        f": {proc.stderr[-2000:]}\n{_summary(cases)}")
+    report = json.loads(results_file.read_text())
+    failures = [f"{c['verb']} {c['kind']} [{c['what']}]: {p}" for c, r in zip(cases, report["results"])
+                if (p := _problem(c, r["code"], r["stderr"]))]
+    assert not failures, f"{len(failures)} of {len(cases)} cases break the contract:\n" + "\n".join(failures[:40]) + \
+        "\n" + _summary(cases)
+    assert report["max_rss_bytes"] < MAX_RSS_BYTES, (
+        f"peak RSS {report['max_rss_bytes'] / 2**20:.0f} MiB >= {MAX_RSS_BYTES / 2**20:.0f} MiB\n{_summary(cases)}")
+    print(f"\n{len(cases)} malformed inputs; peak RSS {report['max_rss_bytes'] / 2**20:.0f} MiB\n{_summary(cases)}")
+
+
+if __name__ == "__main__":
+    child(sys.argv[1], sys.argv[2])
