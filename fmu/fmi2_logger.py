@@ -7,9 +7,10 @@ freed left that pointer dangling: the next FMU to log through fmpy's defaults (i
 process) jumped into freed memory — a segfault in `fmi2Instantiate` of a foreign-GUID FMU
 (tests/test_fmu.py::test_instantiate_rejects_a_foreign_guid).
 
-So the proxy is installed once, pointing at `_dispatch`, which lives as long as the process; each
-run gets its own callback struct whose `componentEnvironment` is the key of its sink. Messages of
-an environment without a sink (fmpy's defaults) are printed as fmpy prints them.
+So the proxy points at `_dispatch`, which lives as long as the process, and is pointed there again
+before every instantiation (other code, fmpy's own simulate_fmu included, re-points it at its own
+logger); each run gets its own callback struct whose `componentEnvironment` is the key of its sink.
+Messages of an environment without a sink (fmpy's defaults) are printed as fmpy prints them.
 """
 from __future__ import annotations
 
@@ -43,22 +44,21 @@ _DISPATCH = fmi2CallbackLoggerTYPE(_dispatch)   # module lifetime: the proxy's s
 
 
 def _proxy_logger():
-    """The proxy's formatting logger, installed once in front of _DISPATCH."""
+    """Point the proxy's static pointer at _DISPATCH (again: anyone's addLoggerProxy, e.g. fmpy's
+    simulate_fmu, overwrites it) and return the proxy's formatting logger."""
     functions = fmi2CallbackFunctions()
     functions.logger = _DISPATCH
     addLoggerProxy(ctypes.byref(functions))
     return functions.logger
 
 
-_PROXY = _proxy_logger()
-
-
 def callbacks_for(sink: Sink) -> tuple[fmi2CallbackFunctions, int]:
-    """(fmi2 callbacks whose log messages reach `sink`, key to pass to `release`)."""
+    """(fmi2 callbacks whose log messages reach `sink`, key to pass to `release`); call it right
+    before instantiating, so that the proxy forwards to _DISPATCH."""
     key = next(_KEYS)
     _SINKS[key] = sink
     functions = fmi2CallbackFunctions()
-    functions.logger = _PROXY
+    functions.logger = _proxy_logger()
     functions.allocateMemory = fmi2CallbackAllocateMemoryTYPE(calloc)
     functions.freeMemory = fmi2CallbackFreeMemoryTYPE(free)
     functions.componentEnvironment = key

@@ -1,6 +1,7 @@
 """The ImuFusion FMI 2.0 FMU: model description, binary, variable table, co-simulation, FMU state."""
 from __future__ import annotations
 
+import ctypes
 import re
 import subprocess
 import sys
@@ -9,7 +10,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 from fmpy import extract, read_model_description
-from fmpy.fmi2 import FMU2Slave
+from fmpy.fmi2 import FMU2Slave, fmi2CallbackFunctions, fmi2CallbackLoggerTYPE
+from fmpy.logging import addLoggerProxy
 from fmpy.validation import validate_fmu as fmpy_validate_fmu
 
 from fmu.compiler import SOURCE_DIR, compile_binary
@@ -320,6 +322,19 @@ def test_fmpy_default_logger_still_works_after_runs_in_the_same_process(trained_
                             cwd=Path(__file__).resolve().parents[1])
     assert result.returncode == 0, result.stderr[-2000:]
     assert result.stdout.strip().splitlines()[-1] == "refused"
+
+
+def test_the_log_still_reaches_run_fmu_after_other_code_repointed_the_proxy(trained_fmu):
+    """fmpy's simulate_fmu (or any caller) points fmpy's message proxy at its own logger; run_fmu
+    must point it back, or the FMU's messages (here: the invalid parameter named) go elsewhere."""
+    foreign = []
+    callbacks = fmi2CallbackFunctions()
+    callbacks.logger = fmi2CallbackLoggerTYPE(lambda *message: foreign.append(message))
+    addLoggerProxy(ctypes.byref(callbacks))   # what simulate_fmu(..., logger=...) does
+    t, raw = synthetic_recording(5)
+    with pytest.raises(FmuError, match="invalid parameter: field_norm"):
+        run_fmu(trained_fmu, t, raw, parameters={"field_norm": -1.0})
+    assert foreign == []
 
 
 def test_start_values_in_binary_match_model_description(trained_fmu, tmp_path):
