@@ -210,3 +210,16 @@ def test_fmpy_simulate_fmu_passes_the_nan_outputs_through(fmu_path):
     assert np.all(np.isnan(result["field_x"][1:])) and np.all(np.isfinite(result["yaw"]))
     assert all(status == OK for status, _ in messages)
     assert len([m for _, m in messages if "no magnetometer input (NaN): treated as an absent sensor" in m]) == 1
+
+
+def test_imufmu_run_names_the_absent_sensor_in_its_printed_summary(fmu_path, recording, tmp_path, capsys):
+    # the FMU's absence line is an OK message (logEvents), so `imufmu run` says it itself
+    from training.cli import main
+    from training.io import write_imu_csv
+    d = recording.slice(slice(0, 300))
+    d.mag = np.full_like(d.mag, np.nan)
+    data = write_imu_csv(d, tmp_path / "no_mag.csv")
+    assert main(["run", str(fmu_path), str(data), "--out", str(tmp_path / "o.csv")]) == 0
+    notes = [line for line in capsys.readouterr().out.splitlines() if line.startswith("note: ")]
+    assert notes == ["note: field_x..z are NaN in 300 of 300 samples: the recording has no valid magnetometer "
+                     "input there (absent sensor, docs/fmu.md 'Absent sensors')"]

@@ -197,3 +197,13 @@ def test_identity_model_is_always_valid():
     assert len(identity_block()) == TRIAD_BLOCK and identity_block()[-3:] == [0.0, 0.0, 0.0]
     t, inputs, _ = excursion_recording(15.0, 35.0)
     assert np.all(flags(identity_coefficients(), t, inputs) == 1.0)
+
+
+def test_imufmu_run_counts_the_samples_outside_the_calibrated_range():
+    from training.layout import OUTPUTS
+    from training.run_summary import range_note
+    out = np.zeros((200, len(OUTPUTS)))
+    out[:, OUTPUTS.index("calibration_valid")] = 1.0
+    assert range_note(out) is None
+    out[150:, OUTPUTS.index("calibration_valid")] = 0.0
+    assert range_note(out).startswith("calibration_valid = 0 in 50 of 200 samples (25 %)")

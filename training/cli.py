@@ -105,6 +105,7 @@ def cmd_run(args) -> None:
     from fmu.packer import fmu_aux_columns
     from .io import read_imu_csv
     from .pipeline import recording_parameters, write_outputs_csv
+    from .run_summary import run_notes
     fmu_path = _existing_file(args.fmu, "FMU")
     data = read_imu_csv(_existing_file(args.data, "data file"))
     read_description(fmu_path)  # the archive checks (fmu.archive) before any member is read
@@ -117,6 +118,8 @@ def cmd_run(args) -> None:
     out = run_fmu(fmu_path, data.t, inputs, parameters=params, progress=True, log=log)
     for message in log:
         print(f"FMU: {message}")
+    for note in run_notes(out):
+        print(f"note: {note}")
     print(f"wrote {write_outputs_csv(args.out, data.t, out)} ({len(data)} samples)")
 
 
