@@ -6,11 +6,11 @@ from collections.abc import Sequence
 from xml.sax.saxutils import quoteattr
 
 from fmu.compiler import check_fmi_version, fmu_source_files
+from fmu.provenance import generation_tool
 from fmu.variables import Variable, variable_table
 from training.layout import settings_defaults
 
 MODEL_NAME = "ImuFusion"
-GENERATION_TOOL = "imufusion fmu package"
 
 #: Default experiment: 10 s at 100 Hz.
 DEFAULT_EXPERIMENT = {"startTime": 0.0, "stopTime": 10.0, "stepSize": 0.01}
@@ -164,7 +164,16 @@ def _shared_sections(values: dict) -> str:
   <DefaultExperiment {experiment}/>"""
 
 
-def _fmi3_xml(values: dict, guid: str, description: str, table: tuple[Variable, ...]) -> str:
+def _generation_attributes(built: str | None) -> str:
+    """generationTool (our distribution and version) and, when known, generationDateAndTime
+    (xs:dateTime, UTC): attribute lines of fmiModelDescription, the same in FMI 2 and FMI 3."""
+    lines = [f"  generationTool={quoteattr(generation_tool())}"]
+    if built is not None:
+        lines.append(f"  generationDateAndTime={quoteattr(built)}")
+    return "\n".join(lines)
+
+
+def _fmi3_xml(values: dict, guid: str, description: str, table: tuple[Variable, ...], built: str | None) -> str:
     """Text of an FMI 3.0 modelDescription.xml (sources are listed in buildDescription.xml)."""
     variables = "\n".join([_TIME_XML] + [_variable_xml3(v, values) for v in table])
     return f"""<?xml version="1.0" encoding="UTF-8"?>
@@ -173,7 +182,7 @@ def _fmi3_xml(values: dict, guid: str, description: str, table: tuple[Variable, 
   modelName="{MODEL_NAME}"
   instantiationToken={quoteattr(guid)}
   description={quoteattr(description)}
-  generationTool="{GENERATION_TOOL}"
+{_generation_attributes(built)}
   variableNamingConvention="flat">
   <CoSimulation
     modelIdentifier="{MODEL_NAME}"
@@ -195,20 +204,21 @@ def _fmi3_xml(values: dict, guid: str, description: str, table: tuple[Variable, 
 
 def model_description_xml(settings: dict, guid: str, description: str,
                           source_files: list[str] | None = None, fmi_version: int = 2,
-                          aux_inputs: Sequence[dict] = ()) -> str:
+                          aux_inputs: Sequence[dict] = (), built: str | None = None) -> str:
     """Text of modelDescription.xml for FMI `fmi_version` (2 or 3).
 
     settings: parameter start values by name (missing names take training.layout defaults);
     guid: the GUID (FMI 3: instantiation token) also compiled into the binary; description: the
     model's one-line description; source_files: the .c files to list under SourceFiles (FMI 2
     only; default: those of fmu.compiler; FMI 3 lists them in buildDescription.xml); aux_inputs:
-    the model's ModelArtefact.aux_inputs, which describe the auxiliary inputs.
+    the model's ModelArtefact.aux_inputs, which describe the auxiliary inputs; built: the build
+    time for generationDateAndTime (fmu.provenance.build_time; None: the attribute is left out).
     Raises KeyError for an unknown setting name, BuildError for another FMI version.
     """
     values = _settings_values(settings)
     table = variable_table(aux_inputs)
     if check_fmi_version(fmi_version) == 3:
-        return _fmi3_xml(values, guid, description, table)
+        return _fmi3_xml(values, guid, description, table, built)
     if source_files is None:
         source_files = [p.name for p in fmu_source_files(fmi_version=2) if p.suffix == ".c"]
     files = "\n".join(f"      <File name={quoteattr(name)}/>" for name in source_files)
@@ -219,7 +229,7 @@ def model_description_xml(settings: dict, guid: str, description: str,
   modelName="{MODEL_NAME}"
   guid={quoteattr(guid)}
   description={quoteattr(description)}
-  generationTool="{GENERATION_TOOL}"
+{_generation_attributes(built)}
   variableNamingConvention="flat"
   numberOfEventIndicators="0">
   <CoSimulation

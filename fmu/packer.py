@@ -4,7 +4,9 @@ Every FMU ships a reference result: extra/imufusion/reference_input.csv (a short
 recording) and reference_output.csv (the batch runtime's outputs for it, written at build time),
 which tests and `fmu.validator` reproduce through the FMU, and extra/imufusion/aux_inputs.json:
 which recording column each auxiliary input carries (the model's ModelArtefact.aux_inputs), so
-that `imufmu run` feeds a recording's aux_* columns into the right inputs.
+that `imufmu run` feeds a recording's aux_* columns into the right inputs. The provenance record
+(fmu.provenance: tool and version, build time, training recordings, calibrated triads and stages,
+training notes) is extra/imufusion/provenance.json and is summarised in modelDescription.xml.
 """
 from __future__ import annotations
 
@@ -23,6 +25,7 @@ from fmu.build_description import BUILD_DESCRIPTION, build_description_xml
 from fmu.compiler import check_fmi_version, compile_binary, fmu_source_files
 from fmu.header import HEADER_NAME, coefficient_header
 from fmu.model_description import MODEL_NAME, model_description_xml
+from fmu.provenance import PROVENANCE_FILE, build_time, provenance_record, provenance_summary
 from fmu.variables import Variable, variable_table
 from training.errors import ModelError
 from training.layout import AUX_INPUTS, INPUTS, OUTPUTS, SETTINGS, settings_array
@@ -175,16 +178,20 @@ def _zip_directory(directory: Path, out_path: Path) -> None:
 def build_fmu(coefficients: np.ndarray, settings: dict, out_path: str | Path,
               description: str = DEFAULT_DESCRIPTION,
               provenance: str = "untrained identity coefficients", fmi_version: int = 2,
-              aux_inputs: Sequence[dict] = ()) -> Path:
+              aux_inputs: Sequence[dict] = (), training_data: Sequence[dict] = (),
+              notes: Sequence[str] = ()) -> Path:
     """Build ImuFusion.fmu for FMI `fmi_version` (2 or 3) at out_path and return its path.
 
     coefficients: (N_COEFFICIENTS,) flat array (training/layout.py); settings: parameter start
     values by name (missing names take the defaults); provenance goes into the coefficient
-    header's comment; aux_inputs: the model's ModelArtefact.aux_inputs (what aux_1.. carry).
+    header's comment; aux_inputs: the model's ModelArtefact.aux_inputs (what aux_1.. carry);
+    training_data and notes: the model's ModelArtefact.training_data and .notes, which go with the
+    build time and what the coefficients calibrate into the provenance record (fmu.provenance).
     The FMU holds modelDescription.xml, sources/ (runtime + the version's FMI
     wrapper + the generated ImuCoefficientsData.h; FMI 3 also buildDescription.xml),
-    documentation/index.html, the reference pair and aux_inputs.json in extra/imufusion/ and the
-    compiled binary.
+    documentation/index.html, the reference pair, aux_inputs.json and provenance.json in
+    extra/imufusion/ and the compiled binary. modelDescription.xml's description is `description`
+    followed by the provenance summary.
     Raises ModelError for bad coefficients, settings or aux_inputs, BuildError when compilation
     fails or the FMI version is not 2 or 3.
     """
@@ -199,11 +206,14 @@ def build_fmu(coefficients: np.ndarray, settings: dict, out_path: str | Path,
     guid = model_guid(coefficients, values, sources, variables)
     header = coefficient_header(coefficients, values, guid, provenance)
     c_files = [p.name for p in sources if p.suffix == ".c"]
-    files = {"modelDescription.xml": model_description_xml(values, guid, description, c_files, fmi_version,
-                                                           aux_inputs),
+    built = build_time()
+    record = provenance_record(coefficients, values, built, training_data, notes)
+    files = {"modelDescription.xml": model_description_xml(values, guid, f"{description}. {provenance_summary(record)}",
+                                                           c_files, fmi_version, aux_inputs, built),
              f"sources/{HEADER_NAME}": header,
              "documentation/index.html": documentation_html(values, description, fmi_version, variables),
              AUX_INPUTS_FILE: json.dumps([dict(a) for a in aux_inputs], indent=2, ensure_ascii=False) + "\n",
+             PROVENANCE_FILE: json.dumps(record, indent=2, ensure_ascii=False) + "\n",
              **reference_files(np.asarray(coefficients, dtype=float), values)}
     if fmi_version == 3:
         files[BUILD_DESCRIPTION] = build_description_xml(c_files)

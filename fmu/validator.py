@@ -167,8 +167,14 @@ def _smoke_problems(path: Path) -> list[str]:
     return [f"smoke co-simulation gave non-finite outputs: {', '.join(bad)}"] if bad else []
 
 
-def validate_fmu(path: str | Path) -> list[str]:
-    """Every problem found in the FMU (FMI 2 or 3) at path (empty list = valid).
+#: The checks of `validate_fmu` in the order they run (a failed check skips those after it).
+VALIDATION_CHECKS = ("archive", "fmpy model description", "exported symbols", "fmutool -check",
+                     "smoke co-simulation", "reference result")
+
+
+def validate_fmu(path: str | Path, checks: list[tuple[str, int]] | None = None) -> list[str]:
+    """Every problem found in the FMU (FMI 2 or 3) at path (empty list = valid); `checks`, when
+    given, receives (name in VALIDATION_CHECKS, number of problems) for every check that ran.
 
     First the archive itself (fmu.archive: a zip within the size caps, safe member names, a
     well-formed modelDescription.xml, the binary present); then fmpy's model-description validation
@@ -177,17 +183,23 @@ def validate_fmu(path: str | Path) -> list[str]:
     1 s smoke co-simulation, and that the FMU reproduces its shipped reference result.
     """
     path = Path(path)
+    ran = [] if checks is None else checks
+
+    def counted(name: str, found: list[str]) -> list[str]:
+        ran.append((name, len(found)))
+        return found
     try:
         read_description(path)
     except FmuArchiveError as e:
-        return [str(e)]
-    problems = [one_line(p) for p in fmpy_validate_fmu(str(path))]
+        return counted("archive", [str(e)])
+    counted("archive", [])
+    problems = counted("fmpy model description", [one_line(p) for p in fmpy_validate_fmu(str(path))])
     if problems:
         return problems
-    problems += _symbol_problems(path, fmi_version_of(path))
-    problems += fmutool_problems(path)
+    problems += counted("exported symbols", _symbol_problems(path, fmi_version_of(path)))
+    problems += counted("fmutool -check", fmutool_problems(path))
     if not problems:
-        problems += _smoke_problems(path)
+        problems += counted("smoke co-simulation", _smoke_problems(path))
     if not problems:
-        problems += reference_problems(path)
+        problems += counted("reference result", reference_problems(path))
     return problems

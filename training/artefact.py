@@ -34,11 +34,19 @@ _THERMAL_KEYS = ("enabled", "t0", "ts", "degree", "A", "g", "b")
 
 
 def library_versions() -> dict[str, str]:
-    """Versions of python, numpy, torch and imufusion in this process."""
+    """Versions of python, numpy, torch and our distribution (training.version.DISTRIBUTION) in
+    this process."""
     import torch
-    from . import __version__
+    from .version import DISTRIBUTION, package_version
     return {"python": platform.python_version(), "numpy": np.__version__,
-            "torch": torch.__version__, "imufusion": __version__}
+            "torch": torch.__version__, DISTRIBUTION: package_version()}
+
+
+def libraries_from_json(libraries: dict) -> dict:
+    """The libraries of a model file, our version under DISTRIBUTION: files written before it
+    recorded it under 'imufusion' (the name of x-io's Fusion package), renamed on load."""
+    from .version import DISTRIBUTION
+    return {DISTRIBUTION if name == "imufusion" else name: version for name, version in libraries.items()}
 
 
 def utc_now() -> str:
@@ -259,7 +267,7 @@ def load_artefact(path) -> ModelArtefact:
         terms=_terms_from_json(doc.get("terms", []), path),
         aux_inputs=_aux_inputs_from_json(doc.get("aux_inputs", []), doc.get("terms", []), path),
         blocks=_blocks_from_json(doc.get("blocks", {}), path),
-        units=doc["units"], libraries=doc["libraries"], created=doc["created"],
+        units=doc["units"], libraries=libraries_from_json(doc["libraries"]), created=doc["created"],
         format=doc["format"], format_version=doc["format_version"], model_type=doc["model_type"])
 
 

@@ -61,7 +61,7 @@ def _train_and_build(datasets: list[ImuData], out: Path, seed: int) -> Path:
     write_calibration_report(artefact, datasets, out)
     return build_fmu(coefficients_array(artefact), settings_dict(artefact), out / "ImuFusion.fmu",
                      provenance=f"BROAD trials {', '.join(d.name for d in datasets)}",
-                     aux_inputs=artefact.aux_inputs)
+                     aux_inputs=artefact.aux_inputs, training_data=artefact.training_data, notes=artefact.notes)
 
 
 def _run(fmu_path: Path, data: ImuData, extra: dict | None = None) -> np.ndarray:

@@ -81,14 +81,21 @@ def cmd_build_fmu(args) -> None:
     from .artefact import coefficients_array, load_artefact, settings_dict
     artefact = load_artefact(_existing_file(args.model, "model artefact"))
     path = build_fmu(coefficients_array(artefact), settings_dict(artefact), args.out,
-                     provenance=f"model {args.model}", fmi_version=args.fmi, aux_inputs=artefact.aux_inputs)
+                     provenance=f"model {args.model}", fmi_version=args.fmi, aux_inputs=artefact.aux_inputs,
+                     training_data=artefact.training_data, notes=artefact.notes)
     print(f"wrote {path} (FMI {args.fmi}.0 co-simulation)")
 
 
 def cmd_validate(args) -> None:
     """imufmu validate FILE.fmu: exit 1 when there is any problem."""
-    from fmu.validator import validate_fmu
-    problems = validate_fmu(_existing_file(args.fmu, "FMU"))
+    from fmu.validator import VALIDATION_CHECKS, validate_fmu
+    checks: list[tuple[str, int]] = []
+    problems = validate_fmu(_existing_file(args.fmu, "FMU"), checks)
+    results = dict(checks)
+    for name in VALIDATION_CHECKS:
+        found = results.get(name)
+        print(f"check {name}: " + ("not run (an earlier check failed)" if found is None
+                                   else "ok" if found == 0 else f"FAILED ({found} problem(s))"))
     for p in problems:
         print(f"problem: {p}")
     if problems:
@@ -176,17 +183,40 @@ def cmd_pipeline(args) -> None:
     check_summary(summary)
 
 
+#: One example command per verb, shown at the end of its --help.
+EXAMPLES = {
+    "simulate": "imufmu simulate scenarios/calibration.toml --out data --seed 1",
+    "train": "imufmu train data/calibration.csv.gz --out model",
+    "build-fmu": "imufmu build-fmu --model model/model.json --out ImuFusion.fmu --fmi 3",
+    "validate": "imufmu validate ImuFusion.fmu",
+    "run": "imufmu run ImuFusion.fmu data/eval_handheld.csv.gz --out outputs.csv --param declination=0.05",
+    "compare-thermal": "imufmu compare-thermal data/thermal_plateaus.csv.gz --out thermal --runs 10",
+    "diagnose": "imufmu diagnose data/calibration.csv.gz --model model/model.json --out diagnosis",
+    "bench": "imufmu bench broad --trials 01 02 --out bench",
+    "pipeline": "imufmu pipeline --out out --seed 0",
+}
+
+
+def _add_verb(sub, verb: str, help_text: str) -> argparse.ArgumentParser:
+    """The subparser of `verb`, its --help ending with the verb's example command (EXAMPLES)."""
+    return sub.add_parser(verb, help=help_text, epilog=f"example:\n  {EXAMPLES[verb]}",
+                          formatter_class=argparse.RawDescriptionHelpFormatter)
+
+
 def build_parser() -> argparse.ArgumentParser:
-    """The one argparse parser with a subparser per verb."""
+    """The one argparse parser with a subparser per verb; --version prints our distribution's
+    name and version (training.version)."""
+    from .version import DISTRIBUTION, package_version
     p = argparse.ArgumentParser(prog="imufmu", description="ImuFusion: train, build, validate and "
                                 "co-simulate the IMU calibration + attitude FMU.")
+    p.add_argument("--version", action="version", version=f"imufmu ({DISTRIBUTION}) {package_version()}")
     sub = p.add_subparsers(dest="verb", required=True, metavar="VERB")
-    s = sub.add_parser("simulate", help="simulate a scenario into an imu-csv/1 file")
+    s = _add_verb(sub, "simulate", "simulate a scenario into an imu-csv/1 file")
     s.add_argument("scenario")
     s.add_argument("--out", required=True, help="output folder")
     s.add_argument("--seed", type=int, default=None, help="random seed (default: the scenario's)")
     s.set_defaults(func=cmd_simulate)
-    s = sub.add_parser("train", help="train the models on calibration recordings")
+    s = _add_verb(sub, "train", "train the models on calibration recordings")
     s.add_argument("data", nargs="+", help="imu-csv/1 files (.csv or .csv.gz); reference columns, an "
                    "attitude reference or a static sidecar are used when present, else self-calibration")
     s.add_argument("--out", required=True, help="output folder for model.json and calibration.md")
@@ -201,22 +231,22 @@ def build_parser() -> argparse.ArgumentParser:
                    help="write the model anyway when nothing can be calibrated (identity) or a log without "
                         "reference shows no motion (gyro bias only), instead of failing")
     s.set_defaults(func=cmd_train)
-    s = sub.add_parser("build-fmu", help="write the trained model into the FMU sources and build it")
+    s = _add_verb(sub, "build-fmu", "write the trained model into the FMU sources and build it")
     s.add_argument("--model", required=True, help="model.json from 'imufmu train'")
     s.add_argument("--out", required=True, help="FMU file to write")
     s.add_argument("--fmi", type=int, choices=(2, 3), default=2, help="FMI version (default 2)")
     s.set_defaults(func=cmd_build_fmu)
-    s = sub.add_parser("validate", help="validate an FMU (model description, exports, smoke run)")
+    s = _add_verb(sub, "validate", "validate an FMU (model description, exports, smoke run)")
     s.add_argument("fmu")
     s.set_defaults(func=cmd_validate)
-    s = sub.add_parser("run", help="co-simulate a recording through the FMU with fmpy")
+    s = _add_verb(sub, "run", "co-simulate a recording through the FMU with fmpy")
     s.add_argument("fmu")
     s.add_argument("data")
     s.add_argument("--out", required=True, help="CSV file for the FMU outputs")
     s.add_argument("--param", type=_param, action="append", metavar="NAME=VALUE",
                    help="FMU parameter (repeatable); declination and field_norm default to the sidecar")
     s.set_defaults(func=cmd_run)
-    s = sub.add_parser("compare-thermal", help="compare gyro temperature models on static recordings")
+    s = _add_verb(sub, "compare-thermal", "compare gyro temperature models on static recordings")
     s.add_argument("data", nargs="+", help="imu-csv/1 recordings of a static sensor")
     s.add_argument("--out", required=True, help="report folder")
     s.add_argument("--runs", type=int, default=50, help="Monte-Carlo repetitions (default 50)")
@@ -225,18 +255,18 @@ def build_parser() -> argparse.ArgumentParser:
                         "2/3 = the first four plateaus of scenarios/thermal_plateaus.toml)")
     s.add_argument("--seed", type=int, default=0)
     s.set_defaults(func=cmd_compare_thermal)
-    s = sub.add_parser("diagnose", help="find the effect the model lacks, add it, report before/after")
+    s = _add_verb(sub, "diagnose", "find the effect the model lacks, add it, report before/after")
     s.add_argument("data", nargs="+", help="imu-csv/1 recordings with a reference")
     s.add_argument("--model", required=True, help="model.json from 'imufmu train'")
     s.add_argument("--out", required=True, help="report folder (diagnosis.json, report.md, model.json)")
     s.add_argument("--seed", type=int, default=0)
     s.set_defaults(func=cmd_diagnose)
-    s = sub.add_parser("bench", help="benchmarks: BROAD attitude accuracy (filters, or trained FMU) or runtime speed")
+    s = _add_verb(sub, "bench", "benchmarks: BROAD attitude accuracy (filters, or trained FMU) or runtime speed")
     s.add_argument("what", choices=("broad", "broad-trained", "speed"))
     s.add_argument("--trials", nargs="*", default=None, help="BROAD trial prefixes (default: all)")
     s.add_argument("--out", required=True, help="output folder")
     s.set_defaults(func=cmd_bench)
-    s = sub.add_parser("pipeline", help="the main job on the bundled scenarios")
+    s = _add_verb(sub, "pipeline", "the main job on the bundled scenarios")
     s.add_argument("--out", default="out", help="output folder (default: out)")
     s.add_argument("--seed", type=int, default=0)
     s.set_defaults(func=cmd_pipeline)

@@ -163,7 +163,8 @@ def run_pipeline(out_dir: Path, seed: int = 0, calibration: str = DEFAULT_CALIBR
     coefficients = coefficients_array(artefact)
     settings = settings_dict(artefact)
     fmu_path = build_fmu(coefficients, settings, out_dir / "ImuFusion.fmu",
-                         provenance=f"model {model_path.name}, seed {seed}", aux_inputs=artefact.aux_inputs)
+                         provenance=f"model {model_path.name}, seed {seed}", aux_inputs=artefact.aux_inputs,
+                         training_data=artefact.training_data, notes=artefact.notes)
     lap("build")
     print("[4/5] validating the FMU")
     problems = validate_fmu(fmu_path)
