@@ -6,7 +6,10 @@ under binaries/. Every problem is one FmuArchiveError line naming the file and t
 zip, empty, a member name that would land outside the extraction folder (absolute, '..', a drive
 letter or a backslash), more than MAX_MEMBERS members, a member whose declared or actual size
 exceeds MAX_MEMBER_BYTES (or all together MAX_TOTAL_BYTES), no or a malformed
-modelDescription.xml (an FMU zipped inside another zip is named as such), no binary.
+modelDescription.xml (an FMU zipped inside another zip is named as such), a modelIdentifier that
+is not a plain C name (it is joined into the binary's path, so '../../tmp/x/evil' would load a
+library from outside the FMU), no binary. extracted_binary gives the binary to load only when it
+resolves to a file inside the extraction folder.
 """
 from __future__ import annotations
 
@@ -27,6 +30,9 @@ MAX_TOTAL_BYTES = 256 * 2**20      # 256 MiB, all members together
 COPY_CHUNK_BYTES = 2**20           # extraction streams members in chunks of this size
 MODEL_DESCRIPTION = "modelDescription.xml"
 _DRIVE = re.compile(r"^[A-Za-z]:")
+#: What the FMI standard allows as modelIdentifier: a C name (letters, digits, underscore), which
+#: is also the binary's file name without extension.
+_C_NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
 
 
 class FmuArchiveError(ImuFusionError):
@@ -127,12 +133,40 @@ def read_description(path: str | Path, unzipdir: str | Path | None = None) -> fm
         raise FmuArchiveError(path, f"{MODEL_DESCRIPTION} is malformed ({one_line(str(e)) or type(e).__name__})") from None
     if description.coSimulation is None:
         raise FmuArchiveError(path, "the FMU does not support co-simulation")
-    version = 3 if description.fmiVersion.startswith("3") else 2
-    member = binary_path(Path(), description.coSimulation.modelIdentifier, version).as_posix()
-    present = (Path(unzipdir) / member).is_file() if unzipdir is not None else _has_member(path, member)
+    identifier = description.coSimulation.modelIdentifier
+    if not isinstance(identifier, str) or not _C_NAME.fullmatch(identifier):
+        raise FmuArchiveError(path, f"modelIdentifier {identifier!r} is not a plain C name (letters, digits, "
+                                    "underscore); refused (it names the binary to load)")
+    member = _binary_member(description)
+    present = _inside_file(Path(unzipdir), member) is not None if unzipdir is not None else _has_member(path, member)
     if not present:
         raise FmuArchiveError(path, f"no binary {member} for this platform in the FMU")
     return description
+
+
+def extracted_binary(path: str | Path, unzipdir: str | Path,
+                     description: fmpy.model_description.ModelDescription) -> Path:
+    """The absolute path of the FMU's binary for this platform in the folder unzipdir where the FMU
+    at path was extracted, checked to resolve (symbolic links followed) to a file inside unzipdir;
+    FmuArchiveError otherwise. Load nothing else."""
+    member = _binary_member(description)
+    binary = _inside_file(Path(unzipdir), member)
+    if binary is None:
+        raise FmuArchiveError(path, f"no binary {member} inside the extracted FMU; refused to load it")
+    return binary
+
+
+def _binary_member(description: fmpy.model_description.ModelDescription) -> str:
+    """The archive member name of this platform's co-simulation binary the description names."""
+    version = 3 if description.fmiVersion.startswith("3") else 2
+    return binary_path(Path(), description.coSimulation.modelIdentifier, version).as_posix()
+
+
+def _inside_file(unzipdir: Path, member: str) -> Path | None:
+    """unzipdir/member resolved, when that is an existing file inside unzipdir; else None."""
+    root = unzipdir.resolve()
+    target = (root / member).resolve()
+    return target if target.is_relative_to(root) and target.is_file() else None
 
 
 def _has_member(path: Path, member: str) -> bool:

@@ -14,7 +14,7 @@ from fmpy.fmi2 import FMU2Slave, fmi2Real, fmi2ValueReference
 from fmpy.fmi3 import FMU3Slave, fmi3Boolean, fmi3Float64, fmi3ValueReference
 from tqdm import tqdm
 
-from fmu.archive import extract_archive, read_description
+from fmu.archive import extract_archive, extracted_binary, read_description
 from fmu.fmi2_logger import callbacks_for, release
 from fmu.variables import by_name
 from training.errors import ImuFusionError, one_line
@@ -180,9 +180,10 @@ def step_samples(fmu: FMU2Slave | FMU3Slave, t: np.ndarray, inputs: np.ndarray, 
 def _instantiate(fmu_path: str | Path, unzipdir: str, log: _Log, instance_name: str) -> FMU2Slave | FMU3Slave:
     """Load the binary and instantiate an FMU2Slave or FMU3Slave; FmuError with the log on failure."""
     description = read_description(fmu_path, unzipdir)
+    library = extracted_binary(fmu_path, unzipdir, description)
     cls = FMU3Slave if description.fmiVersion.startswith("3") else FMU2Slave
     try:
-        fmu = cls(guid=description.guid, unzipDirectory=unzipdir,
+        fmu = cls(guid=description.guid, unzipDirectory=unzipdir, libraryPath=str(library),
                   modelIdentifier=description.coSimulation.modelIdentifier, instanceName=instance_name)
     except Exception as e:  # fmpy raises bare Exception, ctypes OSError for a binary that does not load
         raise FmuError(f"{fmu_path}: cannot load the FMU's binary ({one_line(str(e))})") from None

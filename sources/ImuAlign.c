@@ -29,6 +29,11 @@ int ImuAlignSettingsCheck(const ImuAlignSettings *s, const char **message)
     return text == NULL ? 0 : -1;
 }
 
+int ImuAlignStateValid(const ImuAlignState *s)
+{
+    return s->count >= 0 && s->count <= IMU_ALIGN_CAPACITY && s->head >= 0 && s->head < IMU_ALIGN_CAPACITY;
+}
+
 void ImuAlignReset(ImuAlignState *s)
 {
     int j, i;

@@ -47,6 +47,9 @@ typedef struct {
 
 /** @brief Check the lags (within +-IMU_ALIGN_MAX_LAG s); -1 with *message (if not NULL) naming the setting, else 0. */
 IMU_HIDDEN int ImuAlignSettingsCheck(const ImuAlignSettings *s, const char **message);
+/** @brief 1 if the buffer's count (0..IMU_ALIGN_CAPACITY) and head (0..IMU_ALIGN_CAPACITY - 1) can
+ *         index it (a restored FMU state), else 0. */
+IMU_HIDDEN int ImuAlignStateValid(const ImuAlignState *s);
 /** @brief Empty the buffer. */
 IMU_HIDDEN void ImuAlignReset(ImuAlignState *s);
 /**

@@ -271,6 +271,29 @@ static void ImuMagPfDrawPrior(ImuMagPf *pf)
     ImuMagPfEstimate(pf);
 }
 
+int ImuMagPfStateValid(const ImuMagPf *pf)
+{
+    const int k = pf->settings.sphereBins;
+    const int bins = k > 0 ? 6 * k * k : 1;
+    int i, used = 0;
+    if (bins > IMU_MAG_PF_MAX_BINS || pf->binCount < 0 || pf->binCount > bins
+        || pf->sampleCounter < 0 || pf->sampleCounter >= pf->settings.decimation) {
+        return 0;
+    }
+    for (i = 0; i < IMU_MAG_PF_MAX_BINS; i++) {
+        if (pf->binUsed[i] != 0 && (pf->binUsed[i] != 1 || i >= bins)) {
+            return 0;
+        }
+        used += pf->binUsed[i];
+    }
+    for (i = 0; i < pf->binCount; i++) {
+        if (pf->binList[i] < 0 || pf->binList[i] >= bins || !pf->binUsed[pf->binList[i]]) {
+            return 0;
+        }
+    }
+    return used == pf->binCount; /* binCount grows only when an unused bin fills: it stays <= bins */
+}
+
 /** @brief Reseed the generator and draw the prior particles (weights 1/N). */
 void ImuMagPfReset(ImuMagPf *pf)
 {

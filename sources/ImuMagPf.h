@@ -155,6 +155,11 @@ IMU_HIDDEN void ImuMagPfSettingsDefault(ImuMagPfSettings *settings, double field
 IMU_HIDDEN int ImuMagPfSettingsCheck(const ImuMagPfSettings *settings, const char **message);
 /** @brief Check settings, derive coefficients and reset; 0, or -1 (filter untouched) if invalid. */
 IMU_HIDDEN int ImuMagPfInitialise(ImuMagPf *pf, const ImuMagPfSettings *settings);
+/** @brief 1 if the evolving counters and indices of pf (a restored FMU state) fit its settings:
+ *         binCount and binList index the 6 sphereBins^2 bins (1 with sphereBins 0), every listed bin
+ *         is marked in binUsed and as many bins are marked as listed (so binCount cannot outgrow
+ *         the bins), and 0 <= sampleCounter < decimation; else 0. */
+IMU_HIDDEN int ImuMagPfStateValid(const ImuMagPf *pf);
 /** @brief Reseed the generator and draw the prior particles (weights 1/N). */
 IMU_HIDDEN void ImuMagPfReset(ImuMagPf *pf);
 /** @brief Feed one raw field sample [uT]; 1 if the filter updated, 0 if skipped or decimated. */

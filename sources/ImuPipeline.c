@@ -16,6 +16,7 @@ int ImuCoefficientsFromArray(ImuCoefficients *c, const double *a, size_t n)
     if (a == NULL || n != IMU_COEFFICIENT_COUNT || a[0] != IMU_LAYOUT_VERSION) {
         return -1;
     }
+    memset(c, 0, sizeof *c); /* padding too: the struct is part of the FMU state, whose bytes are checksummed */
     for (i = 0; i < 3; i++) {
         if (ImuThermalFromBlock(&c->thermal[i], a + IMU_OFFSET_THERMAL + i * IMU_THERMAL_BLOCK) != 0) {
             return -2;
@@ -69,6 +70,7 @@ int ImuPipelineSettingsFromArray(ImuPipelineSettings *s, const double *a, size_t
     if (a == NULL || n != IMU_SETTING_COUNT) {
         return -1;
     }
+    memset(s, 0, sizeof *s); /* padding too: the struct is part of the FMU state, whose bytes are checksummed */
     s->declination = a[ImuSetDeclination];
     s->fieldNorm = a[ImuSetFieldNorm];
     s->gyroNoise = a[ImuSetGyroNoise];
@@ -182,6 +184,7 @@ int ImuPipelineSettingsCheck(const ImuPipelineSettings *s, const char **message)
 void ImuPipelineInitialise(ImuPipeline *p, const ImuPipelineSettings *s, const ImuCoefficients *c)
 {
     ImuAttitudeSettings a;
+    memset(&a, 0, sizeof a); /* padding too: the FMU state's bytes are checksummed */
     p->settings = *s;
     p->coefficients = *c;
     a.gyroNoise = s->gyroNoise;

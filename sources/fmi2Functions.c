@@ -147,7 +147,7 @@ fmi2Status fmi2Reset(fmi2Component c) {
 
 fmi2Status fmi2GetReal(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, fmi2Real value[]) {
     size_t i;
-    if (!ModelAllowed(core(c), "fmi2GetReal", MODEL_ANY_PHASE)) {
+    if (!ModelAllowed(core(c), "fmi2GetReal", MODEL_ANY_PHASE) || !ModelArraysGiven(core(c), "fmi2GetReal", nvr, vr, value)) {
         return fmi2Error;
     }
     for (i = 0; i < nvr; i++) {
@@ -161,7 +161,7 @@ fmi2Status fmi2GetReal(fmi2Component c, const fmi2ValueReference vr[], size_t nv
 fmi2Status fmi2GetInteger(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, fmi2Integer value[]) {
     size_t i;
     int v;
-    if (!ModelAllowed(core(c), "fmi2GetInteger", MODEL_ANY_PHASE)) {
+    if (!ModelAllowed(core(c), "fmi2GetInteger", MODEL_ANY_PHASE) || !ModelArraysGiven(core(c), "fmi2GetInteger", nvr, vr, value)) {
         return fmi2Error;
     }
     for (i = 0; i < nvr; i++) {
@@ -176,7 +176,7 @@ fmi2Status fmi2GetInteger(fmi2Component c, const fmi2ValueReference vr[], size_t
 fmi2Status fmi2GetBoolean(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, fmi2Boolean value[]) {
     size_t i;
     int v;
-    if (!ModelAllowed(core(c), "fmi2GetBoolean", MODEL_ANY_PHASE)) {
+    if (!ModelAllowed(core(c), "fmi2GetBoolean", MODEL_ANY_PHASE) || !ModelArraysGiven(core(c), "fmi2GetBoolean", nvr, vr, value)) {
         return fmi2Error;
     }
     for (i = 0; i < nvr; i++) {
@@ -189,8 +189,7 @@ fmi2Status fmi2GetBoolean(fmi2Component c, const fmi2ValueReference vr[], size_t
 }
 
 fmi2Status fmi2GetString(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, fmi2String value[]) {
-    (void)value;
-    if (!ModelAllowed(core(c), "fmi2GetString", MODEL_ANY_PHASE)) {
+    if (!ModelAllowed(core(c), "fmi2GetString", MODEL_ANY_PHASE) || !ModelArraysGiven(core(c), "fmi2GetString", nvr, vr, value)) {
         return fmi2Error;
     }
     if (nvr > 0) {
@@ -202,7 +201,7 @@ fmi2Status fmi2GetString(fmi2Component c, const fmi2ValueReference vr[], size_t 
 
 fmi2Status fmi2SetReal(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, const fmi2Real value[]) {
     size_t i;
-    if (!ModelAllowed(core(c), "fmi2SetReal", MODEL_SET_PHASES)) {
+    if (!ModelAllowed(core(c), "fmi2SetReal", MODEL_SET_PHASES) || !ModelArraysGiven(core(c), "fmi2SetReal", nvr, vr, value)) {
         return fmi2Error;
     }
     for (i = 0; i < nvr; i++) {
@@ -215,7 +214,7 @@ fmi2Status fmi2SetReal(fmi2Component c, const fmi2ValueReference vr[], size_t nv
 
 fmi2Status fmi2SetInteger(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, const fmi2Integer value[]) {
     size_t i;
-    if (!ModelAllowed(core(c), "fmi2SetInteger", MODEL_SET_PHASES)) {
+    if (!ModelAllowed(core(c), "fmi2SetInteger", MODEL_SET_PHASES) || !ModelArraysGiven(core(c), "fmi2SetInteger", nvr, vr, value)) {
         return fmi2Error;
     }
     for (i = 0; i < nvr; i++) {
@@ -228,7 +227,7 @@ fmi2Status fmi2SetInteger(fmi2Component c, const fmi2ValueReference vr[], size_t
 
 fmi2Status fmi2SetBoolean(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, const fmi2Boolean value[]) {
     size_t i;
-    if (!ModelAllowed(core(c), "fmi2SetBoolean", MODEL_SET_PHASES)) {
+    if (!ModelAllowed(core(c), "fmi2SetBoolean", MODEL_SET_PHASES) || !ModelArraysGiven(core(c), "fmi2SetBoolean", nvr, vr, value)) {
         return fmi2Error;
     }
     for (i = 0; i < nvr; i++) {
@@ -240,8 +239,7 @@ fmi2Status fmi2SetBoolean(fmi2Component c, const fmi2ValueReference vr[], size_t
 }
 
 fmi2Status fmi2SetString(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, const fmi2String value[]) {
-    (void)value;
-    if (!ModelAllowed(core(c), "fmi2SetString", MODEL_SET_PHASES)) {
+    if (!ModelAllowed(core(c), "fmi2SetString", MODEL_SET_PHASES) || !ModelArraysGiven(core(c), "fmi2SetString", nvr, vr, value)) {
         return fmi2Error;
     }
     if (nvr > 0) {
@@ -255,7 +253,8 @@ fmi2Status fmi2SetString(fmi2Component c, const fmi2ValueReference vr[], size_t 
 
 fmi2Status fmi2GetFMUstate(fmi2Component c, fmi2FMUstate *FMUstate) {
     Instance *inst = (Instance *)c;
-    if (!ModelAllowed(core(c), "fmi2GetFMUstate", MODEL_ANY_PHASE)) {
+    if (!ModelAllowed(core(c), "fmi2GetFMUstate", MODEL_ANY_PHASE) ||
+        !ModelGiven(core(c), "fmi2GetFMUstate", FMUstate, "the FMUstate pointer")) {
         return fmi2Error;
     }
     if (*FMUstate == NULL) {
@@ -289,7 +288,8 @@ fmi2Status fmi2FreeFMUstate(fmi2Component c, fmi2FMUstate *FMUstate) {
 
 fmi2Status fmi2SerializedFMUstateSize(fmi2Component c, fmi2FMUstate FMUstate, size_t *size) {
     (void)FMUstate;
-    if (!ModelAllowed(core(c), "fmi2SerializedFMUstateSize", MODEL_ANY_PHASE)) {
+    if (!ModelAllowed(core(c), "fmi2SerializedFMUstateSize", MODEL_ANY_PHASE) ||
+        !ModelGiven(core(c), "fmi2SerializedFMUstateSize", size, "the size pointer")) {
         return fmi2Error;
     }
     *size = sizeof(ModelState);
@@ -297,19 +297,21 @@ fmi2Status fmi2SerializedFMUstateSize(fmi2Component c, fmi2FMUstate FMUstate, si
 }
 
 fmi2Status fmi2SerializeFMUstate(fmi2Component c, fmi2FMUstate FMUstate, fmi2Byte serializedState[], size_t size) {
-    if (!ModelAllowed(core(c), "fmi2SerializeFMUstate", MODEL_ANY_PHASE)) {
+    if (!ModelAllowed(core(c), "fmi2SerializeFMUstate", MODEL_ANY_PHASE) ||
+        !ModelGiven(core(c), "fmi2SerializeFMUstate", serializedState, "the serializedState buffer")) {
         return fmi2Error;
     }
     if (FMUstate == NULL || size != sizeof(ModelState)) {
         return (fmi2Status)ModelFail(core(c), "fmi2SerializeFMUstate", "NULL state or wrong buffer size");
     }
-    memcpy(serializedState, FMUstate, sizeof(ModelState));
+    ModelSerialize((const ModelState *)FMUstate, serializedState);
     return fmi2OK;
 }
 
 fmi2Status fmi2DeSerializeFMUstate(fmi2Component c, const fmi2Byte serializedState[], size_t size, fmi2FMUstate *FMUstate) {
     Instance *inst = (Instance *)c;
-    if (!ModelAllowed(core(c), "fmi2DeSerializeFMUstate", MODEL_ANY_PHASE)) {
+    if (!ModelAllowed(core(c), "fmi2DeSerializeFMUstate", MODEL_ANY_PHASE) ||
+        !ModelGiven(core(c), "fmi2DeSerializeFMUstate", FMUstate, "the FMUstate pointer")) {
         return fmi2Error;
     }
     if (ModelCheckSerialized(core(c), "fmi2DeSerializeFMUstate", serializedState, size) != ModelOk) {
@@ -377,7 +379,7 @@ fmi2Status fmi2GetStatus(fmi2Component c, const fmi2StatusKind s, fmi2Status *va
 }
 
 fmi2Status fmi2GetRealStatus(fmi2Component c, const fmi2StatusKind s, fmi2Real *value) {
-    if (!ModelAllowed(core(c), "fmi2GetRealStatus", MODEL_ANY_PHASE)) {
+    if (!ModelAllowed(core(c), "fmi2GetRealStatus", MODEL_ANY_PHASE) || !ModelGiven(core(c), "fmi2GetRealStatus", value, "the value pointer")) {
         return fmi2Error;
     }
     if (s != fmi2LastSuccessfulTime) {
@@ -394,7 +396,7 @@ fmi2Status fmi2GetIntegerStatus(fmi2Component c, const fmi2StatusKind s, fmi2Int
 }
 
 fmi2Status fmi2GetBooleanStatus(fmi2Component c, const fmi2StatusKind s, fmi2Boolean *value) {
-    if (!ModelAllowed(core(c), "fmi2GetBooleanStatus", MODEL_ANY_PHASE)) {
+    if (!ModelAllowed(core(c), "fmi2GetBooleanStatus", MODEL_ANY_PHASE) || !ModelGiven(core(c), "fmi2GetBooleanStatus", value, "the value pointer")) {
         return fmi2Error;
     }
     if (s != fmi2Terminated) {

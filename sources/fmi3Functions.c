@@ -41,7 +41,8 @@ static fmi3Status notProvided(fmi3Instance instance, const char *function, const
 
 /** @brief Getter/setter of a type this FMU has no variables of: OK for none, else fmi3Error. */
 static fmi3Status noVariables(fmi3Instance instance, const char *function, const fmi3ValueReference vr[], size_t nvr) {
-    if (!ModelAllowed(core(instance), function, MODEL_ANY_PHASE)) {
+    if (!ModelAllowed(core(instance), function, MODEL_ANY_PHASE) ||
+        (nvr > 0 && !ModelGiven(core(instance), function, vr, "the value reference array"))) {
         return fmi3Error;
     }
     if (nvr > 0) {
@@ -52,9 +53,11 @@ static fmi3Status noVariables(fmi3Instance instance, const char *function, const
     return fmi3OK;
 }
 
-/** @brief Check the phase and that one value per value reference is passed (all variables are scalars). */
-static int accessAllowed(fmi3Instance instance, const char *function, int phases, size_t nvr, size_t nValues) {
-    if (!ModelAllowed(core(instance), function, phases)) {
+/** @brief Check the phase, that both arrays are given and that one value per value reference is
+ *  passed (all variables are scalars). */
+static int accessAllowed(fmi3Instance instance, const char *function, int phases, size_t nvr, const void *vr,
+                         const void *values, size_t nValues) {
+    if (!ModelAllowed(core(instance), function, phases) || !ModelArraysGiven(core(instance), function, nvr, vr, values)) {
         return 0;
     }
     if (nValues != nvr) {
@@ -220,7 +223,7 @@ IMU_NO_SET(fmi3SetString, fmi3String)
 
 fmi3Status fmi3GetFloat64(fmi3Instance instance, const fmi3ValueReference vr[], size_t nvr, fmi3Float64 values[], size_t nValues) {
     size_t i;
-    if (!accessAllowed(instance, "fmi3GetFloat64", MODEL_ANY_PHASE, nvr, nValues)) {
+    if (!accessAllowed(instance, "fmi3GetFloat64", MODEL_ANY_PHASE, nvr, vr, values, nValues)) {
         return fmi3Error;
     }
     for (i = 0; i < nvr; i++) {
@@ -233,7 +236,7 @@ fmi3Status fmi3GetFloat64(fmi3Instance instance, const fmi3ValueReference vr[], 
 
 fmi3Status fmi3SetFloat64(fmi3Instance instance, const fmi3ValueReference vr[], size_t nvr, const fmi3Float64 values[], size_t nValues) {
     size_t i;
-    if (!accessAllowed(instance, "fmi3SetFloat64", MODEL_SET_PHASES, nvr, nValues)) {
+    if (!accessAllowed(instance, "fmi3SetFloat64", MODEL_SET_PHASES, nvr, vr, values, nValues)) {
         return fmi3Error;
     }
     for (i = 0; i < nvr; i++) {
@@ -247,7 +250,7 @@ fmi3Status fmi3SetFloat64(fmi3Instance instance, const fmi3ValueReference vr[], 
 fmi3Status fmi3GetInt32(fmi3Instance instance, const fmi3ValueReference vr[], size_t nvr, fmi3Int32 values[], size_t nValues) {
     size_t i;
     int v;
-    if (!accessAllowed(instance, "fmi3GetInt32", MODEL_ANY_PHASE, nvr, nValues)) {
+    if (!accessAllowed(instance, "fmi3GetInt32", MODEL_ANY_PHASE, nvr, vr, values, nValues)) {
         return fmi3Error;
     }
     for (i = 0; i < nvr; i++) {
@@ -261,7 +264,7 @@ fmi3Status fmi3GetInt32(fmi3Instance instance, const fmi3ValueReference vr[], si
 
 fmi3Status fmi3SetInt32(fmi3Instance instance, const fmi3ValueReference vr[], size_t nvr, const fmi3Int32 values[], size_t nValues) {
     size_t i;
-    if (!accessAllowed(instance, "fmi3SetInt32", MODEL_SET_PHASES, nvr, nValues)) {
+    if (!accessAllowed(instance, "fmi3SetInt32", MODEL_SET_PHASES, nvr, vr, values, nValues)) {
         return fmi3Error;
     }
     for (i = 0; i < nvr; i++) {
@@ -275,7 +278,7 @@ fmi3Status fmi3SetInt32(fmi3Instance instance, const fmi3ValueReference vr[], si
 fmi3Status fmi3GetBoolean(fmi3Instance instance, const fmi3ValueReference vr[], size_t nvr, fmi3Boolean values[], size_t nValues) {
     size_t i;
     int v;
-    if (!accessAllowed(instance, "fmi3GetBoolean", MODEL_ANY_PHASE, nvr, nValues)) {
+    if (!accessAllowed(instance, "fmi3GetBoolean", MODEL_ANY_PHASE, nvr, vr, values, nValues)) {
         return fmi3Error;
     }
     for (i = 0; i < nvr; i++) {
@@ -289,7 +292,7 @@ fmi3Status fmi3GetBoolean(fmi3Instance instance, const fmi3ValueReference vr[], 
 
 fmi3Status fmi3SetBoolean(fmi3Instance instance, const fmi3ValueReference vr[], size_t nvr, const fmi3Boolean values[], size_t nValues) {
     size_t i;
-    if (!accessAllowed(instance, "fmi3SetBoolean", MODEL_SET_PHASES, nvr, nValues)) {
+    if (!accessAllowed(instance, "fmi3SetBoolean", MODEL_SET_PHASES, nvr, vr, values, nValues)) {
         return fmi3Error;
     }
     for (i = 0; i < nvr; i++) {
@@ -349,7 +352,8 @@ fmi3Status fmi3GetVariableDependencies(fmi3Instance instance, fmi3ValueReference
 /* ---- FMU state: copies of ModelState --------------------------------------------------------- */
 
 fmi3Status fmi3GetFMUState(fmi3Instance instance, fmi3FMUState *FMUState) {
-    if (!ModelAllowed(core(instance), "fmi3GetFMUState", MODEL_ANY_PHASE)) {
+    if (!ModelAllowed(core(instance), "fmi3GetFMUState", MODEL_ANY_PHASE) ||
+        !ModelGiven(core(instance), "fmi3GetFMUState", FMUState, "the FMUState pointer")) {
         return fmi3Error;
     }
     if (*FMUState == NULL) {
@@ -382,7 +386,8 @@ fmi3Status fmi3FreeFMUState(fmi3Instance instance, fmi3FMUState *FMUState) {
 
 fmi3Status fmi3SerializedFMUStateSize(fmi3Instance instance, fmi3FMUState FMUState, size_t *size) {
     (void)FMUState;
-    if (!ModelAllowed(core(instance), "fmi3SerializedFMUStateSize", MODEL_ANY_PHASE)) {
+    if (!ModelAllowed(core(instance), "fmi3SerializedFMUStateSize", MODEL_ANY_PHASE) ||
+        !ModelGiven(core(instance), "fmi3SerializedFMUStateSize", size, "the size pointer")) {
         return fmi3Error;
     }
     *size = sizeof(ModelState);
@@ -390,18 +395,20 @@ fmi3Status fmi3SerializedFMUStateSize(fmi3Instance instance, fmi3FMUState FMUSta
 }
 
 fmi3Status fmi3SerializeFMUState(fmi3Instance instance, fmi3FMUState FMUState, fmi3Byte serializedState[], size_t size) {
-    if (!ModelAllowed(core(instance), "fmi3SerializeFMUState", MODEL_ANY_PHASE)) {
+    if (!ModelAllowed(core(instance), "fmi3SerializeFMUState", MODEL_ANY_PHASE) ||
+        !ModelGiven(core(instance), "fmi3SerializeFMUState", serializedState, "the serializedState buffer")) {
         return fmi3Error;
     }
     if (FMUState == NULL || size != sizeof(ModelState)) {
         return (fmi3Status)ModelFail(core(instance), "fmi3SerializeFMUState", "NULL state or wrong buffer size");
     }
-    memcpy(serializedState, FMUState, sizeof(ModelState));
+    ModelSerialize((const ModelState *)FMUState, serializedState);
     return fmi3OK;
 }
 
 fmi3Status fmi3DeserializeFMUState(fmi3Instance instance, const fmi3Byte serializedState[], size_t size, fmi3FMUState *FMUState) {
-    if (!ModelAllowed(core(instance), "fmi3DeserializeFMUState", MODEL_ANY_PHASE)) {
+    if (!ModelAllowed(core(instance), "fmi3DeserializeFMUState", MODEL_ANY_PHASE) ||
+        !ModelGiven(core(instance), "fmi3DeserializeFMUState", FMUState, "the FMUState pointer")) {
         return fmi3Error;
     }
     if (ModelCheckSerialized(core(instance), "fmi3DeserializeFMUState", serializedState, size) != ModelOk) {
@@ -597,12 +604,23 @@ fmi3Status fmi3GetOutputDerivatives(fmi3Instance instance, const fmi3ValueRefere
     return notProvided(instance, "fmi3GetOutputDerivatives", "output derivatives are not provided (maxOutputDerivativeOrder=0)");
 }
 
+/** @brief 1 when all four output pointers of fmi3DoStep are given; else logs which is NULL and returns 0. */
+static int doStepOutputsGiven(fmi3Instance instance, const fmi3Boolean *eventHandlingNeeded, const fmi3Boolean *terminateSimulation,
+                              const fmi3Boolean *earlyReturn, const fmi3Float64 *lastSuccessfulTime) {
+    return ModelGiven(core(instance), "fmi3DoStep", eventHandlingNeeded, "eventHandlingNeeded") &&
+           ModelGiven(core(instance), "fmi3DoStep", terminateSimulation, "terminateSimulation") &&
+           ModelGiven(core(instance), "fmi3DoStep", earlyReturn, "earlyReturn") &&
+           ModelGiven(core(instance), "fmi3DoStep", lastSuccessfulTime, "lastSuccessfulTime");
+}
+
 fmi3Status fmi3DoStep(fmi3Instance instance, fmi3Float64 currentCommunicationPoint, fmi3Float64 communicationStepSize,
                       fmi3Boolean noSetFMUStatePriorToCurrentPoint, fmi3Boolean *eventHandlingNeeded,
                       fmi3Boolean *terminateSimulation, fmi3Boolean *earlyReturn, fmi3Float64 *lastSuccessfulTime) {
     fmi3Status status;
     (void)noSetFMUStatePriorToCurrentPoint;
-    if (!ModelAllowed(core(instance), "fmi3DoStep", PhaseStepMode)) {
+    if (!ModelAllowed(core(instance), "fmi3DoStep", PhaseStepMode) || !doStepOutputsGiven(instance, eventHandlingNeeded,
+                                                                                          terminateSimulation, earlyReturn,
+                                                                                          lastSuccessfulTime)) {
         return fmi3Error;
     }
     status = (fmi3Status)ModelDoStep(core(instance), "fmi3DoStep", currentCommunicationPoint, communicationStepSize);

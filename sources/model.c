@@ -7,6 +7,7 @@
 #include <math.h>
 #include <stdarg.h>
 #include <stdio.h>
+#include <stdlib.h>
 #include <string.h>
 
 #include "ImuCoefficientsData.h"
@@ -229,6 +230,19 @@ ModelStatus ModelFail(const ModelInstance *mi, const char *function, const char 
     return ModelError;
 }
 
+int ModelGiven(const ModelInstance *mi, const char *function, const void *pointer, const char *what) {
+    if (pointer == NULL) {
+        ModelLog(mi, ModelError, LogStatusError, "%s: %s is NULL", function, what);
+        return 0;
+    }
+    return 1;
+}
+
+int ModelArraysGiven(const ModelInstance *mi, const char *function, size_t n, const void *vr, const void *values) {
+    return n == 0 || (ModelGiven(mi, function, vr, "the value reference array") &&
+                      ModelGiven(mi, function, values, "the value array"));
+}
+
 int ModelAllowed(const ModelInstance *mi, const char *function, int phases) {
     if (mi == NULL) {
         return 0;
@@ -243,6 +257,15 @@ int ModelAllowed(const ModelInstance *mi, const char *function, int phases) {
 ModelStatus ModelSetDebugLogging(ModelInstance *mi, int loggingOn, size_t n, const char *const categories[]) {
     size_t i;
     int k;
+    if (n > 0 && categories == NULL) {
+        return ModelFail(mi, "SetDebugLogging", "nCategories > 0 but the category list is NULL");
+    }
+    for (i = 0; i < n; i++) {
+        if (categories[i] == NULL) {
+            ModelLog(mi, ModelError, LogStatusError, "SetDebugLogging: category %lu of the list is NULL", (unsigned long)i);
+            return ModelError;
+        }
+    }
     mi->loggingOn = loggingOn != 0;
     for (k = 0; k < MODEL_LOG_CATEGORY_COUNT; k++) {
         mi->categoryOn[k] = n == 0;
@@ -452,6 +475,33 @@ ModelStatus ModelDoStep(ModelInstance *mi, const char *function, double t, doubl
 
 /* ---- FMU state ------------------------------------------------------------------------------- */
 
+#define MODEL_FNV_OFFSET 14695981039346656037ull
+#define MODEL_FNV_PRIME 1099511628211ull
+
+unsigned long long ModelStateChecksum(const void *bytes, size_t size) {
+    const unsigned char *b = (const unsigned char *)bytes;
+    unsigned long long hash = MODEL_FNV_OFFSET;
+    size_t i;
+    for (i = 0; i < size; i++) {
+        hash = (hash ^ b[i]) * MODEL_FNV_PRIME;
+    }
+    return hash;
+}
+
+/** @brief Checksum of the body of a serialized state: every byte after the header. */
+static unsigned long long bodyChecksum(const void *bytes) {
+    return ModelStateChecksum((const unsigned char *)bytes + sizeof(ModelStateHeader),
+                              sizeof(ModelState) - sizeof(ModelStateHeader));
+}
+
+void ModelSerialize(const ModelState *state, void *bytes) {
+    ModelStateHeader header;
+    memcpy(bytes, state, sizeof(ModelState));
+    memcpy(&header, bytes, sizeof header);
+    header.checksum = bodyChecksum(bytes);
+    memcpy(bytes, &header, sizeof header);
+}
+
 /** @brief NULL if *h heads a state of this binary, else what is wrong with it. */
 static const char *stateProblem(const ModelStateHeader *h) {
     if (h->magic != MODEL_STATE_MAGIC || h->size != sizeof(ModelState)) {
@@ -463,7 +513,96 @@ static const char *stateProblem(const ModelStateHeader *h) {
     return NULL;
 }
 
+/** @brief 1 if phase is exactly one ModelPhase. */
+static int validPhase(int phase) {
+    return phase == PhaseInstantiated || phase == PhaseInitialization || phase == PhaseStepMode
+        || phase == PhaseTerminated || phase == PhaseError;
+}
+
+/** @brief 1 if the n values are all finite. */
+static int allFinite(const double *x, int n) {
+    int i;
+    for (i = 0; i < n; i++) {
+        if (!isfinite(x[i])) {
+            return 0;
+        }
+    }
+    return 1;
+}
+
+/** @brief Replace what the pipeline of an initialised state derives from its parameters (settings,
+ *         coefficients of every stage, the derived values of the attitude, particle filter and
+ *         PSO-BP) by values built from m->settings and the compiled-in coefficient data, so no
+ *         restored count, size or index of them is used; NULL, or what is wrong. */
+static const char *rederivePipeline(ModelData *m) {
+    ImuCoefficients coefficients;
+    ImuPipelineSettings settings;
+    ImuPipeline *fresh;
+    ImuPipeline *p = &m->pipeline;
+    const char *problem = NULL;
+    if (ImuCoefficientsFromArray(&coefficients, IMU_COEFFICIENT_DATA, IMU_COEFFICIENT_COUNT) != 0) {
+        return "the compiled-in coefficient data has the wrong size or layout version";
+    }
+    if (ImuPipelineSettingsFromArray(&settings, m->settings, IMU_SETTING_COUNT) != 0
+        || ImuPipelineSettingsCheck(&settings, &problem) != 0) {
+        return problem != NULL ? problem : "the settings array has the wrong size";
+    }
+    fresh = (ImuPipeline *)calloc(1, sizeof *fresh);
+    if (fresh == NULL) {
+        return "out of memory";
+    }
+    ImuPipelineInitialise(fresh, &settings, &coefficients);
+    p->settings = fresh->settings;
+    p->coefficients = fresh->coefficients;
+    p->attitude.settings = fresh->attitude.settings;
+    p->pf.settings = fresh->pf.settings;
+    p->pf.coefficients = fresh->pf.coefficients;
+    p->psobp.tau = fresh->psobp.tau;
+    free(fresh);
+    return NULL;
+}
+
+/** @brief Make the restored state s safe to run: check every field that indexes or sizes anything
+ *         and re-derive the parameters' consequences; NULL, or what is wrong (in s's terms). */
+static const char *restoredStateProblem(ModelState *s) {
+    ModelData *m = &s->model;
+    const char *problem;
+    if (!validPhase(s->phase)) {
+        return "phase is not a state-machine phase";
+    }
+    if (m->initialised != 0 && m->initialised != 1) {
+        return "initialised is not 0 or 1";
+    }
+    if ((s->phase & (PhaseStepMode | PhaseTerminated)) && !m->initialised) {
+        return "the phase is Step Mode or Terminated but the pipeline is not initialised";
+    }
+    if ((m->issues & ~((1 << MODEL_ISSUE_COUNT) - 1)) != 0) {
+        return "issues has bits that are no ModelIssue";
+    }
+    if ((m->guard.hasSample != 0 && m->guard.hasSample != 1) || (m->guard.present & ~IMU_GUARD_SENSORS) != 0) {
+        return "the guard's hasSample or present bits are invalid";
+    }
+    if (!isfinite(s->time) || !isfinite(m->stepSize) || !allFinite(m->guard.held, IMU_OUTPUT_COUNT)) {
+        return "the time, step size [s] or held outputs are not finite";
+    }
+    if (!m->initialised) {
+        return NULL; /* the pipeline is initialised from the parameters before it runs */
+    }
+    problem = rederivePipeline(m);
+    if (problem != NULL) {
+        return problem;
+    }
+    if (!ImuAlignStateValid(&m->pipeline.align)) {
+        return "the time-alignment buffer's count or head is outside 0..63";
+    }
+    if (m->pipeline.settings.enablePf && !ImuMagPfStateValid(&m->pipeline.pf)) {
+        return "the particle filter's bin list, bin count or sample counter does not fit its settings";
+    }
+    return NULL;
+}
+
 ModelStatus ModelSetState(ModelInstance *mi, const char *function, const ModelState *state) {
+    ModelState *restored;
     const char *problem;
     if (state == NULL) {
         return ModelFail(mi, function, "the FMU state is NULL");
@@ -472,8 +611,20 @@ ModelStatus ModelSetState(ModelInstance *mi, const char *function, const ModelSt
     if (problem != NULL) {
         return ModelFail(mi, function, problem);
     }
-    memcpy(&mi->state, state, sizeof(ModelState));
-    return ModelOk;
+    restored = (ModelState *)malloc(sizeof *restored);
+    if (restored == NULL) {
+        return ModelFail(mi, function, "out of memory");
+    }
+    memcpy(restored, state, sizeof *restored);
+    problem = restoredStateProblem(restored);
+    if (problem == NULL) {
+        memcpy(&mi->state, restored, sizeof(ModelState));
+        mi->state.header.checksum = 0;
+    } else {
+        ModelLog(mi, ModelError, LogStatusError, "%s: invalid FMU state: %s", function, problem);
+    }
+    free(restored);
+    return problem == NULL ? ModelOk : ModelError;
 }
 
 ModelStatus ModelCheckSerialized(const ModelInstance *mi, const char *function, const void *bytes, size_t size) {
@@ -484,5 +635,8 @@ ModelStatus ModelCheckSerialized(const ModelInstance *mi, const char *function, 
     }
     memcpy(&incoming, bytes, sizeof incoming); /* the header is the state's first member */
     problem = stateProblem(&incoming);
+    if (problem == NULL && incoming.checksum != bodyChecksum(bytes)) {
+        problem = "the serialized FMU state is corrupt (FNV-1a 64 checksum of its body differs)";
+    }
     return problem == NULL ? ModelOk : ModelFail(mi, function, problem);
 }

@@ -4,7 +4,8 @@
  *
  * ModelData maps value references to the runtime; bad input is sanitised by the guard the
  * batch library shares (ImuGuard.h). ModelInstance adds what both FMI versions share: the state machine, debug logging and the FMU state. The FMU
- * state is one plain struct (ModelState), so get/set/serialize are copies. fmi2Functions.c and
+ * state is one plain struct (ModelState): get is a copy, serialize a copy sealed with a checksum,
+ * set a copy after every field that indexes or sizes anything is checked or re-derived. fmi2Functions.c and
  * fmi3Functions.c only translate FMI types and callbacks to these functions.
  */
 #ifndef IMU_MODEL_H
@@ -85,6 +86,8 @@ typedef struct {
     unsigned int magic;          /* MODEL_STATE_MAGIC */
     unsigned int size;           /* sizeof(ModelState) */
     char guid[MODEL_GUID_SIZE];  /* the binary's GUID: a state only fits the build that made it */
+    unsigned long long checksum; /* ModelStateChecksum of the bytes after the header; set by
+                                  * ModelSerialize, checked by ModelCheckSerialized (0 in memory) */
 } ModelStateHeader;
 
 /** The FMU state: everything that evolves, so get/set/serialize are copies. */
@@ -123,6 +126,10 @@ IMU_HIDDEN void ModelLog(const ModelInstance *mi, ModelStatus status, ModelLogCa
 IMU_HIDDEN int ModelAllowed(const ModelInstance *mi, const char *function, int phases);
 /** @brief Log an error "function: message" and return ModelError. */
 IMU_HIDDEN ModelStatus ModelFail(const ModelInstance *mi, const char *function, const char *message);
+/** @brief 1 if pointer is not NULL; else logs the error "function: what is NULL" and returns 0. */
+IMU_HIDDEN int ModelGiven(const ModelInstance *mi, const char *function, const void *pointer, const char *what);
+/** @brief 1 if n is 0 or both the value references and the values are given; else logs and returns 0. */
+IMU_HIDDEN int ModelArraysGiven(const ModelInstance *mi, const char *function, size_t n, const void *vr, const void *values);
 /** @brief Switch debug logging; categories by name (none = all). Warning for an unknown name. */
 IMU_HIDDEN ModelStatus ModelSetDebugLogging(ModelInstance *mi, int loggingOn, size_t n, const char *const categories[]);
 /** @brief Back to the state right after instantiation (FMI Reset). */
@@ -154,9 +161,18 @@ IMU_HIDDEN ModelStatus ModelSetInteger(ModelInstance *mi, const char *function, 
  *         consumed) for a step size that is not finite and > 0.
  */
 IMU_HIDDEN ModelStatus ModelDoStep(ModelInstance *mi, const char *function, double t, double h);
-/** @brief Replace mi's state by *state after checking that it is a state of this binary. */
+/** @brief FNV-1a 64 hash of size bytes (offset basis 14695981039346656037, prime 1099511628211):
+ *         the checksum of a serialized state's body (tests/test_state_fuzz.py pins it). */
+IMU_HIDDEN unsigned long long ModelStateChecksum(const void *bytes, size_t size);
+/** @brief Write the sizeof(ModelState) bytes of *state with the checksum of its body into bytes. */
+IMU_HIDDEN void ModelSerialize(const ModelState *state, void *bytes);
+/** @brief Replace mi's state by *state after checking that it is a state of this binary and
+ *         that every field that indexes or sizes anything is valid: settings and coefficients are
+ *         re-derived from the state's parameters and the compiled-in coefficient data, the
+ *         evolving counters and indices are checked (Error naming the first bad field; mi's state
+ *         is unchanged then). */
 IMU_HIDDEN ModelStatus ModelSetState(ModelInstance *mi, const char *function, const ModelState *state);
-/** @brief Check that size bytes are a serialized state of this binary. */
+/** @brief Check that size bytes are a serialized state of this binary whose checksum matches. */
 IMU_HIDDEN ModelStatus ModelCheckSerialized(const ModelInstance *mi, const char *function, const void *bytes, size_t size);
 
 #endif

@@ -1,0 +1,247 @@
+/**
+ * @file state_fuzz.c
+ * @brief Restore mutated serialized FMU states into FMI 3 instances (tests/test_state_fuzz.py).
+ *
+ * Built with the FMU sources (FMI 3 wrapper) and a generated ImuCoefficientsData.h, under
+ * AddressSanitizer + UndefinedBehaviorSanitizer by the test. Three modes:
+ *   state_fuzz layout          one line "member offset size" per field of ModelState that
+ *                              indexes, sizes or switches something (the fields the test edits)
+ *   state_fuzz base OUT        run an instance (particle filter on) for BASE_STEPS samples and
+ *                              write its serialized state to OUT
+ *   state_fuzz restore IN      IN holds records [8-byte little-endian size, bytes]; each is
+ *                              deserialized and set into a fresh initialised instance that then
+ *                              runs RESTORED_STEPS samples. One line per record:
+ *                              "rejected <message>", "finite", "nonfinite" (an output not
+ *                              finite) or "steperror" (doStep returned Error: a restored phase
+ *                              that does not step); a crash or sanitizer report aborts the program.
+ */
+#include <math.h>
+#include <stddef.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "fmi3Functions.h"
+#include "model.h"
+
+#define BASE_STEPS 300
+#define RESTORED_STEPS 100
+#define STEP_SIZE 0.01 /* s */
+
+/** The last Error message an instance logged. */
+typedef struct {
+    char last[640];
+} ErrorLog;
+
+/** @brief fmi3LogMessageCallback keeping the last Error message. */
+static void keepError(fmi3InstanceEnvironment environment, fmi3Status status, fmi3String category, fmi3String message) {
+    ErrorLog *log = (ErrorLog *)environment;
+    (void)category;
+    if (status == fmi3Error) {
+        strncpy(log->last, message, sizeof log->last - 1);
+    }
+}
+
+/** @brief Sample k of a turning, rocking sensor: rad/s, m/s^2, uT, degC, auxiliary inputs 0. */
+static void sample(int k, double x[IMU_INPUT_COUNT]) {
+    const double t = k * STEP_SIZE, roll = 0.3 * sin(1.3 * t), pitch = 0.2 * sin(0.9 * t), yaw = 0.5 * t;
+    int i;
+    for (i = 0; i < IMU_INPUT_COUNT; i++) {
+        x[i] = 0.0;
+    }
+    x[0] = 0.39 * cos(1.3 * t);
+    x[1] = 0.18 * cos(0.9 * t);
+    x[2] = 0.5;
+    x[3] = 9.80665 * sin(pitch);
+    x[4] = -9.80665 * sin(roll) * cos(pitch);
+    x[5] = -9.80665 * cos(roll) * cos(pitch);
+    x[6] = 20.0 * cos(yaw) + 3.0;
+    x[7] = -20.0 * sin(yaw) - 2.0;
+    x[8] = 40.0;
+    x[9] = 20.0 + 0.5 * t;
+}
+
+/** @brief Instantiate and initialise an FMI 3 instance with the particle filter on (sphere bins 2). */
+static fmi3Instance start(ErrorLog *log) {
+    const fmi3ValueReference flag = vr_enable_pf;
+    const fmi3Boolean on = fmi3True;
+    const fmi3ValueReference bins = vr_pf_sphere_bins;
+    const fmi3Int32 two = 2;
+    fmi3Instance s = fmi3InstantiateCoSimulation("fuzz", ModelGuid(), "", fmi3False, fmi3False, fmi3False, fmi3False,
+                                                 NULL, 0, log, keepError, NULL);
+    if (s == NULL || fmi3SetBoolean(s, &flag, 1, &on, 1) != fmi3OK || fmi3SetInt32(s, &bins, 1, &two, 1) != fmi3OK
+        || fmi3EnterInitializationMode(s, fmi3False, 0.0, 0.0, fmi3False, 0.0) != fmi3OK
+        || fmi3ExitInitializationMode(s) != fmi3OK) {
+        fprintf(stderr, "cannot initialise an instance: %s\n", log->last);
+        exit(2);
+    }
+    return s;
+}
+
+/** @brief Step samples from..to-1 from time t0 [s]; 1 if every output of every step was finite,
+ *         0 if one was not, -1 if a doStep returned Error. */
+static int run(fmi3Instance s, int from, int to, double t0) {
+    fmi3ValueReference inputVrs[IMU_INPUT_COUNT], outVrs[IMU_OUTPUT_COUNT];
+    double x[IMU_INPUT_COUNT], out[IMU_OUTPUT_COUNT];
+    fmi3Boolean event, terminate, early;
+    fmi3Float64 last;
+    int k, j, finite = 1;
+    for (j = 0; j < IMU_INPUT_COUNT; j++) {
+        inputVrs[j] = (fmi3ValueReference)(j < ImuInAux1 ? VR_FIRST_INPUT + j : VR_FIRST_AUX + j - ImuInAux1);
+    }
+    for (j = 0; j < IMU_OUTPUT_COUNT; j++) {
+        outVrs[j] = (fmi3ValueReference)(j < ImuOutCalibrationValid ? VR_FIRST_OUTPUT + j
+                                                                     : VR_FIRST_VALIDITY + j - ImuOutCalibrationValid);
+    }
+    for (k = from; k < to; k++) {
+        sample(k, x);
+        fmi3SetFloat64(s, inputVrs, IMU_INPUT_COUNT, x, IMU_INPUT_COUNT);
+        if (fmi3DoStep(s, t0 + (k - from) * STEP_SIZE, STEP_SIZE, fmi3True, &event, &terminate, &early, &last) == fmi3Error) {
+            return -1;
+        }
+        fmi3GetFloat64(s, outVrs, IMU_OUTPUT_COUNT, out, IMU_OUTPUT_COUNT);
+        for (j = 0; j < IMU_OUTPUT_COUNT; j++) {
+            finite &= isfinite(out[j]) != 0;
+        }
+    }
+    return finite;
+}
+
+#define FIELD(member) printf("%s %lu %lu\n", #member, (unsigned long)offsetof(ModelState, member), \
+                             (unsigned long)sizeof(((ModelState *)0)->member))
+
+/** @brief Print the fields the test edits: every int of the state that indexes, sizes or switches
+ *         something, and the parameters (doubles) that size the particle filter. */
+static void layout(void) {
+    FIELD(phase);
+    FIELD(time);
+    FIELD(model.initialised);
+    FIELD(model.issues);
+    FIELD(model.stepSize);
+    FIELD(model.guard.hasSample);
+    FIELD(model.guard.present);
+    FIELD(model.guard.held[0]);
+    FIELD(model.settings[ImuSetAttitudeMode]);
+    FIELD(model.settings[ImuSetPfParticles]);
+    FIELD(model.settings[ImuSetPfDecimation]);
+    FIELD(model.settings[ImuSetPfSphereBins]);
+    FIELD(model.settings[ImuSetEnablePf]);
+    FIELD(model.pipeline.settings.attitudeMode);
+    FIELD(model.pipeline.settings.enablePf);
+    FIELD(model.pipeline.settings.enablePsoBp);
+    FIELD(model.pipeline.settings.enableElm);
+    FIELD(model.pipeline.settings.pf.particleCount);
+    FIELD(model.pipeline.settings.pf.decimation);
+    FIELD(model.pipeline.settings.pf.hiddenUnits);
+    FIELD(model.pipeline.settings.pf.sphereBins);
+    FIELD(model.pipeline.coefficients.thermal[0].degree);
+    FIELD(model.pipeline.coefficients.thermal[2].enabled);
+    FIELD(model.pipeline.coefficients.terms.count);
+    FIELD(model.pipeline.coefficients.terms.target[0]);
+    FIELD(model.pipeline.coefficients.terms.a[0]);
+    FIELD(model.pipeline.coefficients.terms.b[0]);
+    FIELD(model.pipeline.coefficients.elm.enabled);
+    FIELD(model.pipeline.coefficients.elm.hidden);
+    FIELD(model.pipeline.coefficients.elm.activation);
+    FIELD(model.pipeline.coefficients.psobp.mode);
+    FIELD(model.pipeline.coefficients.psobp.hidden);
+    FIELD(model.pipeline.attitude.settings.mode);
+    FIELD(model.pipeline.attitude.tiltInitialised);
+    FIELD(model.pipeline.align.count);
+    FIELD(model.pipeline.align.head);
+    FIELD(model.pipeline.terms.started);
+    FIELD(model.pipeline.pf.settings.particleCount);
+    FIELD(model.pipeline.pf.settings.decimation);
+    FIELD(model.pipeline.pf.settings.sphereBins);
+    FIELD(model.pipeline.pf.settings.hiddenUnits);
+    FIELD(model.pipeline.pf.settings.raoBlackwell);
+    FIELD(model.pipeline.pf.rng.hasSpare);
+    FIELD(model.pipeline.pf.sampleCounter);
+    FIELD(model.pipeline.pf.binUsed[5]);
+    FIELD(model.pipeline.pf.binList[0]);
+    FIELD(model.pipeline.pf.binCount);
+    FIELD(model.pipeline.pf.evidenceDirections);
+    FIELD(model.pipeline.pf.retestDirections);
+    FIELD(model.pipeline.pf.work.parent[0]);
+    FIELD(model.pipeline.psobp.started);
+    FIELD(model.pipeline.psobp.tau);
+}
+
+/** @brief Write the serialized state of an instance that ran BASE_STEPS samples to path. */
+static int base(const char *path) {
+    ErrorLog log = {{0}};
+    fmi3Instance s = start(&log);
+    fmi3FMUState state = NULL;
+    size_t size = 0;
+    unsigned char *bytes;
+    FILE *f = fopen(path, "wb");
+    if (f == NULL || run(s, 0, BASE_STEPS, 0.0) != 1 || fmi3GetFMUState(s, &state) != fmi3OK
+        || fmi3SerializedFMUStateSize(s, state, &size) != fmi3OK || (bytes = malloc(size)) == NULL) {
+        fprintf(stderr, "%s: cannot make the base state\n", path);
+        return 2;
+    }
+    fmi3SerializeFMUState(s, state, bytes, size);
+    fwrite(bytes, 1, size, f);
+    fclose(f);
+    free(bytes);
+    fmi3FreeFMUState(s, &state);
+    fmi3FreeInstance(s);
+    return 0;
+}
+
+/** @brief Restore one record of n bytes into a fresh instance and print the outcome line. */
+static void restoreOne(const unsigned char *bytes, size_t n) {
+    ErrorLog log = {{0}};
+    fmi3Instance s = start(&log);
+    fmi3FMUState state = NULL;
+    int outcome;
+    if (fmi3DeserializeFMUState(s, bytes, n, &state) != fmi3OK || fmi3SetFMUState(s, state) != fmi3OK) {
+        printf("rejected %s\n", log.last);
+    } else {
+        outcome = run(s, BASE_STEPS, BASE_STEPS + RESTORED_STEPS, BASE_STEPS * STEP_SIZE);
+        printf("%s\n", outcome == 1 ? "finite" : outcome == 0 ? "nonfinite" : "steperror");
+    }
+    fmi3FreeFMUState(s, &state);
+    fmi3FreeInstance(s);
+}
+
+/** @brief Restore every record of the file at path. */
+static int restore(const char *path) {
+    FILE *f = fopen(path, "rb");
+    unsigned char header[8];
+    if (f == NULL) {
+        fprintf(stderr, "%s: cannot open\n", path);
+        return 2;
+    }
+    while (fread(header, 1, sizeof header, f) == sizeof header) {
+        size_t n = 0, i;
+        unsigned char *bytes;
+        for (i = 0; i < sizeof header; i++) {
+            n |= (size_t)header[i] << (8 * i);
+        }
+        bytes = malloc(n > 0 ? n : 1);
+        if (bytes == NULL || fread(bytes, 1, n, f) != n) {
+            fprintf(stderr, "%s: truncated record\n", path);
+            return 2;
+        }
+        restoreOne(bytes, n);
+        free(bytes);
+    }
+    fclose(f);
+    return 0;
+}
+
+int main(int argc, char **argv) {
+    if (argc == 2 && strcmp(argv[1], "layout") == 0) {
+        layout();
+        return 0;
+    }
+    if (argc == 3 && strcmp(argv[1], "base") == 0) {
+        return base(argv[2]);
+    }
+    if (argc == 3 && strcmp(argv[1], "restore") == 0) {
+        return restore(argv[2]);
+    }
+    fprintf(stderr, "usage: state_fuzz layout | base OUT | restore IN\n");
+    return 2;
+}
