@@ -6,7 +6,6 @@ a marker file; the marker must not exist afterwards.
 """
 from __future__ import annotations
 
-import shutil
 import subprocess
 import tempfile
 import zipfile
@@ -15,6 +14,8 @@ from pathlib import Path
 import fmpy
 import numpy as np
 import pytest
+
+from debian_tools import debian_tool
 
 from cli_errors import fails
 from fmu.archive import FmuArchiveError, extracted_binary, read_description
@@ -49,9 +50,7 @@ def _fmu(path: Path, identifier: str) -> Path:
 def evil(tmp_path, monkeypatch):
     """(FMU naming the library by traversal, marker file, library): extraction folders go under
     tmp_path/temp, so the traversal from there reaches tmp_path/evil.so."""
-    gcc = shutil.which("gcc")
-    if gcc is None:
-        pytest.skip("gcc is not installed")
+    gcc = debian_tool("gcc")
     marker = tmp_path / "marker.txt"
     source = tmp_path / "evil.c"
     source.write_text(EVIL_C)

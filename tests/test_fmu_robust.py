@@ -7,7 +7,6 @@ valgrind memcheck. clang and valgrind come from Debian; CI installs them (.ci/ru
 """
 from __future__ import annotations
 
-import shutil
 import subprocess
 import zipfile
 from pathlib import Path
@@ -16,6 +15,7 @@ import fmpy
 import numpy as np
 import pytest
 
+from debian_tools import debian_tool
 from fmu.compiler import SOURCE_DIR, binary_path, fmu_source_files
 from fmu.cosim import DISCARD, OK, WARNING, FmuError, Stepper, initialised_fmu, run_fmu
 from fmu.header import HEADER_NAME, coefficient_header
@@ -59,14 +59,6 @@ def header_dir(tmp_path_factory) -> Path:
     (folder / HEADER_NAME).write_text(
         coefficient_header(np.array(identity_coefficients()), {}, "{c-tests}", "C tests"))
     return folder
-
-
-def _tool(name: str) -> str:
-    """Path of a Debian tool, or skip the test (CI installs it, see .ci/run)."""
-    path = shutil.which(name)
-    if path is None:
-        pytest.skip(f"{name} is not installed (apt-get install {name}); CI installs it")
-    return path
 
 
 def _compile(command: list[str]) -> None:
@@ -119,7 +111,7 @@ def test_invalid_parameter_is_an_initialisation_error_naming_it(fmu_path, name, 
 
 def _compile_objects(compiler: str, header_dir: Path, out_dir: Path) -> list[Path]:
     """Compile every FMU source of both FMI versions to an object file with the strict flags."""
-    cc = _tool(compiler)
+    cc = debian_tool(compiler)
     files = sorted({p for version in (2, 3) for p in fmu_source_files(fmi_version=version) if p.suffix == ".c"})
     objects = []
     for source in files:
@@ -144,7 +136,7 @@ def test_sources_compile_warning_free_under_clang(header_dir, tmp_path):
 
 
 def test_no_mutable_global_state(gcc_objects):
-    nm = _tool("nm")
+    nm = debian_tool("nm")
     writable = []
     for obj in gcc_objects:
         symbols = subprocess.run([nm, "-f", "sysv", str(obj)], stdout=subprocess.PIPE, text=True, check=True).stdout
@@ -158,7 +150,7 @@ def test_no_mutable_global_state(gcc_objects):
 
 
 def test_c_glue_suite_under_address_and_undefined_behaviour_sanitizers(header_dir, tmp_path):
-    cc = _tool("gcc")
+    cc = debian_tool("gcc")
     sources = [p for p in fmu_source_files(fmi_version=3) if p.suffix == ".c"]
     program = tmp_path / "test_glue"
     _compile([cc, *STRICT, "-g", "-O1", "-fsanitize=address,undefined", "-fno-sanitize-recover=all",
@@ -170,7 +162,7 @@ def test_c_glue_suite_under_address_and_undefined_behaviour_sanitizers(header_di
 
 
 def test_cosimulation_under_valgrind_has_no_errors_or_leaks(fmu_path, tmp_path):
-    valgrind, cc = _tool("valgrind"), _tool("gcc")
+    valgrind, cc = debian_tool("valgrind"), debian_tool("gcc")
     driver = tmp_path / "cosim_driver"
     _compile([cc, *STRICT, "-g", f"-I{FMI_HEADERS}", f"-I{SOURCE_DIR}", str(C_TESTS / "cosim_driver.c"),
               "-o", str(driver), "-ldl", "-lm"])

@@ -12,7 +12,6 @@ that runs 100 steps with finite outputs.
 """
 from __future__ import annotations
 
-import shutil
 import struct
 import subprocess
 from pathlib import Path
@@ -20,6 +19,8 @@ from pathlib import Path
 import fmpy
 import numpy as np
 import pytest
+
+from debian_tools import debian_tool
 from fmpy.fmi1 import FMICallException
 
 from fmu.compiler import SOURCE_DIR, fmu_source_files
@@ -104,17 +105,10 @@ def _edit(base: bytes, name: str, offset: int, size: int, rng, header_size: int,
     return f"{name} = {value} (resealed {reseal_it})", bytes(state), changed and not reseal_it
 
 
-def _tool(name: str) -> str:
-    path = shutil.which(name)
-    if path is None:
-        pytest.skip(f"{name} is not installed (apt-get install {name}); CI installs it")
-    return path
-
-
 @pytest.fixture(scope="module")
 def harness(tmp_path_factory) -> Path:
     """tests/c/state_fuzz.c with the FMI 3 sources under ASan + UBSan (identity coefficients)."""
-    cc = _tool("gcc")
+    cc = debian_tool("gcc")
     folder = tmp_path_factory.mktemp("state_fuzz")
     (folder / HEADER_NAME).write_text(
         coefficient_header(np.array(identity_coefficients()), {}, "{state-fuzz}", "state fuzz test"))

@@ -23,6 +23,7 @@
 
 #include "fmi3Functions.h"
 #include "model.h"
+#include "motion.h"
 
 #define BASE_STEPS 300
 #define RESTORED_STEPS 100
@@ -42,23 +43,11 @@ static void keepError(fmi3InstanceEnvironment environment, fmi3Status status, fm
     }
 }
 
-/** @brief Sample k of a turning, rocking sensor: rad/s, m/s^2, uT, degC, auxiliary inputs 0. */
+/** @brief Sample k of the test motion (motion.h) with a hard iron of (3, -2, 0) uT. */
 static void sample(int k, double x[IMU_INPUT_COUNT]) {
-    const double t = k * STEP_SIZE, roll = 0.3 * sin(1.3 * t), pitch = 0.2 * sin(0.9 * t), yaw = 0.5 * t;
-    int i;
-    for (i = 0; i < IMU_INPUT_COUNT; i++) {
-        x[i] = 0.0;
-    }
-    x[0] = 0.39 * cos(1.3 * t);
-    x[1] = 0.18 * cos(0.9 * t);
-    x[2] = 0.5;
-    x[3] = 9.80665 * sin(pitch);
-    x[4] = -9.80665 * sin(roll) * cos(pitch);
-    x[5] = -9.80665 * cos(roll) * cos(pitch);
-    x[6] = 20.0 * cos(yaw) + 3.0;
-    x[7] = -20.0 * sin(yaw) - 2.0;
-    x[8] = 40.0;
-    x[9] = 20.0 + 0.5 * t;
+    motionSample(k * STEP_SIZE, x);
+    x[6] += 3.0;
+    x[7] -= 2.0;
 }
 
 /** @brief Instantiate and initialise an FMI 3 instance with the particle filter on (sphere bins 2). */

@@ -13,6 +13,7 @@
 
 #include "fmi3Functions.h"
 #include "model.h"
+#include "motion.h"
 
 #define STEPS 400
 #define STEP_SIZE 0.01 /* s */
@@ -47,21 +48,11 @@ static void countLog(fmi3InstanceEnvironment environment, fmi3Status status, fmi
     strncpy(log->last, message, sizeof log->last - 1);
 }
 
-/** @brief Sample k of a rocking, turning sensor: rad/s, m/s^2, uT, degC, auxiliary inputs. */
+/** @brief Sample k of the test motion (motion.h) with varying auxiliary inputs. */
 static void sample(int k, double x[IMU_INPUT_COUNT]) {
-    int i;
     const double t = k * STEP_SIZE;
-    const double roll = 0.3 * sin(1.3 * t), pitch = 0.2 * sin(0.9 * t), yaw = 0.5 * t;
-    x[0] = 0.39 * cos(1.3 * t);
-    x[1] = 0.18 * cos(0.9 * t);
-    x[2] = 0.5;
-    x[3] = 9.80665 * sin(pitch);
-    x[4] = -9.80665 * sin(roll) * cos(pitch);
-    x[5] = -9.80665 * cos(roll) * cos(pitch);
-    x[6] = 20.0 * cos(yaw);
-    x[7] = -20.0 * sin(yaw);
-    x[8] = 40.0;
-    x[9] = 20.0 + 0.5 * t;
+    int i;
+    motionSample(t, x);
     for (i = ImuInAux1; i < IMU_INPUT_COUNT; i++) {
         x[i] = sin((i - ImuInAux1 + 1) * t); /* unused by the identity coefficients */
     }
