@@ -164,6 +164,14 @@ _LAYOUT_4_OUTPUTS: tuple[Variable, ...] = (
 )
 
 
+#: Parameters added by layout version 4, after calibration_valid.
+_MOUNTING: tuple[Variable, ...] = tuple(
+    _parameter(f"mount_{axis}", 78 + k, f"The sensor axis that is body {axis} (FRD: x forward, y right, z down), "
+               "with its sign: 1 = +x, 2 = +y, 3 = +z, -1 = -x, -2 = -y, -3 = -z; the three must name different "
+               "axes and stay right-handed. A board with z up and x forward: 1, -2, -3")
+    for k, axis in enumerate("xyz"))
+
+
 def aux_description(k: int, entry: dict | None) -> str:
     """Description of input aux_k (k from 1): the recording column, unit and meaning a model's
     aux_inputs entry maps to it, or that the model leaves it unused."""
@@ -186,7 +194,7 @@ def variable_table(aux_inputs: Sequence[dict] = ()) -> tuple[Variable, ...]:
     (entry k describes input aux_{k+1})."""
     if len(aux_inputs) > len(AUX_INPUTS):
         raise ValueError(f"{len(aux_inputs)} auxiliary inputs mapped, the FMU has {len(AUX_INPUTS)}")
-    return _LAYOUT_2 + _aux_inputs(aux_inputs) + _LAGS + _LAYOUT_4_OUTPUTS
+    return _LAYOUT_2 + _aux_inputs(aux_inputs) + _LAGS + _LAYOUT_4_OUTPUTS + _MOUNTING
 
 
 VARIABLES: tuple[Variable, ...] = variable_table()

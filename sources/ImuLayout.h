@@ -80,6 +80,9 @@ typedef enum {
     ImuSetLagGyr,            /* s, how long the gyro input lags true time (ImuAlign.h) */
     ImuSetLagAcc,            /* s */
     ImuSetLagMag,            /* s */
+    ImuSetMountX,            /* signed sensor axis that is body x: 1..3 = +x..+z, -1..-3 = -x..-z (ImuMount.h) */
+    ImuSetMountY,            /* signed sensor axis that is body y */
+    ImuSetMountZ,            /* signed sensor axis that is body z */
     IMU_SETTING_COUNT
 } ImuSetting;
 

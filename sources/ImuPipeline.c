@@ -1,7 +1,7 @@
 /**
  * @file ImuPipeline.c
  * @brief The per-sample processing chain: thermal compensation -> time alignment -> correction
- *        terms -> magnetometer stages -> attitude fusion.
+ *        terms -> magnetometer stages -> mounting (sensor -> body axes) -> attitude fusion.
  */
 #include <math.h>
 #include <stdio.h>
@@ -92,6 +92,10 @@ int ImuPipelineSettingsFromArray(ImuPipelineSettings *s, const double *a, size_t
     s->align.lag[0] = a[ImuSetLagGyr];
     s->align.lag[1] = a[ImuSetLagAcc];
     s->align.lag[2] = a[ImuSetLagMag];
+    s->mountValid = ImuMountFromCodes(&s->mount, &a[ImuSetMountX]) == 0;
+    if (!s->mountValid) {
+        ImuMountIdentity(&s->mount);
+    }
     ImuPipelinePfSettings(&s->pf, a);
     return 0;
 }
@@ -171,6 +175,9 @@ int ImuPipelineSettingsCheck(const ImuPipelineSettings *s, const char **message)
         /* problem names the particle-filter setting and its range */
     } else if (ImuAlignSettingsCheck(&s->align, &problem) != 0) {
         /* problem names the lag setting and its range */
+    } else if (!s->mountValid) {
+        problem = "mount_x, mount_y, mount_z must each name a sensor axis with its sign (1 = +x, 2 = +y, "
+                  "3 = +z, -1 = -x, -2 = -y, -3 = -z), three different axes that stay right-handed";
     } else {
         problem = ImuPipelineCheckAttitude(s);
     }
@@ -279,6 +286,16 @@ static void ImuPipelineMagPf(ImuPipeline *p, double out[IMU_OUTPUT_COUNT])
     out[ImuOutPfNeff] = ImuMagPfGetEffectiveSampleSize(&p->pf);
 }
 
+/** @brief Turn the calibrated triads and the particle filter's estimates in out[] from sensor into body axes. */
+static void ImuPipelineMount(const ImuMount *m, double out[IMU_OUTPUT_COUNT])
+{
+    ImuMountVector(m, &out[ImuOutRateX]);
+    ImuMountVector(m, &out[ImuOutAccelX]);
+    ImuMountVector(m, &out[ImuOutFieldX]);
+    ImuMountVector(m, &out[ImuOutHardIronX]);
+    ImuMountDiagonal(m, &out[ImuOutSoftIronXx]);
+}
+
 /** @brief The field the attitude filter may use: out[field], or NaN while the particle filter has not
  *         settled after a change (its estimate is still wide). */
 static const double *ImuPipelineHeadingField(const ImuPipeline *p, const double out[IMU_OUTPUT_COUNT])
@@ -305,6 +322,7 @@ void ImuPipelineUpdate(ImuPipeline *p, double t, double dt, const double in[IMU_
         p->rangeIssues |= ImuRangeElm;
     }
     out[ImuOutCalibrationValid] = p->rangeIssues == 0 ? 1.0 : 0.0;
+    ImuPipelineMount(&p->settings.mount, out);
     ImuAttitudeUpdate(&p->attitude, &out[ImuOutRateX], &out[ImuOutAccelX], ImuPipelineHeadingField(p, out), dt);
     ImuAttitudeGetEuler(&p->attitude, &out[ImuOutRoll]);
     out[ImuOutHeading] = ImuWrapAngle(out[ImuOutYaw] + p->settings.declination);

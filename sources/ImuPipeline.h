@@ -1,7 +1,7 @@
 /**
  * @file ImuPipeline.h
  * @brief The per-sample processing chain: thermal compensation -> time alignment -> correction
- *        terms -> magnetometer stages -> attitude fusion.
+ *        terms -> magnetometer stages -> mounting (sensor -> body axes) -> attitude fusion.
  *
  * Knows nothing of FMI. The FMU (model.c) and the batch library (ImuBatch.c) both drive it
  * through these verbs, so both give bit-identical outputs for the same inputs.
@@ -14,6 +14,7 @@
 #include "ImuLayout.h"
 #include "ImuThermal.h"
 #include "ImuAlign.h"
+#include "ImuMount.h"
 #include "ImuAttitude.h"
 #include "ImuTerms.h"
 #include "ImuElm.h"
@@ -50,6 +51,8 @@ typedef struct {
     int enablePsoBp;         /* 0 or 1: PSO-BP gyro bias network (mode of its block) */
     ImuMagPfSettings pf;     /* particle-filter settings (defaults + the FMU parameters) */
     ImuAlignSettings align;  /* lags [s] of the gyr, acc, mag inputs behind true time */
+    ImuMount mount;          /* sensor axes -> body axes (identity when the codes are invalid) */
+    int mountValid;          /* 1 if mount_x, mount_y, mount_z form a proper signed axis permutation */
 } ImuPipelineSettings;
 
 /** Models whose input left the range it was calibrated on in the last sample (one bit each); the

@@ -98,13 +98,17 @@ typedef enum {
     vr_lag_acc = 75,
     vr_lag_mag = 76,
     /* outputs (layout version 4): calibrated-range flag (ImuOutCalibrationValid) */
-    vr_calibration_valid = 77
+    vr_calibration_valid = 77,
+    /* parameters (layout version 4): mounting, sensor -> body axes (ImuSetMountX..) */
+    vr_mount_x = 78,
+    vr_mount_y = 79,
+    vr_mount_z = 80
 } ValueReference;
 
 /** Parameters of type Boolean; every other variable is Real (FMI 3: Float64) unless VR_IS_INTEGER. */
 #define VR_IS_BOOLEAN(vr) ((vr) == vr_enable_thermal || (vr) == vr_enable_elm || (vr) == vr_enable_pf || (vr) == vr_enable_psobp || (vr) == vr_pf_rao_blackwell || (vr) == vr_pf_hold_prior)
 /** Parameters of type Integer (FMI 3: Int32), stored as whole numbers in the settings array. */
-#define VR_IS_INTEGER(vr) ((vr) == vr_attitude_mode || (vr) == vr_pf_particles || (vr) == vr_pf_decimation || (vr) == vr_pf_seed || (vr) == vr_pf_sphere_bins)
+#define VR_IS_INTEGER(vr) ((vr) == vr_attitude_mode || (vr) == vr_pf_particles || (vr) == vr_pf_decimation || (vr) == vr_pf_seed || (vr) == vr_pf_sphere_bins || (vr) == vr_mount_x || (vr) == vr_mount_y || (vr) == vr_mount_z)
 
 /** FMI 3 only: the independent variable "time" [s], outside the variable table's range. */
 #define VR_TIME 1000000u
@@ -115,6 +119,7 @@ typedef enum {
 #define VR_FIRST_AUX vr_aux_1
 #define VR_FIRST_LAG vr_lag_gyr
 #define VR_FIRST_VALIDITY vr_calibration_valid
-#define VR_COUNT (vr_calibration_valid + 1)
+#define VR_FIRST_MOUNT vr_mount_x
+#define VR_COUNT (vr_mount_z + 1)
 
 #endif

@@ -26,8 +26,9 @@ static const VariableGroup variableGroups[] = {
     {VR_FIRST_OUTPUT, ImuOutCalibrationValid, 'o', 0},
     {VR_FIRST_SETTING, ImuSetLagGyr, 's', 0},
     {VR_FIRST_AUX, IMU_INPUT_COUNT - ImuInAux1, 'i', ImuInAux1},
-    {VR_FIRST_LAG, IMU_SETTING_COUNT - ImuSetLagGyr, 's', ImuSetLagGyr},
-    {VR_FIRST_VALIDITY, IMU_OUTPUT_COUNT - ImuOutCalibrationValid, 'o', ImuOutCalibrationValid}
+    {VR_FIRST_LAG, ImuSetMountX - ImuSetLagGyr, 's', ImuSetLagGyr},
+    {VR_FIRST_VALIDITY, IMU_OUTPUT_COUNT - ImuOutCalibrationValid, 'o', ImuOutCalibrationValid},
+    {VR_FIRST_MOUNT, IMU_SETTING_COUNT - ImuSetMountX, 's', ImuSetMountX}
 };
 
 /* The groups of config.h must be contiguous and match the array sizes of ImuLayout.h. */
@@ -35,8 +36,9 @@ typedef char ModelCheckInputs[(VR_FIRST_OUTPUT - VR_FIRST_INPUT == ImuInAux1) ? 
 typedef char ModelCheckOutputs[(VR_FIRST_SETTING - VR_FIRST_OUTPUT == ImuOutCalibrationValid) ? 1 : -1];
 typedef char ModelCheckSettings[(VR_FIRST_AUX - VR_FIRST_SETTING == ImuSetLagGyr) ? 1 : -1];
 typedef char ModelCheckAux[(VR_FIRST_LAG - VR_FIRST_AUX == IMU_INPUT_COUNT - ImuInAux1) ? 1 : -1];
-typedef char ModelCheckLags[(VR_FIRST_VALIDITY - VR_FIRST_LAG == IMU_SETTING_COUNT - ImuSetLagGyr) ? 1 : -1];
-typedef char ModelCheckValidity[(VR_COUNT - VR_FIRST_VALIDITY == IMU_OUTPUT_COUNT - ImuOutCalibrationValid) ? 1 : -1];
+typedef char ModelCheckLags[(VR_FIRST_VALIDITY - VR_FIRST_LAG == ImuSetMountX - ImuSetLagGyr) ? 1 : -1];
+typedef char ModelCheckValidity[(VR_FIRST_MOUNT - VR_FIRST_VALIDITY == IMU_OUTPUT_COUNT - ImuOutCalibrationValid) ? 1 : -1];
+typedef char ModelCheckMount[(VR_COUNT - VR_FIRST_MOUNT == IMU_SETTING_COUNT - ImuSetMountX) ? 1 : -1];
 
 #define MODEL_STATE_MAGIC 0x494D5546u /* "IMUF" */
 #define MODEL_LOG_BUFFER_SIZE 640

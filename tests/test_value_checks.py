@@ -8,6 +8,7 @@ training/model_checks.py; the sidecar fields against training/sidecar.py.
 from __future__ import annotations
 
 import ctypes
+import itertools
 import json
 import math
 import re
@@ -27,6 +28,7 @@ from training.errors import DataError, ModelError
 from training.layout import (FIELD_NORM_MAX_UT, FIELD_NORM_MIN_UT, RAO_BLACKWELL_POSITIVE, SETTING_RANGES,
                              SETTINGS, settings_array)
 from training.runtime import load_runtime
+from training.mounting import MOUNT_SETTINGS, mounting_problem
 from training.schema import setting_problem
 from training.thermal import ThermalModel
 
@@ -75,8 +77,14 @@ def _bound_cases(name: str, low: float, high: float) -> list[tuple[float, bool]]
             (math.nextafter(low, -math.inf), False), (math.nextafter(high, math.inf), False)]
 
 
-def _context(name: str) -> dict[str, float]:
-    """Other settings a bound depends on: the Rao-Blackwellised filter needs positive spreads."""
+def _context(name: str, value: float = math.nan) -> dict[str, float]:
+    """Other settings a bound depends on: the Rao-Blackwellised filter needs positive spreads; a
+    mounting code needs the other two codes that make a rotation with it (if any)."""
+    if name in MOUNT_SETTINGS:
+        k = MOUNT_SETTINGS.index(name)
+        for codes in itertools.product((-3, -2, -1, 1, 2, 3), repeat=3):
+            if codes[k] == value and mounting_problem(codes) is None:
+                return {n: float(c) for n, c in zip(MOUNT_SETTINGS, codes) if n != name}
     return {"pf_rao_blackwell": 0.0} if name in RAO_BLACKWELL_POSITIVE else {}
 
 
@@ -99,7 +107,7 @@ def test_model_description_min_max_are_the_c_limits(fmi_version):
     for name, (low, high) in declared.items():
         assert (low, high) == (SETTING_RANGES[name].min, SETTING_RANGES[name].max)
         for value, accepted in _bound_cases(name, low, high):
-            ok, message = _c_accepts({**_context(name), name: value})
+            ok, message = _c_accepts({**_context(name, value), name: value})
             if ok != accepted or (not ok and name not in message):
                 wrong[f"{name}={value!r}"] = message or "accepted"
     assert wrong == {}

@@ -17,6 +17,7 @@ import numpy as np
 
 from .errors import ModelError
 from .model_checks import flag_problem, term_problem, thermal_problem
+from .mounting import mounting_problem, settings_codes
 from .schema import setting_problem
 from .layout import (AUX_INPUTS, MAX_DEGREE, STAGE_BLOCKS, TERM_SIGNALS, TERM_TARGETS, TERMS_MAX,
                      TRIAD_ORDER, pack_coefficients, settings_defaults, terms_block)
@@ -224,7 +225,8 @@ def _check_header(doc: dict, path) -> None:
 
 def _settings_from_json(doc, path) -> dict[str, float]:
     """Settings object -> dict; ModelError for an unknown name or a value outside the setting's
-    declared type and range (training.layout.SETTING_RANGES; a Boolean may be true/false)."""
+    declared type and range (training.layout.SETTING_RANGES; a Boolean may be true/false), and for
+    mounting codes that are no rotation (training.mounting)."""
     if not isinstance(doc, dict):
         _fail(path, "'settings' is not an object")
     known = settings_defaults()
@@ -234,6 +236,9 @@ def _settings_from_json(doc, path) -> dict[str, float]:
         problem = setting_problem(name, value)
         if problem:
             _fail(path, f"settings: {problem}")
+    problem = mounting_problem(settings_codes(doc))
+    if problem:
+        _fail(path, f"settings: {problem}")
     return {k: float(v) for k, v in doc.items()}
 
 

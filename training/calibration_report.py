@@ -25,7 +25,8 @@ DISPLAY = {"gyr": ("°/s", float(np.rad2deg(1.0))), "acc": ("m/s²", 1.0), "mag"
 SETTINGS_SHOWN = {"attitude_mode": ("", 1.0), "rest_gyro_threshold": ("°/s", float(np.rad2deg(1.0))),
                   "gyro_noise": ("°/s/√Hz", float(np.rad2deg(1.0))), "field_norm": ("µT", 1.0),
                   "field_dip": ("°", float(np.rad2deg(1.0))), "declination": ("°", float(np.rad2deg(1.0))),
-                  "pf_measurement_noise": ("µT", 1.0), "enable_elm": ("", 1.0), "enable_psobp": ("", 1.0)}
+                  "pf_measurement_noise": ("µT", 1.0), "enable_elm": ("", 1.0), "enable_psobp": ("", 1.0),
+                  "mount_x": ("", 1.0), "mount_y": ("", 1.0), "mount_z": ("", 1.0)}
 #: Rows of a recording plotted at most (evenly thinned): enough to show every rest and motion.
 PLOT_ROWS = 20000
 

@@ -169,14 +169,26 @@ def reference_quaternion_magnetic(data: ImuData) -> np.ndarray:
     return quaternion_multiply(rot, data.ref_q)
 
 
-def tilt_heading_errors(out: np.ndarray, data: ImuData) -> np.ndarray:
-    """(N, 2) [inclination, heading] errors [rad] of q_err = q_est ⊗ q_ref⁻¹ (BROAD's definitions)."""
-    q_est = out[:, [_COL["q_w"], _COL["q_x"], _COL["q_y"], _COL["q_z"]]]
-    q_ref = reference_quaternion_magnetic(data) * np.array([1.0, -1.0, -1.0, -1.0])
-    w, _, _, z = quaternion_multiply(q_est, q_ref).T
+def tilt_heading_between(q_est: np.ndarray, q_ref: np.ndarray) -> np.ndarray:
+    """(N, 2) [inclination, heading] errors [rad] of q_err = q_est ⊗ q_ref⁻¹ (BROAD's definitions) for
+    (N, 4) body -> nav quaternions in the same body and nav axes."""
+    w, _, _, z = quaternion_multiply(q_est, q_ref * np.array([1.0, -1.0, -1.0, -1.0])).T
     heading = 2.0 * np.arctan(np.abs(z / w))
     tilt = 2.0 * np.arccos(np.clip(np.sqrt(w * w + z * z), 0.0, 1.0))
     return np.column_stack([tilt, heading])
+
+
+def tilt_from_level(q: np.ndarray) -> np.ndarray:
+    """(N,) angle [rad] between body z and nav z of (N, 4) body -> nav quaternions: the tilt from
+    level of an FRD body in NED (0 level, π upside down)."""
+    _, x, y, _ = q.T
+    return np.arccos(np.clip(1.0 - 2.0 * (x * x + y * y), -1.0, 1.0))
+
+
+def tilt_heading_errors(out: np.ndarray, data: ImuData) -> np.ndarray:
+    """(N, 2) [inclination, heading] errors [rad] of the outputs' attitude against the reference."""
+    q_est = out[:, [_COL["q_w"], _COL["q_x"], _COL["q_y"], _COL["q_z"]]]
+    return tilt_heading_between(q_est, reference_quaternion_magnetic(data))
 
 
 def raw_sensor_metrics(data: ImuData) -> dict[str, float]:

@@ -72,6 +72,9 @@ SETTINGS = (
     ("lag_gyr", 0.0),                 # s, how long the gyro input lags true time (< 0: it leads; sources/ImuAlign.h)
     ("lag_acc", 0.0),                 # s, how long the accelerometer input lags true time
     ("lag_mag", 0.0),                 # s, how long the magnetometer input lags true time
+    ("mount_x", 1.0),                 # signed sensor axis that is body x: 1 = +x, 2 = +y, 3 = +z, negative = opposite (training/mounting.py)
+    ("mount_y", 2.0),                 # signed sensor axis that is body y
+    ("mount_z", 3.0),                 # signed sensor axis that is body z
 )
 
 @dataclass(frozen=True)
@@ -79,7 +82,8 @@ class SettingRange:
     """Declared type and range of one setting: Real, Integer (whole numbers) or Boolean (0 or 1).
 
     min/max [unit] are inclusive unless min_open/max_open (the bound itself is refused; FMI's
-    min/max attributes cannot say so, so the FMU refuses it at initialisation). unit: the FMI unit
+    min/max attributes cannot say so, so the FMU refuses it at initialisation); nonzero: 0 is
+    refused too (likewise refused only at initialisation). unit: the FMI unit
     of a Real (None: dimensionless). typical (angles in rad only): a |value| above it is legal but
     looks like degrees given as rad (warned about in degrees, not refused).
     """
@@ -91,6 +95,7 @@ class SettingRange:
     min_open: bool = False
     max_open: bool = False
     typical: float | None = None
+    nonzero: bool = False
 
 
 #: Named bounds of the settings, from physics and from the runtime's fixed-size arrays.
@@ -128,6 +133,9 @@ _TIME = SettingRange(_REAL, 0.0, TIME_SETTING_MAX_S, "s", min_open=True)
 _UNIT_FRACTION = SettingRange(_REAL, 0.0, 1.0)
 _LAG = SettingRange(_REAL, -LAG_MAX_S, LAG_MAX_S, "s")
 _PF_SPREAD = SettingRange(_REAL, 0.0, PF_SPREAD_MAX_UT, "uT")
+#: A signed sensor axis (±1..±3); 0 and a triple that repeats or mirrors an axis are refused
+#: together (training/mounting.py mounting_problem, ImuPipelineSettingsCheck).
+_MOUNT_AXIS = SettingRange(_INTEGER, -3.0, 3.0, nonzero=True)
 
 #: Type, range and unit (FMI spelling) of every setting, by name (SETTINGS order). The one source:
 #: fmu/variables.py takes the FMI types, units and the modelDescription.xml min/max from it,
@@ -170,6 +178,9 @@ SETTING_RANGES = {
     "lag_gyr": _LAG,
     "lag_acc": _LAG,
     "lag_mag": _LAG,
+    "mount_x": _MOUNT_AXIS,
+    "mount_y": _MOUNT_AXIS,
+    "mount_z": _MOUNT_AXIS,
 }
 #: Settings that are only valid together (ImuMagPfSettingsCheck): with pf_rao_blackwell = 1 the
 #: hard-iron spreads must be > 0 µT.

@@ -15,6 +15,7 @@ import numpy as np
 from .dataset import ImuData
 from .errors import ImuFusionError
 from .evaluate import absent_outputs, compute_metrics, max_abs_difference, raw_sensor_metrics
+from .mounting import array_codes, body_references
 
 SCENARIO_DIR = Path(__file__).resolve().parents[1] / "scenarios"
 DEFAULT_CALIBRATION = "calibration.toml"
@@ -92,10 +93,11 @@ def evaluate_recording(fmu_path: Path, coefficients: np.ndarray, settings: np.nd
     diff = max_abs_difference(out_fmu, out_batch)  # an absent sensor's NaN outputs match
     raw_out = run_batch(coefficients, uncompensated_settings(s), data.t, inputs)
     raw = raw_sensor_metrics(data)
-    raw_att = compute_metrics(raw_out, data)
+    body = body_references(data, array_codes(s))  # the outputs are in body axes
+    raw_att = compute_metrics(raw_out, body)
     raw.update({k: v for k, v in raw_att.as_dict().items() if k.endswith("_deg")})
     write_outputs_csv(out_csv, data.t, out_fmu)
-    return ScenarioResult(data.name, len(data), compute_metrics(out_fmu, data).as_dict(), raw,
+    return ScenarioResult(data.name, len(data), compute_metrics(out_fmu, body).as_dict(), raw,
                           diff, str(out_csv), data, out_fmu, raw_out, absent_outputs(out_fmu))
 
 

@@ -3,7 +3,8 @@
 The sidecars (or the IGRF field at their site) give the earth field; the calibrated gyro at rest
 gives its noise density, the bias the calibration leaves and the rest-detection threshold; the
 calibrated field gives the particle filter's noise and thresholds (training.pf_settings); the
-self-calibration's field norm and dip stand in when the sidecars say nothing.
+self-calibration's field norm and dip stand in when the sidecars say nothing; the direction of
+gravity at rest gives the mounting (training.mounting).
 """
 from __future__ import annotations
 
@@ -12,6 +13,7 @@ import numpy as np
 from .dataset import ImuData
 from .errors import ModelError
 from .layout import settings_defaults
+from .mounting import recommended_mounting
 from .reference import true_runs
 from .reference_source import TriadReference
 from .thermal import ThermalModel, apply_thermal
@@ -172,4 +174,5 @@ def recommended_settings(datasets: list[ImuData], refs: dict[str, TriadReference
         notes.append("gyro_noise, gyro_bias_residual, rest_gyro_threshold: no gyro at rest after "
                      "calibration; defaults kept")
     settings.update(_pf_settings(datasets, thermal["mag"], settings["field_norm"], notes))
+    settings.update(recommended_mounting(datasets, notes))
     return settings

@@ -36,7 +36,7 @@ def range_text(name: str) -> str:
     if r.type == "Boolean":
         return "0 or 1"
     if r.type == "Integer":
-        return f"a whole number in {int(r.min)}..{int(r.max)}"
+        return f"a whole number in {int(r.min)}..{int(r.max)}{' other than 0' if r.nonzero else ''}"
     return (f"{'(' if r.min_open else '['}{number_text(r.min)}, {number_text(r.max)}"
             f"{')' if r.max_open else ']'}{_unit_suffix(name)}")
 
@@ -45,7 +45,7 @@ def _within(value: float, r: SettingRange) -> bool:
     """True if value lies in the declared range (open bounds excluded)."""
     above = value > r.min if r.min_open else value >= r.min
     below = value < r.max if r.max_open else value <= r.max
-    return above and below
+    return above and below and not (r.nonzero and value == 0.0)
 
 
 def setting_problem(name: str, value) -> str | None:

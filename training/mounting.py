@@ -1,0 +1,159 @@
+"""Mounting: the sensor's axes turned into the body axes by a signed axis permutation.
+
+The Python side of sources/ImuMount.h. Settings mount_x, mount_y, mount_z name the sensor axis
+that each body axis is, with its sign (1 = +x, 2 = +y, 3 = +z, negative: the opposite
+direction); the body axes are FRD, so at rest and level the specific force reads −g on body z.
+The runtime calibrates in the sensor's axes, then turns the result into the body axes, where it
+estimates the attitude and gives every vector output.
+
+`train` sets the mounting when the data tell and nothing else defines the body axes: with no
+attitude reference (which defines them), a board that at rest reads the specific force along +z
+(its z axis points up) is mounted as (1, −2, −3), a 180° turn about x that keeps x forward. Any
+other direction of gravity at rest is reported, not guessed: which way is forward is not in the
+data.
+"""
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+
+from .dataset import ImuData
+
+#: The mounting settings, in body-axis order.
+MOUNT_SETTINGS = ("mount_x", "mount_y", "mount_z")
+#: Body axes = sensor axes.
+IDENTITY = (1, 2, 3)
+#: A board whose z axis points up, x forward: body = (x, −y, −z), 180° about x.
+Z_UP = (1, -2, -3)
+#: Standard gravity [m/s²].
+GRAVITY = 9.80665
+#: A sample counts as quasi-static for the direction of gravity when its specific force is within
+#: this of 1 g [m/s²] (0.05 g: walking, handling and vibration exceed it)...
+STATIC_ACC_TOLERANCE = 0.05 * GRAVITY
+#: ...and its raw rate below this [rad/s] (0.2 rad/s = 11 °/s: far above any MEMS gyro bias, far
+#: below a deliberate turn; centripetal and tangential accelerations then stay small).
+STATIC_RATE = 0.2
+#: Fewest quasi-static samples before the data tell the mounting (1 s at 100 Hz).
+MIN_STATIC_SAMPLES = 100
+#: The median quasi-static gravity direction must be within this angle of a sensor axis [deg]
+#: for train to act on it: 30° is a board visibly tilted, not mounted another way.
+AXIS_TOLERANCE_DEG = 30.0
+
+
+def mount_matrix(codes) -> np.ndarray:
+    """(3, 3) matrix M with v_body = M · v_sensor for the codes (mount_x, mount_y, mount_z)."""
+    m = np.zeros((3, 3))
+    for row, code in enumerate(codes):
+        m[row, abs(int(code)) - 1] = np.sign(code)
+    return m
+
+
+def mounting_problem(codes) -> str | None:
+    """Why the codes (mount_x, mount_y, mount_z) are no mounting, or None (the check of
+    ImuPipelineSettingsCheck: three different signed axes that stay right-handed)."""
+    if any(not float(c).is_integer() or abs(c) not in (1, 2, 3) for c in codes):
+        return "mount_x, mount_y, mount_z must each be ±1, ±2 or ±3 (a sensor axis with its sign)"
+    if len({abs(int(c)) for c in codes}) != 3:
+        return f"mount_x, mount_y, mount_z = {tuple(int(c) for c in codes)} name a sensor axis twice"
+    if round(np.linalg.det(mount_matrix(codes))) != 1:
+        return (f"mount_x, mount_y, mount_z = {tuple(int(c) for c in codes)} mirror the axes (left-handed); "
+                "flip the sign of one of them")
+    return None
+
+
+def settings_codes(settings: dict[str, float]) -> tuple[int, int, int]:
+    """The mounting codes of a settings dict (identity where a code is missing)."""
+    return tuple(int(settings.get(name, default)) for name, default in zip(MOUNT_SETTINGS, IDENTITY))
+
+
+def array_codes(settings) -> tuple[int, int, int]:
+    """The mounting codes of a flat settings array (training.layout.SETTINGS order)."""
+    from .layout import SETTINGS
+    names = [name for name, _ in SETTINGS]
+    return tuple(int(settings[names.index(name)]) for name in MOUNT_SETTINGS)
+
+
+def _matrix_quaternion(m: np.ndarray) -> np.ndarray:
+    """[w, x, y, z] of the rotation matrix m (proper, 3×3): the largest-component formula (Shepperd)."""
+    t = np.trace(m)
+    k = int(np.argmax([t, m[0, 0], m[1, 1], m[2, 2]]))
+    if k == 0:
+        s = 2.0 * np.sqrt(1.0 + t)
+        q = [0.25 * s, (m[2, 1] - m[1, 2]) / s, (m[0, 2] - m[2, 0]) / s, (m[1, 0] - m[0, 1]) / s]
+    else:
+        i, j, l = k - 1, k % 3, (k + 1) % 3
+        s = 2.0 * np.sqrt(1.0 + m[i, i] - m[j, j] - m[l, l])
+        q = np.zeros(4)
+        q[0], q[1 + i] = (m[l, j] - m[j, l]) / s, 0.25 * s
+        q[1 + j], q[1 + l] = (m[j, i] + m[i, j]) / s, (m[l, i] + m[i, l]) / s
+    return np.asarray(q) / np.linalg.norm(q)
+
+
+def body_references(data: ImuData, codes) -> ImuData:
+    """A copy of `data` whose references are in the body axes of the mounting `codes`: the vector
+    references turned by M, the attitude q_ref ⊗ q(Mᵀ) (body -> NED = sensor -> NED · body -> sensor).
+    The identity returns `data` itself."""
+    if tuple(int(c) for c in codes) == IDENTITY:
+        return data
+    m = mount_matrix(codes)
+
+    def turned(ref):
+        return None if ref is None else ref @ m.T
+    ref_q = None if data.ref_q is None else body_attitude(data.ref_q, codes)
+    return replace(data, ref_gyr=turned(data.ref_gyr), ref_acc=turned(data.ref_acc),
+                   ref_mag=turned(data.ref_mag), ref_q=ref_q)
+
+
+def body_attitude(q_sensor: np.ndarray, codes) -> np.ndarray:
+    """(N, 4) sensor -> nav quaternions as body -> nav of the mounting `codes`:
+    q ⊗ q(Mᵀ) (body -> nav = sensor -> nav · body -> sensor)."""
+    from .evaluate import quaternion_multiply
+    q_body_to_sensor = _matrix_quaternion(mount_matrix(codes).T)
+    return quaternion_multiply(q_sensor, np.tile(q_body_to_sensor, (len(q_sensor), 1)))
+
+
+def _static_directions(data: ImuData) -> np.ndarray:
+    """(K, 3) unit vectors of the specific force at the quasi-static samples of a recording."""
+    acc, gyr = np.asarray(data.acc, float), np.asarray(data.gyr, float)
+    norm = np.linalg.norm(acc, axis=1)
+    rate = np.linalg.norm(gyr, axis=1) if data.has("gyr") else np.zeros(len(data))
+    static = np.isfinite(norm) & (np.abs(norm - GRAVITY) < STATIC_ACC_TOLERANCE) & (np.nan_to_num(rate) < STATIC_RATE)
+    return acc[static] / norm[static, None]
+
+
+def gravity_axis(data: ImuData) -> tuple[str, float] | None:
+    """(signed sensor axis such as '+z', angle [deg] to it) of the median direction of the specific
+    force at rest, or None when fewer than MIN_STATIC_SAMPLES samples are quasi-static. At rest the
+    specific force points up, away from gravity: '+z' means the z axis points up."""
+    if not data.has("acc"):
+        return None
+    directions = _static_directions(data)
+    if len(directions) < MIN_STATIC_SAMPLES:
+        return None
+    median = np.median(directions, axis=0)
+    median /= np.linalg.norm(median)
+    axis = int(np.argmax(np.abs(median)))
+    angle = float(np.rad2deg(np.arccos(min(1.0, abs(median[axis])))))
+    return ("+" if median[axis] > 0 else "-") + "xyz"[axis], angle
+
+
+def recommended_mounting(datasets: list[ImuData], notes: list[str]) -> dict[str, float]:
+    """mount_x, mount_y, mount_z from the calibration recordings (see the module docstring), with a
+    note for every mounting set and every direction of gravity train does not act on."""
+    if any(d.ref_q is not None for d in datasets):
+        return {}  # the attitude reference defines the body axes: identity
+    told = {d.name: axis for d in datasets if (axis := gravity_axis(d)) is not None}
+    text = ", ".join(f"{name}: {axis} ({angle:.0f}°)" for name, (axis, angle) in told.items())
+    clear = all(angle <= AXIS_TOLERANCE_DEG for _, angle in told.values())
+    axes = {axis for axis, _ in told.values()}
+    if clear and axes == {"+z"}:
+        notes.append(f"mounting: at rest the specific force points along sensor +z ({text}): the board's z axis "
+                     "points up; mount_x, mount_y, mount_z = 1, -2, -3 (body = x, -y, -z, a 180° turn about x) so "
+                     "that the attitude is in FRD/NED; set them with --param if x is not forward")
+        return dict(zip(MOUNT_SETTINGS, map(float, Z_UP)))
+    if told and not (clear and axes == {"-z"}):
+        notes.append(f"mounting: at rest the specific force points along {text}, not along sensor -z (z down) "
+                     "throughout; body axes = sensor axes kept: set mount_x, mount_y, mount_z (docs/fmu.md, "
+                     "Mounting) if the board is mounted another way")
+    return {}
