@@ -66,16 +66,28 @@ class _Log:
         return FmuError(f"{one_line(what)}; FMU log{more}: {log}", self.messages)
 
 
+def value_reference(fmu: FMU2Slave | FMU3Slave, name: str) -> int:
+    """The value reference that the FMU's own modelDescription.xml declares for variable `name`
+    (`initialised_fmu` attaches the map); FmuError when it declares no such variable. Inputs and
+    parameters are set and outputs read by these, never by our variable table, so that a model
+    description that does not match the binary makes the reference result differ."""
+    try:
+        return fmu.value_references[name]
+    except KeyError:
+        raise FmuError(f"the FMU's model description declares no variable '{name}'") from None
+
+
 class Stepper:
     """Raw per-sample FMI calls on an initialised FMU2Slave or FMU3Slave: set the inputs,
-    doStep, get the outputs (training.layout INPUTS / OUTPUTS order)."""
+    doStep, get the outputs (training.layout INPUTS / OUTPUTS order, by the value references of
+    the FMU's model description)."""
 
     def __init__(self, fmu: FMU2Slave | FMU3Slave) -> None:
         self.fmu = fmu
         self.fmi3 = isinstance(fmu, FMU3Slave)
         real, vr = (fmi3Float64, fmi3ValueReference) if self.fmi3 else (fmi2Real, fmi2ValueReference)
-        self.vr_in = (vr * len(INPUTS))(*(by_name(n).value_reference for n in INPUTS))
-        self.vr_out = (vr * len(OUTPUTS))(*(by_name(n).value_reference for n in OUTPUTS))
+        self.vr_in = (vr * len(INPUTS))(*(value_reference(fmu, n) for n in INPUTS))
+        self.vr_out = (vr * len(OUTPUTS))(*(value_reference(fmu, n) for n in OUTPUTS))
         self.values_in = (real * len(INPUTS))()
         self.values_out = (real * len(OUTPUTS))()
         self._flags = [fmi3Boolean() for _ in range(3)]
@@ -136,7 +148,8 @@ def step_sizes(t: np.ndarray, default: float) -> np.ndarray:
 
 
 def _set_parameters(fmu: FMU2Slave | FMU3Slave, parameters: dict) -> None:
-    """Set parameters by name (Real, Integer or Boolean); FmuError for names that are not parameters."""
+    """Set parameters by name (Real, Integer or Boolean) at the value references of the FMU's model
+    description; FmuError for names that are not parameters."""
     fmi3 = isinstance(fmu, FMU3Slave)
     for name, value in parameters.items():
         try:
@@ -150,7 +163,7 @@ def _set_parameters(fmu: FMU2Slave | FMU3Slave, parameters: dict) -> None:
                 value = check_setting(name, value)
             except ValueError as e:
                 raise FmuError(str(e)) from None
-        vr = [variable.value_reference]
+        vr = [value_reference(fmu, name)]
         if variable.type == "Boolean":
             fmu.setBoolean(vr, [bool(value)])
         elif variable.type == "Integer":
@@ -178,7 +191,9 @@ def step_samples(fmu: FMU2Slave | FMU3Slave, t: np.ndarray, inputs: np.ndarray, 
 
 
 def _instantiate(fmu_path: str | Path, unzipdir: str, log: _Log, instance_name: str) -> FMU2Slave | FMU3Slave:
-    """Load the binary and instantiate an FMU2Slave or FMU3Slave; FmuError with the log on failure."""
+    """Load the binary and instantiate an FMU2Slave or FMU3Slave whose `value_references` maps
+    every variable name of its model description to its value reference; FmuError with the log on
+    failure."""
     description = read_description(fmu_path, unzipdir)
     library = extracted_binary(fmu_path, unzipdir, description)
     cls = FMU3Slave if description.fmiVersion.startswith("3") else FMU2Slave
@@ -187,6 +202,7 @@ def _instantiate(fmu_path: str | Path, unzipdir: str, log: _Log, instance_name: 
                   modelIdentifier=description.coSimulation.modelIdentifier, instanceName=instance_name)
     except Exception as e:  # fmpy raises bare Exception, ctypes OSError for a binary that does not load
         raise FmuError(f"{fmu_path}: cannot load the FMU's binary ({one_line(str(e))})") from None
+    fmu.value_references = {v.name: v.valueReference for v in description.modelVariables}
     try:
         if cls is FMU3Slave:
             fmu.instantiate(logMessage=log.log3)
@@ -203,7 +219,8 @@ def initialised_fmu(fmu_path: str | Path, start_time: float = 0.0, parameters: d
                     instance_name: str = "ImuFusion") -> Iterator[FMU2Slave | FMU3Slave]:
     """Extract and instantiate the FMU (FMI 2 or 3), start the experiment at start_time [s], set
     the parameters by name, initialise, and yield the FMU2Slave / FMU3Slave ready for doStep;
-    its `log_messages` list collects the FMU's log ('[STATUS] category: message'). Terminate,
+    its `log_messages` list collects the FMU's log ('[STATUS] category: message') and its
+    `value_references` maps the names of its model description to their value references. Terminate,
     free and clean up afterwards. Every failing FMI call inside the block becomes an FmuError
     that carries the FMU's log messages.
     """

@@ -16,6 +16,7 @@ from fmpy.validation import validate_fmu as fmpy_validate_fmu
 from fmu.archive import FmuArchiveError, read_description
 from fmu.compiler import binary_path
 from fmu.cosim import run_fmu
+from fmu.description_check import behaviour_problems, description_problems
 from fmu.model_description import MODEL_NAME
 from fmu.packer import REFERENCE_INPUT, REFERENCE_OUTPUT, read_reference_csv
 from training.errors import ImuFusionError, one_line
@@ -168,8 +169,8 @@ def _smoke_problems(path: Path) -> list[str]:
 
 
 #: The checks of `validate_fmu` in the order they run (a failed check skips those after it).
-VALIDATION_CHECKS = ("archive", "fmpy model description", "exported symbols", "fmutool -check",
-                     "smoke co-simulation", "reference result")
+VALIDATION_CHECKS = ("archive", "fmpy model description", "description matches sources", "exported symbols",
+                     "fmutool -check", "smoke co-simulation", "description matches binary", "reference result")
 
 
 def validate_fmu(path: str | Path, checks: list[tuple[str, int]] | None = None) -> list[str]:
@@ -181,6 +182,9 @@ def validate_fmu(path: str | Path, checks: list[tuple[str, int]] | None = None) 
     (schema, names, model structure, units), that the binary exports exactly the 34 FMI 2.0 co-simulation functions or all 75 FMI 3.0 functions,
     fmutool's static check (fmu-manipulation-toolbox), a
     1 s smoke co-simulation, and that the FMU reproduces its shipped reference result.
+    fmu.description_check compares the model description with the variable table and the
+    archive's sources right after fmpy's validation, and with the binary (the start values it
+    holds, corrected triad outputs that follow their inputs) after the smoke co-simulation.
     """
     path = Path(path)
     ran = [] if checks is None else checks
@@ -196,10 +200,13 @@ def validate_fmu(path: str | Path, checks: list[tuple[str, int]] | None = None) 
     problems = counted("fmpy model description", [one_line(p) for p in fmpy_validate_fmu(str(path))])
     if problems:
         return problems
+    problems += counted("description matches sources", description_problems(path))
     problems += counted("exported symbols", _symbol_problems(path, fmi_version_of(path)))
     problems += counted("fmutool -check", fmutool_problems(path))
     if not problems:
         problems += counted("smoke co-simulation", _smoke_problems(path))
+    if not problems:
+        problems += counted("description matches binary", behaviour_problems(path))
     if not problems:
         problems += counted("reference result", reference_problems(path))
     return problems
