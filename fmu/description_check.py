@@ -50,6 +50,7 @@ from fmu.model_description import FMI3_TYPES, TIME_VALUE_REFERENCE
 from fmu.variables import VARIABLES
 from training.errors import ImuFusionError, ModelError, one_line
 from training.layout import INPUTS, LAG_MAX_S, OUTPUTS, SETTINGS, TRIAD_ORDER
+from training.mounting import MOUNT_SETTINGS
 
 #: The archive members whose contents the static check reads.
 CONFIG_MEMBER = "sources/config.h"
@@ -247,9 +248,19 @@ def _held_outputs(stepper: Stepper, sample: list[float]) -> list[float]:
     return list(stepper.get_outputs())
 
 
+def _body_axis(sensor_axis: int, described: dict[str, dict]) -> int:
+    """The body axis (0..2) that sensor axis `sensor_axis` (0..2) becomes under the mounting the
+    description declares (start values of mount_x, mount_y, mount_z: body axis i is sensor axis
+    |code_i| - 1); the sensor axis itself when the codes are not a mounting (the start check and
+    the initialisation report that)."""
+    codes = [abs(int(described.get(name, {}).get("start") or 0)) for name in MOUNT_SETTINGS]
+    return codes.index(sensor_axis + 1) if sorted(codes) == [1, 2, 3] else sensor_axis
+
+
 def _follow_problems(fmu, described: dict[str, dict]) -> list[str]:
     """Raw triad inputs whose step does not move, most among its triad's outputs, the output the
-    description names for its corrected value (OUTPUTS[k] corrects RAW_TRIADS[k])."""
+    description names for its corrected value (OUTPUTS[k] corrects RAW_TRIADS[k] in the body axis
+    the declared mounting turns sensor axis k into)."""
     base = [described[name]["start"] for name in INPUTS]
     stepper = Stepper(fmu)
     start = fmu.getFMUState() if isinstance(fmu, FMU3Slave) else fmu.getFMUstate()
@@ -263,7 +274,7 @@ def _follow_problems(fmu, described: dict[str, dict]) -> list[str]:
         moved = _held_outputs(stepper, sample)
         triad = range(3 * (k // 3), 3 * (k // 3) + 3)
         change = {OUTPUTS[j]: abs(moved[j] - reference[j]) for j in triad}
-        follower = OUTPUTS[k]
+        follower = OUTPUTS[3 * (k // 3) + _body_axis(k % 3, described)]
         if any(change[follower] <= change[other] for other in change if other != follower):
             moves = ", ".join(f"{out} by {change[out]:.3g}" for out in change)
             problems.append(f"{name}: stepping it (valueReference {described[name]['valueReference']}) should move "
