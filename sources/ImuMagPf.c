@@ -195,6 +195,16 @@ static void ImuMagPfDerive(ImuMagPf *pf)
     c->minRotationCosine = cos(s->minRotation * IMU_PI / 180.0);
 }
 
+int ImuMagPfConfigure(ImuMagPf *pf, const ImuMagPfSettings *settings)
+{
+    if (ImuMagPfSettingsCheck(settings, NULL) != 0) {
+        return -1;
+    }
+    pf->settings = *settings;
+    ImuMagPfDerive(pf);
+    return 0;
+}
+
 /** @brief Check settings, derive coefficients and reset; 0, or -1 (filter untouched) if invalid. */
 int ImuMagPfInitialise(ImuMagPf *pf, const ImuMagPfSettings *settings)
 {
@@ -202,8 +212,7 @@ int ImuMagPfInitialise(ImuMagPf *pf, const ImuMagPfSettings *settings)
         return -1;
     }
     memset(pf, 0, sizeof(*pf));
-    pf->settings = *settings;
-    ImuMagPfDerive(pf);
+    (void)ImuMagPfConfigure(pf, settings);
     ImuMagPfReset(pf);
     return 0;
 }

@@ -153,6 +153,9 @@ typedef struct {
 IMU_HIDDEN void ImuMagPfSettingsDefault(ImuMagPfSettings *settings, double fieldNorm);
 /** @brief 0 if the settings are valid, else -1 with *message naming the setting and its range. */
 IMU_HIDDEN int ImuMagPfSettingsCheck(const ImuMagPfSettings *settings, const char **message);
+/** @brief Check settings and derive the coefficients, keeping the evolving state (a restored FMU
+ *         state); 0, or -1 (filter untouched) if invalid. */
+IMU_HIDDEN int ImuMagPfConfigure(ImuMagPf *pf, const ImuMagPfSettings *settings);
 /** @brief Check settings, derive coefficients and reset; 0, or -1 (filter untouched) if invalid. */
 IMU_HIDDEN int ImuMagPfInitialise(ImuMagPf *pf, const ImuMagPfSettings *settings);
 /** @brief 1 if the evolving counters and indices of pf (a restored FMU state) fit its settings:

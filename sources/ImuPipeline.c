@@ -187,29 +187,42 @@ int ImuPipelineSettingsCheck(const ImuPipelineSettings *s, const char **message)
     return problem == NULL ? 0 : -1;
 }
 
+/** @brief The attitude filter's settings from the pipeline settings. */
+static void ImuPipelineAttitudeSettings(const ImuPipelineSettings *s, ImuAttitudeSettings *a)
+{
+    memset(a, 0, sizeof *a); /* padding too: the FMU state's bytes are checksummed */
+    a->gyroNoise = s->gyroNoise;
+    a->gyroBiasResidual = s->gyroBiasResidual;
+    a->mseTimeConstant = s->mseTimeConstant;
+    a->angleNoise = s->angleNoise;
+    a->fieldNorm = s->fieldNorm;
+    a->mode = s->attitudeMode;
+    a->fieldDip = s->fieldDip;
+    a->tauAcc = s->tauAcc;
+    a->tauMag = s->tauMag;
+    a->restGyroThreshold = s->restGyroThreshold;
+    a->restAccThreshold = s->restAccThreshold;
+    a->magRejectTime = s->magRejectTime;
+}
+
+void ImuPipelineConfigure(ImuPipeline *p, const ImuPipelineSettings *s, const ImuCoefficients *c)
+{
+    p->settings = *s;
+    p->coefficients = *c;
+    ImuPipelineAttitudeSettings(s, &p->attitude.settings);
+    if (s->enablePf) {
+        (void)ImuMagPfConfigure(&p->pf, &s->pf); /* checked by ImuPipelineSettingsCheck */
+    }
+    p->psobp.tau = c->psobp.tau;
+}
+
 /** @brief Set settings and coefficients and reset the state. */
 void ImuPipelineInitialise(ImuPipeline *p, const ImuPipelineSettings *s, const ImuCoefficients *c)
 {
-    ImuAttitudeSettings a;
-    memset(&a, 0, sizeof a); /* padding too: the FMU state's bytes are checksummed */
-    p->settings = *s;
-    p->coefficients = *c;
-    a.gyroNoise = s->gyroNoise;
-    a.gyroBiasResidual = s->gyroBiasResidual;
-    a.mseTimeConstant = s->mseTimeConstant;
-    a.angleNoise = s->angleNoise;
-    a.fieldNorm = s->fieldNorm;
-    a.mode = s->attitudeMode;
-    a.fieldDip = s->fieldDip;
-    a.tauAcc = s->tauAcc;
-    a.tauMag = s->tauMag;
-    a.restGyroThreshold = s->restGyroThreshold;
-    a.restAccThreshold = s->restAccThreshold;
-    a.magRejectTime = s->magRejectTime;
-    ImuAttitudeInitialise(&p->attitude, &a);
     if (s->enablePf) {
-        ImuMagPfInitialise(&p->pf, &s->pf);
+        memset(&p->pf, 0, sizeof p->pf); /* as ImuMagPfInitialise: no stale particle survives */
     }
+    ImuPipelineConfigure(p, s, c);
     ImuPipelineReset(p);
 }
 

@@ -85,6 +85,13 @@ IMU_HIDDEN int ImuCoefficientsFromArray(ImuCoefficients *c, const double *a, siz
 IMU_HIDDEN int ImuPipelineSettingsFromArray(ImuPipelineSettings *s, const double *a, size_t n);
 /** @brief Check settings; on error return -1 and point *message at a static text naming the setting and range. */
 IMU_HIDDEN int ImuPipelineSettingsCheck(const ImuPipelineSettings *s, const char **message);
+/**
+ * @brief Set settings and coefficients and everything the stages derive from them (attitude settings,
+ *        particle-filter coefficients, PSO-BP time constant), keeping the evolving state: what a
+ *        restored FMU state must not take from the restored bytes (the settings must pass
+ *        ImuPipelineSettingsCheck).
+ */
+IMU_HIDDEN void ImuPipelineConfigure(ImuPipeline *p, const ImuPipelineSettings *s, const ImuCoefficients *c);
 /** @brief Set settings and coefficients and reset the state. */
 IMU_HIDDEN void ImuPipelineInitialise(ImuPipeline *p, const ImuPipelineSettings *s, const ImuCoefficients *c);
 /** @brief Return to the state right after ImuPipelineInitialise. */

@@ -539,8 +539,6 @@ static int allFinite(const double *x, int n) {
 static const char *rederivePipeline(ModelData *m) {
     ImuCoefficients coefficients;
     ImuPipelineSettings settings;
-    ImuPipeline *fresh;
-    ImuPipeline *p = &m->pipeline;
     const char *problem = NULL;
     if (ImuCoefficientsFromArray(&coefficients, IMU_COEFFICIENT_DATA, IMU_COEFFICIENT_COUNT) != 0) {
         return "the compiled-in coefficient data has the wrong size or layout version";
@@ -549,18 +547,7 @@ static const char *rederivePipeline(ModelData *m) {
         || ImuPipelineSettingsCheck(&settings, &problem) != 0) {
         return problem != NULL ? problem : "the settings array has the wrong size";
     }
-    fresh = (ImuPipeline *)calloc(1, sizeof *fresh);
-    if (fresh == NULL) {
-        return "out of memory";
-    }
-    ImuPipelineInitialise(fresh, &settings, &coefficients);
-    p->settings = fresh->settings;
-    p->coefficients = fresh->coefficients;
-    p->attitude.settings = fresh->attitude.settings;
-    p->pf.settings = fresh->pf.settings;
-    p->pf.coefficients = fresh->pf.coefficients;
-    p->psobp.tau = fresh->psobp.tau;
-    free(fresh);
+    ImuPipelineConfigure(&m->pipeline, &settings, &coefficients);
     return NULL;
 }
 
