@@ -1,4 +1,5 @@
-"""Assemble, compile and zip the ImuFusion FMU (FMI 2.0 or 3.0 co-simulation, sources + binary).
+"""Assemble, compile and zip the ImuFusion FMU (FMI 2.0 or 3.0 co-simulation, sources + this
+platform's binary + the win64 binary when the mingw-w64 cross compiler is installed).
 
 Every FMU ships a reference result: extra/imufusion/reference_input.csv (a short built-in
 recording) and reference_output.csv (the batch runtime's outputs for it, written at build time),
@@ -14,6 +15,7 @@ import hashlib
 import html
 import json
 import shutil
+import sys
 import tempfile
 import zipfile
 from collections.abc import Sequence
@@ -22,7 +24,8 @@ from pathlib import Path
 import numpy as np
 
 from fmu.build_description import BUILD_DESCRIPTION, build_description_xml
-from fmu.compiler import check_fmi_version, compile_binary, fmu_source_files
+from fmu.compiler import (WIN64_COMPILER, WIN64_PACKAGE, check_fmi_version, compile_binary, compile_win64_binary,
+                          fmu_source_files, win64_compiler)
 from fmu.header import HEADER_NAME, coefficient_header
 from fmu.model_description import MODEL_NAME, model_description_xml
 from fmu.provenance import PROVENANCE_FILE, build_time, provenance_record, provenance_summary
@@ -175,6 +178,19 @@ def _zip_directory(directory: Path, out_path: Path) -> None:
             zf.writestr(info, path.read_bytes())
 
 
+def compile_binaries(stage: Path, out_path: Path) -> None:
+    """Compile the staged FMU's binaries: this platform's, and the win64 one when the mingw-w64
+    cross compiler is installed; without it, one line on stderr says the FMU at out_path carries
+    no win64 binary and how to install the compiler."""
+    compile_binary(stage)
+    compiler = win64_compiler()
+    if compiler is None:
+        print(f"{out_path}: win64 binary skipped: {WIN64_COMPILER} is not installed "
+              f"(apt-get install {WIN64_PACKAGE})", file=sys.stderr)
+    else:
+        compile_win64_binary(stage, compiler)
+
+
 def build_fmu(coefficients: np.ndarray, settings: dict, out_path: str | Path,
               description: str = DEFAULT_DESCRIPTION,
               provenance: str = "untrained identity coefficients", fmi_version: int = 2,
@@ -190,8 +206,8 @@ def build_fmu(coefficients: np.ndarray, settings: dict, out_path: str | Path,
     The FMU holds modelDescription.xml, sources/ (runtime + the version's FMI
     wrapper + the generated ImuCoefficientsData.h; FMI 3 also buildDescription.xml),
     documentation/index.html, the reference pair, aux_inputs.json and provenance.json in
-    extra/imufusion/ and the compiled binary. modelDescription.xml's description is `description`
-    followed by the provenance summary.
+    extra/imufusion/ and the compiled binaries (`compile_binaries`). modelDescription.xml's
+    description is `description` followed by the provenance summary.
     Raises ModelError for bad coefficients, settings or aux_inputs, BuildError when compilation
     fails or the FMI version is not 2 or 3.
     """
@@ -225,7 +241,7 @@ def build_fmu(coefficients: np.ndarray, settings: dict, out_path: str | Path,
         for name, text in files.items():
             (stage / name).parent.mkdir(parents=True, exist_ok=True)
             (stage / name).write_text(text)
-        compile_binary(stage)
+        compile_binaries(stage, out_path)
         out_path.parent.mkdir(parents=True, exist_ok=True)
         partial = out_path.with_name(out_path.name + ".partial")
         _zip_directory(stage, partial)

@@ -1,5 +1,6 @@
-"""Checks of a built ImuFusion FMU (FMI 2 or 3): model description, exported symbols, smoke
-co-simulation and the shipped reference result."""
+"""Checks of a built ImuFusion FMU (FMI 2 or 3): model description, the exported symbols of every
+binary it carries (and the DLLs the win64 one imports), smoke co-simulation and the shipped
+reference result."""
 from __future__ import annotations
 
 import shutil
@@ -14,11 +15,12 @@ import numpy as np
 from fmpy.validation import validate_fmu as fmpy_validate_fmu
 
 from fmu.archive import FmuArchiveError, read_description
-from fmu.compiler import binary_path
+from fmu.compiler import WIN64_PLATFORMS, binary_path, win64_binary_path
 from fmu.cosim import run_fmu
 from fmu.description_check import behaviour_problems, description_problems
 from fmu.model_description import MODEL_NAME
 from fmu.packer import REFERENCE_INPUT, REFERENCE_OUTPUT, read_reference_csv
+from fmu.pe import MACHINE_AMD64, PeImage, read_pe
 from training.errors import ImuFusionError, one_line
 from training.layout import INPUTS, OUTPUTS
 
@@ -62,6 +64,10 @@ FMI3_FUNCTIONS = frozenset({
 #: The exported function set of each FMI version.
 EXPORTED_FUNCTIONS = {2: FMI2_CS_FUNCTIONS, 3: FMI3_FUNCTIONS}
 
+#: The DLLs (lower case) the win64 binary may import besides the api-ms-win-* API sets: the
+#: kernel and the C runtime (msvcrt, or the Universal CRT's ucrtbase) that every Windows has.
+WINDOWS_SYSTEM_DLLS = frozenset({"kernel32.dll", "msvcrt.dll", "ucrtbase.dll"})
+
 #: The FMU reproduces its reference output to this bound: FMU (fmpy's CMake, -O3) and batch
 #: library (-O2) compile the same C code; only instruction choice may differ.
 REFERENCE_TOLERANCE = 1e-12
@@ -81,40 +87,118 @@ def binary_member(fmi_version: int = 2) -> str:
     return binary_path(Path(), MODEL_NAME, fmi_version).as_posix()
 
 
-def exported_symbols(path: str | Path) -> set[str]:
-    """Names of the functions and data the FMU's binary exports (`nm -D --defined-only`).
+def binary_members(fmi_version: int = 2) -> dict[str, str]:
+    """Path inside an FMI `fmi_version` FMU archive of each binary the packer builds, by platform
+    folder name: this platform's (linux64 / x86_64-linux) and the Windows one (win64 /
+    x86_64-windows)."""
+    here = binary_path(Path(), MODEL_NAME, fmi_version)
+    windows = win64_binary_path(Path(), MODEL_NAME, fmi_version)
+    return {here.parent.name: here.as_posix(), windows.parent.name: windows.as_posix()}
 
-    path: an .fmu archive or a shared library. Raises ImuFusionError when the binary is missing
-    or nm fails.
-    """
-    path = Path(path)
-    with tempfile.TemporaryDirectory(prefix="imufusion-nm-") as tmp:
-        library = path
-        if zipfile.is_zipfile(path):
-            member = binary_member(fmi_version_of(path))
-            with zipfile.ZipFile(path) as zf:
-                if member not in zf.namelist():
-                    raise ImuFusionError(f"{path}: no binary {member} in the FMU")
-                library = Path(zf.extract(member, tmp))
-        result = subprocess.run(["nm", "-D", "--defined-only", str(library)],
-                                stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+
+def _library(path: Path, platform: str | None, tmp: str) -> Path:
+    """The library file to read: path itself, or (path an .fmu archive) its binary for the
+    platform folder `platform` (default this platform's) extracted into tmp; ImuFusionError when
+    the FMU lacks it."""
+    if not zipfile.is_zipfile(path):
+        return path
+    version = fmi_version_of(path)
+    members = binary_members(version)
+    if platform is not None and platform not in members:
+        raise ImuFusionError(f"no binary check for platform {platform!r} (known: {', '.join(members)})")
+    member = binary_member(version) if platform is None else members[platform]
+    with zipfile.ZipFile(path) as zf:
+        if member not in zf.namelist():
+            raise ImuFusionError(f"{path}: no binary {member} in the FMU")
+        return Path(zf.extract(member, tmp))
+
+
+def _read_windows_image(library: Path) -> PeImage:
+    """The PE header, export and import tables of the .dll at `library`; ImuFusionError when it
+    is not a PE image."""
+    try:
+        return read_pe(library.read_bytes())
+    except ValueError as e:
+        raise ImuFusionError(f"{library.name} is not a readable Windows DLL: {e}") from e
+
+
+def _library_exports(library: Path) -> set[str]:
+    """What the library exports: a .dll's export name table (fmu.pe), else `nm -D --defined-only`."""
+    if library.suffix == ".dll":
+        return set(_read_windows_image(library).exports)
+    result = subprocess.run(["nm", "-D", "--defined-only", str(library)],
+                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
     if result.returncode != 0:
-        raise ImuFusionError(f"nm failed on {path}: {one_line(result.stdout)}")
+        raise ImuFusionError(f"nm failed on {library.name}: {one_line(result.stdout)}")
     return {line.split()[-1] for line in result.stdout.splitlines() if line.strip()}
 
 
-def _symbol_problems(path: Path, fmi_version: int) -> list[str]:
-    """Problems with the exported symbol set (it must be exactly EXPORTED_FUNCTIONS[fmi_version])."""
-    try:
-        symbols = exported_symbols(path)
-    except ImuFusionError as e:
-        return [str(e)]
+def exported_symbols(path: str | Path, platform: str | None = None) -> set[str]:
+    """Names of the functions and data the FMU's binary exports.
+
+    path: an .fmu archive (its binary for the platform folder `platform`, e.g. 'win64'; default
+    this platform's) or a library (.dll read as a PE image, anything else with nm). Raises
+    ImuFusionError when the binary is missing or unreadable.
+    """
+    with tempfile.TemporaryDirectory(prefix="imufusion-nm-") as tmp:
+        return _library_exports(_library(Path(path), platform, tmp))
+
+
+def windows_image(path: str | Path, platform: str = WIN64_PLATFORMS[2]) -> PeImage:
+    """Machine type, exports and imported DLLs of the FMU's Windows binary (platform folder
+    `platform`; path an .fmu or a .dll); ImuFusionError when it is missing or not a PE image."""
+    with tempfile.TemporaryDirectory(prefix="imufusion-pe-") as tmp:
+        return _read_windows_image(_library(Path(path), platform, tmp))
+
+
+def is_windows_system_dll(name: str) -> bool:
+    """True for a DLL every Windows installation has: WINDOWS_SYSTEM_DLLS or an api-ms-win-* API set."""
+    return name.lower() in WINDOWS_SYSTEM_DLLS or name.lower().startswith("api-ms-win-")
+
+
+def _export_problems(symbols: set[str], fmi_version: int) -> list[str]:
+    """Problems with an exported symbol set (it must be exactly EXPORTED_FUNCTIONS[fmi_version])."""
     expected = EXPORTED_FUNCTIONS[fmi_version]
     problems = []
     if symbols - expected:
-        problems.append(f"the binary exports non-FMI symbols: {', '.join(sorted(symbols - expected))}")
+        problems.append(f"exports non-FMI symbols: {', '.join(sorted(symbols - expected))}")
     if expected - symbols:
-        problems.append(f"the binary lacks FMI functions: {', '.join(sorted(expected - symbols))}")
+        problems.append(f"lacks FMI functions: {', '.join(sorted(expected - symbols))}")
+    return problems
+
+
+def _windows_problems(image: PeImage) -> list[str]:
+    """Problems of a Windows binary beyond its exports: it must be an x86-64 image that imports
+    only Windows system DLLs (no mingw runtime such as libgcc_s or libwinpthread)."""
+    problems = [] if image.machine == MACHINE_AMD64 else [f"is not an x86-64 image (machine {image.machine:#x})"]
+    foreign = [name for name in image.imports if not is_windows_system_dll(name)]
+    if foreign:
+        problems.append(f"imports DLLs that Windows does not have: {', '.join(foreign)}")
+    return problems
+
+
+def _library_problems(library: Path, fmi_version: int) -> list[str]:
+    """Problems of one binary: it exports exactly EXPORTED_FUNCTIONS[fmi_version]; a .dll also
+    passes `_windows_problems`."""
+    try:
+        problems = _export_problems(_library_exports(library), fmi_version)
+        if library.suffix == ".dll":
+            problems += _windows_problems(_read_windows_image(library))
+    except ImuFusionError as e:
+        return [str(e)]
+    return problems
+
+
+def _symbol_problems(path: Path, fmi_version: int) -> list[str]:
+    """Problems of every binary the FMU carries among binary_members (this platform's is
+    required by the archive check, the win64 one is there when it was cross-compiled), each
+    problem prefixed with the binary's member name and so its platform."""
+    problems = []
+    with tempfile.TemporaryDirectory(prefix="imufusion-binaries-") as tmp, zipfile.ZipFile(path) as zf:
+        present = set(zf.namelist())
+        for member in binary_members(fmi_version).values():
+            if member in present:
+                problems += [f"{member}: {p}" for p in _library_problems(Path(zf.extract(member, tmp)), fmi_version)]
     return problems
 
 
@@ -169,7 +253,7 @@ def _smoke_problems(path: Path) -> list[str]:
 
 
 #: The checks of `validate_fmu` in the order they run (a failed check skips those after it).
-VALIDATION_CHECKS = ("archive", "fmpy model description", "description matches sources", "exported symbols",
+VALIDATION_CHECKS = ("archive", "fmpy model description", "description matches sources", "binaries",
                      "fmutool -check", "smoke co-simulation", "description matches binary", "reference result")
 
 
@@ -178,8 +262,10 @@ def validate_fmu(path: str | Path, checks: list[tuple[str, int]] | None = None) 
     given, receives (name in VALIDATION_CHECKS, number of problems) for every check that ran.
 
     First the archive itself (fmu.archive: a zip within the size caps, safe member names, a
-    well-formed modelDescription.xml, the binary present); then fmpy's model-description validation
-    (schema, names, model structure, units), that the binary exports exactly the 34 FMI 2.0 co-simulation functions or all 75 FMI 3.0 functions,
+    well-formed modelDescription.xml, this platform's binary present); then fmpy's model-description
+    validation (schema, names, model structure, units), that every binary the FMU carries (this
+    platform's and win64) exports exactly the 34 FMI 2.0 co-simulation functions or all 75 FMI 3.0
+    functions and that the win64 one imports only Windows system DLLs (`_symbol_problems`),
     fmutool's static check (fmu-manipulation-toolbox), a
     1 s smoke co-simulation, and that the FMU reproduces its shipped reference result.
     fmu.description_check compares the model description with the variable table and the
@@ -201,7 +287,7 @@ def validate_fmu(path: str | Path, checks: list[tuple[str, int]] | None = None) 
     if problems:
         return problems
     problems += counted("description matches sources", description_problems(path))
-    problems += counted("exported symbols", _symbol_problems(path, fmi_version_of(path)))
+    problems += counted("binaries", _symbol_problems(path, fmi_version_of(path)))
     problems += counted("fmutool -check", fmutool_problems(path))
     if not problems:
         problems += counted("smoke co-simulation", _smoke_problems(path))

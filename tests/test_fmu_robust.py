@@ -16,14 +16,13 @@ import numpy as np
 import pytest
 
 from debian_tools import debian_tool
-from fmu.compiler import SOURCE_DIR, binary_path, fmu_source_files
+from fmu.compiler import FMPY_C_CODE as FMI_HEADERS, SOURCE_DIR, binary_path, fmu_source_files
 from fmu.cosim import DISCARD, OK, WARNING, FmuError, Stepper, initialised_fmu, run_fmu
 from fmu.header import HEADER_NAME, coefficient_header
 from fmu.packer import build_fmu, reference_recording
 from training.layout import INPUTS, identity_coefficients
 
 C_TESTS = Path(__file__).parent / "c"
-FMI_HEADERS = Path(fmpy.__file__).parent / "c-code"
 STRICT = ["-std=c99", "-Wall", "-Wextra", "-Wpedantic", "-Werror"]
 
 #: Bad-input kinds: (name, input name or "h" for the step size, value, expected doStep status).

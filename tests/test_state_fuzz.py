@@ -16,21 +16,19 @@ import struct
 import subprocess
 from pathlib import Path
 
-import fmpy
 import numpy as np
 import pytest
 
 from debian_tools import debian_tool
 from fmpy.fmi1 import FMICallException
 
-from fmu.compiler import SOURCE_DIR, fmu_source_files
+from fmu.compiler import FMPY_C_CODE as FMI_HEADERS, SOURCE_DIR, fmu_source_files
 from fmu.cosim import Stepper, initialised_fmu
 from fmu.header import HEADER_NAME, coefficient_header
 from fmu.packer import build_fmu
 from training.layout import INPUTS, identity_coefficients
 
 C_HARNESS = Path(__file__).parent / "c" / "state_fuzz.c"
-FMI_HEADERS = Path(fmpy.__file__).parent / "c-code"
 #: The particle filter on with 2 x 2 cells per cube face: its bin list and counters are in the state.
 SETTINGS = {"enable_pf": 1, "pf_sphere_bins": 2}
 FMPY_MUTATIONS = 1000   # per FMI version

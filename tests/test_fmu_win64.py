@@ -1,0 +1,140 @@
+"""The FMU's Windows x86-64 binary (binaries/win64 for FMI 2, binaries/x86_64-windows for FMI 3),
+cross-compiled with mingw-w64: present, exporting exactly the FMI functions, importing only Windows
+system DLLs, valid for fmpy and fmutool; fmu.pe read against mingw's objdump; and the linux-only
+build when the cross compiler is missing. Nothing here runs the DLL (no Windows, no wine)."""
+from __future__ import annotations
+
+import re
+import subprocess
+import zipfile
+from pathlib import Path
+
+import numpy as np
+import pytest
+from fmpy.validation import validate_fmu as fmpy_validate_fmu
+
+import fmu.packer
+from debian_tools import debian_tool
+from fmu.compiler import WIN64_COMPILER, WIN64_PACKAGE, WIN64_PLATFORMS
+from fmu.packer import build_fmu
+from fmu.pe import MACHINE_AMD64, read_pe
+from fmu.validator import (EXPORTED_FUNCTIONS, binary_member, binary_members, exported_symbols, fmutool_problems,
+                           is_windows_system_dll, validate_fmu, windows_image)
+from training.layout import identity_coefficients
+
+#: mingw-w64's objdump, installed with the cross compiler (package WIN64_PACKAGE's dependency).
+WIN64_OBJDUMP = "x86_64-w64-mingw32-objdump"
+
+
+def _win64_member(fmi_version: int) -> str:
+    """The Windows binary's path inside an FMI `fmi_version` FMU."""
+    return binary_members(fmi_version)[WIN64_PLATFORMS[fmi_version]]
+
+
+@pytest.fixture(scope="module", params=[2, 3], ids=["fmi2", "fmi3"])
+def win_fmu(request, tmp_path_factory) -> tuple[Path, int]:
+    """(FMU path, FMI version): an identity-coefficient FMU built with the cross compiler present."""
+    debian_tool(WIN64_COMPILER, WIN64_PACKAGE)
+    out = tmp_path_factory.mktemp(f"win64-fmi{request.param}") / "ImuFusion.fmu"
+    return build_fmu(np.array(identity_coefficients()), {}, out, fmi_version=request.param), request.param
+
+
+def test_fmu_carries_the_linux_and_the_win64_binary(win_fmu):
+    path, version = win_fmu
+    with zipfile.ZipFile(path) as zf:
+        names = set(zf.namelist())
+    assert {binary_member(version), _win64_member(version)} <= names
+    assert _win64_member(version) == f"binaries/{('win64', 'x86_64-windows')[version - 2]}/ImuFusion.dll"
+
+
+def test_win64_binary_exports_exactly_the_fmi_functions(win_fmu):
+    path, version = win_fmu
+    symbols = exported_symbols(path, WIN64_PLATFORMS[version])
+    assert len(symbols) == {2: 34, 3: 75}[version]
+    assert symbols == EXPORTED_FUNCTIONS[version]
+
+
+def test_win64_binary_is_x86_64_and_imports_only_windows_system_dlls(win_fmu):
+    path, version = win_fmu
+    image = windows_image(path, WIN64_PLATFORMS[version])
+    assert image.machine == MACHINE_AMD64
+    assert image.imports and all(is_windows_system_dll(name) for name in image.imports), image.imports
+    assert not any(re.search("libgcc|winpthread|libstdc", name, re.I) for name in image.imports)
+
+
+def test_fmpy_fmutool_and_full_validation_pass_with_the_win64_binary(win_fmu):
+    path, version = win_fmu
+    assert fmpy_validate_fmu(str(path)) == []
+    assert fmutool_problems(path) == []
+    checks: list[tuple[str, int]] = []
+    assert validate_fmu(path, checks) == []
+    assert ("binaries", 0) in checks
+
+
+def test_pe_reader_agrees_with_mingw_objdump(win_fmu, tmp_path):
+    objdump = debian_tool(WIN64_OBJDUMP, WIN64_PACKAGE)
+    path, version = win_fmu
+    with zipfile.ZipFile(path) as zf:
+        dll = Path(zf.extract(_win64_member(version), tmp_path))
+    dump = subprocess.run([objdump, "-p", str(dll)], stdout=subprocess.PIPE, text=True, check=True).stdout
+    table = dump.split("[Ordinal/Name Pointer] Table", 1)[1].split("\n\n", 1)[0]
+    names = set(re.findall(r"^\s*\[\s*\d+\]\s+(\S+)\s*$", table, re.M))
+    dlls = re.findall(r"^\s*DLL Name: (\S+)\s*$", dump, re.M)
+    image = read_pe(dll.read_bytes())
+    assert names == image.exports and len(names) == len(EXPORTED_FUNCTIONS[version])
+    assert tuple(dlls) == image.imports
+
+
+def test_pe_reader_refuses_foreign_files_and_never_misreads_a_truncated_dll(win_fmu):
+    """A truncated DLL either raises ValueError (a table lies beyond the cut) or, when the cut
+    only drops bytes the reader does not need (trailing sections), reads exactly as the whole."""
+    path, version = win_fmu
+    with zipfile.ZipFile(path) as zf:
+        data = zf.read(_win64_member(version))
+        elf = zf.read(binary_member(version))
+    for foreign in (elf, b"", b"MZ"):
+        with pytest.raises(ValueError):
+            read_pe(foreign)
+    whole, refused = read_pe(data), 0
+    for cut in range(0, len(data), 997):
+        try:
+            assert read_pe(data[:cut]) == whole
+        except ValueError:
+            refused += 1
+    assert refused > 0
+
+
+def test_validate_names_a_win64_binary_with_foreign_exports_and_imports(win_fmu, tmp_path):
+    """A DLL that exports a non-FMI function and imports a DLL Windows lacks (helper.dll) replaces
+    the win64 binary: validate reports the extra export, the missing FMI functions and the import,
+    each naming the win64 member."""
+    cc = debian_tool(WIN64_COMPILER, WIN64_PACKAGE)
+    path, version = win_fmu
+    (tmp_path / "helper.c").write_text("__declspec(dllexport) int helper(void) { return 1; }\n")
+    (tmp_path / "bad.c").write_text("int helper(void);\n"
+                                    "__declspec(dllexport) int ImuExtra(void) { return helper(); }\n")
+    subprocess.run([cc, "-shared", str(tmp_path / "helper.c"), "-o", str(tmp_path / "helper.dll")], check=True)
+    subprocess.run([cc, "-shared", str(tmp_path / "bad.c"), str(tmp_path / "helper.dll"), "-o",
+                    str(tmp_path / "bad.dll")], check=True)
+    tampered = tmp_path / "tampered.fmu"
+    member = _win64_member(version)
+    with zipfile.ZipFile(path) as src, zipfile.ZipFile(tampered, "w") as dst:
+        for info in src.infolist():
+            dst.writestr(info, (tmp_path / "bad.dll").read_bytes() if info.filename == member else src.read(info))
+    problems = validate_fmu(tampered)
+    assert f"{member}: exports non-FMI symbols: ImuExtra" in problems
+    assert any(p.startswith(f"{member}: lacks FMI functions: ") for p in problems)
+    assert f"{member}: imports DLLs that Windows does not have: helper.dll" in problems
+    assert all(p.startswith(member) for p in problems)  # the linux binary is fine
+
+
+def test_without_the_cross_compiler_the_fmu_is_built_for_linux_and_says_so(monkeypatch, capsys, tmp_path):
+    monkeypatch.setattr(fmu.packer, "win64_compiler", lambda: None)
+    out = build_fmu(np.array(identity_coefficients()), {}, tmp_path / "ImuFusion.fmu")
+    lines = capsys.readouterr().err.splitlines()
+    assert lines == [f"{out}: win64 binary skipped: {WIN64_COMPILER} is not installed "
+                     f"(apt-get install {WIN64_PACKAGE})"]
+    with zipfile.ZipFile(out) as zf:
+        names = zf.namelist()
+    assert binary_member(2) in names and _win64_member(2) not in names
+    assert validate_fmu(out) == []
