@@ -61,3 +61,10 @@ def test_report_and_summary_written(summary):
     assert data["passed"] is True
     for s in summary.scenarios:
         assert (out / "plots" / f"{s.name}.png").stat().st_size > 10_000
+
+
+def test_main_job_reproduces_the_golden_record(summary):
+    """The main job's artefact and FMU outputs equal the record taken before the redesign of issue
+    17 (tests/golden.py: to 1e-12, angles modulo 2π): moving code changes no number."""
+    import golden
+    assert golden.differences(summary) == {}
