@@ -147,6 +147,14 @@ def step_sizes(t: np.ndarray, default: float) -> np.ndarray:
     return np.append(h, h[-1])
 
 
+def description_step_sizes(description, t: np.ndarray) -> np.ndarray:
+    """(N,) communication step sizes [s] that run_fmu uses for the sample times t [s]: `step_sizes`
+    with, for a single sample, the default experiment's step size of the FMU's model description
+    `description` (fmpy ModelDescription; 1 s when it declares none)."""
+    experiment = description.defaultExperiment
+    return step_sizes(t, experiment.stepSize if experiment is not None and experiment.stepSize else 1.0)
+
+
 def _set_parameters(fmu: FMU2Slave | FMU3Slave, parameters: dict) -> None:
     """Set parameters by name (Real, Integer or Boolean) at the value references of the FMU's model
     description; FmuError for names that are not parameters."""
@@ -264,8 +272,7 @@ def run_fmu(fmu_path: str | Path, t: np.ndarray, inputs: np.ndarray, parameters:
     is a list, the FMU's log messages ('[STATUS] category: message') are appended to it.
     """
     t, inputs = _check_arrays(t, inputs)
-    experiment = read_description(fmu_path).defaultExperiment
-    h = step_sizes(t, experiment.stepSize if experiment is not None and experiment.stepSize else 1.0)
+    h = description_step_sizes(read_description(fmu_path), t)
     with initialised_fmu(fmu_path, float(t[0]), parameters) as fmu:
         out = step_samples(fmu, t, inputs, h, progress)
         if log is not None:
