@@ -23,7 +23,7 @@ BROAD_TRIAL = ROOT.parent / "shared" / "data" / "broad" / "01_undisturbed_slow_r
 #: BROAD samples the record covers: 20 s at 285.7 Hz.
 BROAD_SAMPLES = 5714
 #: Every ROW_STEP-th output row is stored.
-ROW_STEP = 10
+ROW_STEP = 25
 #: The FMU and the batch library agree to this (tests/test_pipeline.py FMU_BATCH_TOLERANCE); the
 #: same code on the same machine reproduces its own outputs to it too.
 TOLERANCE = 1e-12
