@@ -38,7 +38,8 @@ from pathlib import Path
 
 import numpy as np
 
-from training import bench, layout, magpf, pf_settings, runtime
+from contract import layout
+from training import bench, magpf, pf_settings, runtime
 from training.ellipsoid import apply_ellipsoid, fit_ellipsoid
 from training.io import read_imu_csv
 from training.thermal import ThermalModel

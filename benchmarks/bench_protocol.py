@@ -26,7 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
-from training import layout
+from contract import layout
 from training.artefact import coefficients_array, settings_dict
 from training.evaluate import compute_metrics, raw_sensor_metrics
 from training.pipeline import ACCEPTANCE, recording_parameters, settings_with

@@ -26,7 +26,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from training import layout  # noqa: E402
+from contract import layout  # noqa: E402
 from training.bench import run_xio_fusion  # noqa: E402
 from training.evaluate import quaternion_multiply  # noqa: E402
 from training.io import read_imu_csv  # noqa: E402

@@ -17,7 +17,7 @@ Orientation Estimation", Data 6(7), 2021, doi:10.3390/data6070072 (CC-BY-4.0).
    (training.runtime.run_batch, the FMU's C code) at the artefact's settings plus the sidecar
    parameters `imufmu run` sets; BROAD's metric (training.bench.broad_errors) (a) as is, (b) with the
    reference resampled at t − δ (the median δ over trials; the per-trial δ as a secondary column),
-   (c) the runtime with lag_gyr = lag_acc = lag_mag = δ when training.layout.SETTINGS has them.
+   (c) the runtime with lag_gyr = lag_acc = lag_mag = δ when contract.layout.SETTINGS has them.
 3. Writes OUT/README.md, OUT/results.json, OUT/offsets.csv, OUT/*.png and prints the tables.
 """
 from __future__ import annotations
@@ -36,7 +36,7 @@ from scipy.stats import chi2 as chi2_distribution
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from training import layout  # noqa: E402
+from contract import layout  # noqa: E402
 from training.bench import BROAD_CITATION, GROUPS, broad_errors, trial_number, trial_paths  # noqa: E402
 from training.bench_trained import TRAIN_TRIALS  # noqa: E402
 from training.dataset import ImuData  # noqa: E402
@@ -122,7 +122,7 @@ def shifted_reference(data: ImuData, delta: float) -> ImuData:
 
 
 def lag_settings_present() -> bool:
-    """True when training.layout.SETTINGS has every LAG_SETTINGS name."""
+    """True when contract.layout.SETTINGS has every LAG_SETTINGS name."""
     return all(n in layout.settings_defaults() for n in LAG_SETTINGS)
 
 
@@ -269,7 +269,7 @@ def _lag_lines(rows: list[dict], s: dict, fs: float) -> list[str]:
         lines += [f"| {r['name']} | {_fmt3(r['lag_settings'])} |" for r in rows]
         return lines
     return ["Row (c), the runtime carrying the offset (`lag_gyr`, `lag_acc`, `lag_mag`): **not measured** — "
-            "when this report was generated `training.layout.SETTINGS` had no such settings. Re-running the "
+            "when this report was generated `contract.layout.SETTINGS` had no such settings. Re-running the "
             "command above adds the row as soon as they exist."]
 
 

@@ -21,7 +21,7 @@ import numpy as np
 from training.artefact import ModelArtefact
 from training.diagnose import diagnose
 from training.io import read_imu_csv
-from training.layout import TRIAD_ORDER, settings_defaults
+from contract.layout import TRIAD_ORDER, settings_defaults
 from training.reference import derive_references
 from training.thermal import ThermalModel
 from training.train import train

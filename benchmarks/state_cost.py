@@ -22,7 +22,7 @@ from fmpy.fmi3 import FMU3Slave  # noqa: E402
 
 from fmu.cosim import initialised_fmu  # noqa: E402
 from fmu.packer import build_fmu  # noqa: E402
-from training.layout import identity_coefficients  # noqa: E402
+from contract.layout import identity_coefficients  # noqa: E402
 
 #: Calls per timed batch and batches per figure.
 CALLS = 2000

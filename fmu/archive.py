@@ -21,7 +21,7 @@ from pathlib import Path, PurePosixPath
 import fmpy
 
 from fmu.compiler import binary_path
-from training.errors import ImuFusionError, one_line
+from contract.errors import ImuFusionError, one_line
 
 #: Caps on what an archive may cost: the ImuFusion FMU holds 45 members (FMI 3: 46), 0.75 MB unpacked.
 MAX_MEMBERS = 10_000

@@ -10,7 +10,7 @@ from pathlib import Path
 import fmpy
 from fmpy.build import create_cmake_settings
 
-from training.errors import BuildError
+from contract.errors import BuildError
 
 #: The repository's C sources: exactly what goes into the FMU's sources/ folder (minus EXCLUDED).
 SOURCE_DIR = Path(__file__).resolve().parent.parent / "sources"

@@ -16,10 +16,10 @@ from tqdm import tqdm
 
 from fmu.archive import extract_archive, extracted_binary, read_description
 from fmu.fmi2_logger import callbacks_for, release
-from fmu.variables import by_name
-from training.errors import ImuFusionError, one_line
-from training.layout import INPUTS, OUTPUTS
-from training.schema import check_setting
+from contract.variables import by_name
+from contract.errors import ImuFusionError, one_line
+from contract.layout import INPUTS, OUTPUTS
+from contract.schema import check_setting
 
 _STATUS = ("OK", "WARNING", "DISCARD", "ERROR", "FATAL", "PENDING")
 
@@ -79,7 +79,7 @@ def value_reference(fmu: FMU2Slave | FMU3Slave, name: str) -> int:
 
 class Stepper:
     """Raw per-sample FMI calls on an initialised FMU2Slave or FMU3Slave: set the inputs,
-    doStep, get the outputs (training.layout INPUTS / OUTPUTS order, by the value references of
+    doStep, get the outputs (contract.layout INPUTS / OUTPUTS order, by the value references of
     the FMU's model description)."""
 
     def __init__(self, fmu: FMU2Slave | FMU3Slave) -> None:
@@ -264,10 +264,10 @@ def run_fmu(fmu_path: str | Path, t: np.ndarray, inputs: np.ndarray, parameters:
     """Run the FMU (FMI 2 or 3) over a recording and return its outputs.
 
     t: (N,) sample times [s], strictly increasing (steps may vary); inputs: (N, len(INPUTS)) raw
-    samples in training.layout.INPUTS order (rad/s, m/s², µT, °C, auxiliary inputs; NaN allowed;
+    samples in contract.layout.INPUTS order (rad/s, m/s², µT, °C, auxiliary inputs; NaN allowed;
     ImuData.inputs(aux_columns=fmu.packer.fmu_aux_columns(fmu_path))); parameters: start values by
     name. Each sample is set, then doStep(t_k, t_{k+1} - t_k) consumes it (the last step repeats
-    the previous step size). Returns (N, len(OUTPUTS)) outputs in training.layout.OUTPUTS order; row k is the
+    the previous step size). Returns (N, len(OUTPUTS)) outputs in contract.layout.OUTPUTS order; row k is the
     estimate for sample k. Raises FmuError carrying the FMU's log when an FMI call fails. When `log`
     is a list, the FMU's log messages ('[STATUS] category: message') are appended to it.
     """

@@ -8,10 +8,10 @@ well-formed. Two checks close that gap:
 `description_problems` (static) compares every variable of the description (name,
 valueReference, causality, variability, type, unit, start, min, max) with what the FMU's code
 says, from two sides: the variable table the build generated the description from
-(fmu/variables.py, from training/layout.py) and the archive's own sources — the `ValueReference`
+(contract/variables.py, from contract/layout.py) and the archive's own sources — the `ValueReference`
 enum, `VR_IS_BOOLEAN` / `VR_IS_INTEGER` and `VR_TIME` of sources/config.h, and the parameter start
 values compiled into the binary (`IMU_SETTING_DEFAULTS` of sources/ImuCoefficientsData.h, in
-training.layout.SETTINGS order). config.h is hand-written and pinned to the table by
+contract.layout.SETTINGS order). config.h is hand-written and pinned to the table by
 tests/test_fmu.py; model.c maps a value reference to an array index from its groups, which
 compile-time checks tie to ImuLayout.h.
 
@@ -47,9 +47,9 @@ from fmu.archive import read_description
 from fmu.cosim import Stepper, initialised_fmu
 from fmu.header import HEADER_NAME, read_header_arrays
 from fmu.model_description import FMI3_TYPES, TIME_VALUE_REFERENCE
-from fmu.variables import VARIABLES
-from training.errors import ImuFusionError, ModelError, one_line
-from training.layout import INPUTS, LAG_MAX_S, OUTPUTS, SETTINGS, TRIAD_ORDER
+from contract.variables import VARIABLES
+from contract.errors import ImuFusionError, ModelError, one_line
+from contract.layout import INPUTS, LAG_MAX_S, OUTPUTS, SETTINGS, TRIAD_ORDER
 from training.mounting import MOUNT_SETTINGS
 
 #: The archive members whose contents the static check reads.
@@ -57,7 +57,7 @@ CONFIG_MEMBER = "sources/config.h"
 HEADER_MEMBER = f"sources/{HEADER_NAME}"
 #: Where each side of the comparison comes from, as the problem lines name it.
 DESCRIPTION = "modelDescription.xml"
-TABLE = "the variable table (fmu/variables.py)"
+TABLE = "the variable table (contract/variables.py)"
 
 #: The attributes compared, in the order problems are reported (fmpy's ScalarVariable names).
 ATTRIBUTES = ("valueReference", "causality", "variability", "type", "unit", "start", "min", "max")
@@ -73,10 +73,10 @@ _TABLE_TYPES = {fmi3: table for table, fmi3 in FMI3_TYPES.items()}
 #: limits (100 rad/s, 2000 m/s², a field between 0.02 and 20 field norms).
 INPUT_STEPS = {"gyr": 0.1, "acc": 1.0, "mag": 5.0}
 #: Communication step [s] and steps each input is held: longer than the largest time-alignment
-#: lag (training.layout.LAG_MAX_S), so every triad's aligned value is the held one.
+#: lag (contract.layout.LAG_MAX_S), so every triad's aligned value is the held one.
 HOLD_STEP_S = 0.01
 HOLD_STEPS = math.ceil(LAG_MAX_S / HOLD_STEP_S) + 2
-#: The raw triad inputs; OUTPUTS[k] is the corrected INPUTS[k] for each of them (training.layout).
+#: The raw triad inputs; OUTPUTS[k] is the corrected INPUTS[k] for each of them (contract.layout).
 RAW_TRIADS = INPUTS[:3 * len(TRIAD_ORDER)]
 
 
@@ -144,7 +144,7 @@ def config_variables(text: str, fmi_version: int) -> dict[str, dict]:
 
 def header_variables(text: str) -> dict[str, dict]:
     """name -> start of every parameter, from the IMU_SETTING_DEFAULTS array compiled into the
-    binary (text of sources/ImuCoefficientsData.h; training.layout.SETTINGS order), typed by the
+    binary (text of sources/ImuCoefficientsData.h; contract.layout.SETTINGS order), typed by the
     table (Integer and Boolean parameters are stored as whole numbers)."""
     _, settings, _ = read_header_arrays(text)
     if len(settings) != len(SETTINGS):

@@ -6,8 +6,8 @@ import re
 
 import numpy as np
 
-from training.errors import ModelError
-from training.layout import N_COEFFICIENTS, SETTINGS, settings_array
+from contract.errors import ModelError
+from contract.layout import N_COEFFICIENTS, SETTINGS, settings_array
 
 HEADER_NAME = "ImuCoefficientsData.h"
 
@@ -36,7 +36,7 @@ def _comment_text(text: str) -> str:
 def coefficient_header(coefficients: np.ndarray, settings: dict, guid: str, provenance: str) -> str:
     """Text of ImuCoefficientsData.h.
 
-    coefficients: (N_COEFFICIENTS,) flat array (layout: training/layout.py); settings: the
+    coefficients: (N_COEFFICIENTS,) flat array (layout: contract/layout.py); settings: the
     parameter start values by name (missing names take the defaults); guid: the FMU's GUID;
     provenance: free text written into the header comment (artefact, seed, versions).
     Raises ModelError on a wrong length, non-finite values or unknown setting names.

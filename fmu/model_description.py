@@ -7,8 +7,8 @@ from xml.sax.saxutils import quoteattr
 
 from fmu.compiler import check_fmi_version, fmu_source_files
 from fmu.provenance import generation_tool
-from fmu.variables import Variable, variable_table
-from training.layout import settings_defaults
+from contract.variables import Variable, variable_table
+from contract.layout import settings_defaults
 
 MODEL_NAME = "ImuFusion"
 
@@ -74,7 +74,7 @@ def _common_attributes(variable: Variable) -> list[str]:
 
 
 def _range_attributes(variable: Variable) -> list[str]:
-    """min and max of a Real or Integer with a declared range (training.layout.SETTING_RANGES,
+    """min and max of a Real or Integer with a declared range (contract.layout.SETTING_RANGES,
     inclusive in FMI; an open bound is refused by the FMU at initialisation)."""
     if variable.type == "Boolean":
         return []
@@ -140,7 +140,7 @@ def _model_structure_xml(fmi_version: int, variables: tuple[Variable, ...]) -> s
 
 
 def _settings_values(settings: dict) -> dict:
-    """Every setting by name: training.layout defaults overridden by `settings`; KeyError for unknown names."""
+    """Every setting by name: contract.layout defaults overridden by `settings`; KeyError for unknown names."""
     values = settings_defaults()
     for name, value in settings.items():
         if name not in values:
@@ -207,7 +207,7 @@ def model_description_xml(settings: dict, guid: str, description: str,
                           aux_inputs: Sequence[dict] = (), built: str | None = None) -> str:
     """Text of modelDescription.xml for FMI `fmi_version` (2 or 3).
 
-    settings: parameter start values by name (missing names take training.layout defaults);
+    settings: parameter start values by name (missing names take contract.layout defaults);
     guid: the GUID (FMI 3: instantiation token) also compiled into the binary; description: the
     model's one-line description; source_files: the .c files to list under SourceFiles (FMI 2
     only; default: those of fmu.compiler; FMI 3 lists them in buildDescription.xml); aux_inputs:

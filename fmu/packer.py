@@ -29,9 +29,9 @@ from fmu.compiler import (WIN64_COMPILER, WIN64_PACKAGE, check_fmi_version, comp
 from fmu.header import HEADER_NAME, coefficient_header
 from fmu.model_description import MODEL_NAME, model_description_xml
 from fmu.provenance import PROVENANCE_FILE, build_time, provenance_record, provenance_summary
-from fmu.variables import Variable, variable_table
-from training.errors import ModelError
-from training.layout import AUX_INPUTS, INPUTS, OUTPUTS, SETTINGS, settings_array
+from contract.variables import Variable, variable_table
+from contract.errors import ModelError
+from contract.layout import AUX_INPUTS, INPUTS, OUTPUTS, SETTINGS, settings_array
 from training.runtime import run_batch
 
 DEFAULT_DESCRIPTION = ("IMU calibration and attitude: temperature-compensated gyro, accelerometer and "
@@ -54,7 +54,7 @@ _REFERENCE_RATE_HZ = 100.0
 def reference_recording() -> tuple[np.ndarray, np.ndarray]:
     """(t, inputs): the built-in reference recording, closed form (no random numbers).
 
-    t: (200,) s at 100 Hz from 0; inputs: (200, len(INPUTS)) in training.layout.INPUTS order — a
+    t: (200,) s at 100 Hz from 0; inputs: (200, len(INPUTS)) in contract.layout.INPUTS order — a
     sensor rocking in roll and pitch and turning in yaw, gravity and a 20/40 µT field rotated into
     the body frame, temperature rising from 20 to 30 °C, auxiliary input k = sin(k t) (unit-free).
     """
@@ -198,7 +198,7 @@ def build_fmu(coefficients: np.ndarray, settings: dict, out_path: str | Path,
               notes: Sequence[str] = ()) -> Path:
     """Build ImuFusion.fmu for FMI `fmi_version` (2 or 3) at out_path and return its path.
 
-    coefficients: (N_COEFFICIENTS,) flat array (training/layout.py); settings: parameter start
+    coefficients: (N_COEFFICIENTS,) flat array (contract/layout.py); settings: parameter start
     values by name (missing names take the defaults); provenance goes into the coefficient
     header's comment; aux_inputs: the model's ModelArtefact.aux_inputs (what aux_1.. carry);
     training_data and notes: the model's ModelArtefact.training_data and .notes, which go with the

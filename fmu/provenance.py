@@ -4,7 +4,7 @@ The record — generating tool and version, build time (UTC), the training recor
 triads and stages the compiled coefficients calibrate, the training notes — is written to
 extra/imufusion/provenance.json and summarised in modelDescription.xml (generationTool,
 generationDateAndTime, description). Triads and stages are read from the coefficient array
-itself (training.layout offsets), so the record says what the binary actually carries.
+itself (contract.layout offsets), so the record says what the binary actually carries.
 """
 from __future__ import annotations
 
@@ -14,8 +14,8 @@ from datetime import datetime, timezone
 
 import numpy as np
 
-from training.layout import OFFSET_ELM, OFFSET_PSOBP, OFFSET_TERMS, OFFSET_THERMAL, TRIAD_BLOCK, TRIAD_ORDER
-from training.version import DISTRIBUTION, package_version
+from contract.layout import OFFSET_ELM, OFFSET_PSOBP, OFFSET_TERMS, OFFSET_THERMAL, TRIAD_BLOCK, TRIAD_ORDER
+from contract.version import DISTRIBUTION, package_version
 
 #: The provenance record inside the FMU (JSON object, `provenance_record`).
 PROVENANCE_FILE = "extra/imufusion/provenance.json"

@@ -21,8 +21,8 @@ from fmu.description_check import behaviour_problems, description_problems
 from fmu.model_description import MODEL_NAME
 from fmu.packer import REFERENCE_INPUT, REFERENCE_OUTPUT, read_reference_csv
 from fmu.pe import MACHINE_AMD64, PeImage, read_pe
-from training.errors import ImuFusionError, one_line
-from training.layout import INPUTS, OUTPUTS
+from contract.errors import ImuFusionError, one_line
+from contract.layout import INPUTS, OUTPUTS
 
 #: The 25 common and 9 co-simulation functions of FMI 2.0: exactly what the binary exports.
 FMI2_CS_FUNCTIONS = frozenset({

@@ -1,6 +1,6 @@
 /**
  * @file ImuLayout.h
- * @brief Sizes and orders of the flat arrays shared with Python (training/layout.py).
+ * @brief Sizes and orders of the flat arrays shared with Python (contract/layout.py).
  *
  * tests/test_layout.py pins these numbers to the Python side through ImuBatchLayout().
  */

@@ -100,7 +100,7 @@ int ImuPipelineSettingsFromArray(ImuPipelineSettings *s, const double *a, size_t
     return 0;
 }
 
-/* Setting limits [setting unit]: the numbers of training/layout.py SETTING_RANGES, where each is
+/* Setting limits [setting unit]: the numbers of contract/layout.py SETTING_RANGES, where each is
  * derived (tests/test_value_checks.py pins every bound of every setting to that table). */
 #define IMU_SET_FIELD_NORM_MIN 5.0        /* uT: gauss values are 100x smaller than the 22-67 uT field */
 #define IMU_SET_FIELD_NORM_MAX 1000.0     /* uT: nT values are 1000x larger */

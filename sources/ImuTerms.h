@@ -32,7 +32,7 @@
 #define IMU_TERMS_TEMP_RATE_TAU 10.0
 #define IMU_TERMS_TEMP_RATE_FAST_TAU 1.0
 
-/** The signal vocabulary (training/layout.py TERM_SIGNALS has the same names in the same order). */
+/** The signal vocabulary (contract/layout.py TERM_SIGNALS has the same names in the same order). */
 typedef enum {
     ImuSigGyrX, ImuSigGyrY, ImuSigGyrZ,   /* rad/s */
     ImuSigAccX, ImuSigAccY, ImuSigAccZ,   /* m/s^2 */

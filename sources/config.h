@@ -2,7 +2,7 @@
  * @file config.h
  * @brief Model identity and the value references of the ImuFusion FMU.
  *
- * The value references mirror the variable table in fmu/variables.py (tests/test_fmu.py pins
+ * The value references mirror the variable table in contract/variables.py (tests/test_fmu.py pins
  * the two together). Each group is contiguous and in the order of ImuLayout.h, so model.c maps
  * a value reference to an array index by subtracting the group's first value reference and adding
  * the group's first array index. Variables added by later layout versions form new groups after

@@ -45,7 +45,7 @@ def broad_outputs(fmu_path: Path) -> np.ndarray | None:
 def arrays(summary) -> dict[str, np.ndarray]:
     """The golden arrays of a main-job summary (training.pipeline.PipelineSummary)."""
     from training.artefact import coefficients_array, load_artefact, settings_dict
-    from training.layout import SETTINGS
+    from contract.layout import SETTINGS
     artefact = load_artefact(summary.model_path)
     settings = settings_dict(artefact)
     out = {"coefficients": np.asarray(coefficients_array(artefact), dtype=float),
@@ -60,7 +60,7 @@ def arrays(summary) -> dict[str, np.ndarray]:
 
 def differences(summary) -> dict[str, str]:
     """Golden array name -> what differs (empty when the main job reproduces the record)."""
-    from training.layout import OUTPUTS
+    from contract.layout import OUTPUTS
     golden = dict(np.load(GOLDEN))
     now = arrays(summary)
     problems = {}

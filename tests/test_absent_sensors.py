@@ -15,14 +15,15 @@ import pytest
 
 from fmu.cosim import OK, WARNING, initialised_fmu, step_samples, step_sizes
 from fmu.packer import build_fmu, reference_recording
-from training import layout, runtime
+from contract import layout
+from training import runtime
 from training.evaluate import reference_euler_magnetic, wrap_angle
 from training.pipeline import PipelineSummary, evaluate_recording
 from training.report import write_report
 from training.simulator import load_scenario, simulate
 from training.thermal import ThermalModel, apply_thermal
 
-SCENARIO = layout.__file__.rsplit("/training/", 1)[0] + "/scenarios/eval_handheld.toml"
+SCENARIO = layout.__file__.rsplit("/contract/", 1)[0] + "/scenarios/eval_handheld.toml"
 DURATION_S = 60.0
 #: Sensor errors of the recording: a calibrated MEMS unit (as tests/test_attitude_recovery.py):
 #: gyro white noise 0.03 °/s per sample and bias 0.01 °/s, acc 0.02 m/s², field 0.5 µT.

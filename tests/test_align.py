@@ -8,7 +8,8 @@ from fmpy import read_model_description
 
 from fmu.cosim import run_fmu
 from fmu.packer import build_fmu, fmu_aux_columns
-from training import layout, runtime
+from contract import layout
+from training import runtime
 from training.cli import main
 from training.dataset import ImuData
 from training.io import read_imu_csv, write_imu_csv

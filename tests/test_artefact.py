@@ -7,8 +7,8 @@ import pytest
 from training.artefact import (FORMAT_VERSION, ModelArtefact, coefficients_array, load_artefact,
                                settings_dict)
 from training.dataset import ImuData
-from training.errors import ModelError
-from training.layout import (LAYOUT_VERSION, N_COEFFICIENTS, OFFSET_TERMS, SETTINGS, TERM_SIGNALS, TERMS_BLOCK,
+from contract.errors import ModelError
+from contract.layout import (LAYOUT_VERSION, N_COEFFICIENTS, OFFSET_TERMS, SETTINGS, TERM_SIGNALS, TERMS_BLOCK,
                              identity_coefficients, settings_defaults)
 from training.thermal import ThermalModel, apply_thermal
 from training.recommend import GYRO_BIAS_RESIDUAL_FLOOR

@@ -21,11 +21,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from training import layout, runtime
+from contract import layout
+from training import runtime
 from training.evaluate import quaternion_multiply, reference_quaternion_magnetic
 from training.simulator import load_scenario, simulate
 
-SCENARIOS = layout.__file__.rsplit("/training/", 1)[0] + "/scenarios"
+SCENARIOS = layout.__file__.rsplit("/contract/", 1)[0] + "/scenarios"
 GLITCH_S = 60.0                  # s, time of the glitch
 SPIKE_RATE = 34.9                # rad/s, 2000 °/s: the full scale of common MEMS gyros
 GAP_S = 1.0                      # s, rows dropped (c) / time jump (d)

@@ -9,7 +9,8 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from training import bench, layout
+from contract import layout
+from training import bench
 from training.dataset import ImuData
 from training.io import write_imu_csv
 from training.runtime import run_batch

@@ -23,7 +23,7 @@ from test_psobp import random_model
 from test_thermal_degree import static_recording
 from training import elm
 from training.artefact import coefficients_array, load_artefact, settings_dict
-from training.layout import (OUTPUTS, TRIAD_BLOCK, TRIAD_ORDER, identity_block, identity_coefficients,
+from contract.layout import (OUTPUTS, TRIAD_BLOCK, TRIAD_ORDER, identity_block, identity_coefficients,
                              pack_coefficients, settings_array, terms_block)
 from training.psobp import MODE_RESIDUAL, evaluate_psobp_c
 from training.runtime import run_batch
@@ -200,7 +200,7 @@ def test_identity_model_is_always_valid():
 
 
 def test_imufmu_run_counts_the_samples_outside_the_calibrated_range():
-    from training.layout import OUTPUTS
+    from contract.layout import OUTPUTS
     from training.run_summary import range_note
     out = np.zeros((200, len(OUTPUTS)))
     out[:, OUTPUTS.index("calibration_valid")] = 1.0

@@ -4,12 +4,13 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from training import layout, runtime
+from contract import layout
+from training import runtime
 from training.evaluate import compute_metrics
 from training.simulator import load_scenario, simulate
 from training.thermal import ThermalModel
 
-SCENARIOS = layout.__file__.rsplit("/training/", 1)[0] + "/scenarios"
+SCENARIOS = layout.__file__.rsplit("/contract/", 1)[0] + "/scenarios"
 #: The particle filter must at least halve the field error that an unmodelled 15 µT hard-iron
 #: change leaves (the filter's own acceptance study is docs/magpf.md; this pins that the chain
 #: feeds it and uses its estimate).

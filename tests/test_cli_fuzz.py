@@ -350,7 +350,7 @@ class Cases:
             self.add("simulate", "scenario", what, ["simulate", str(path), "--out", str(self.folder / "sim")], path.name)
 
     def param_cases(self) -> None:
-        from training.layout import SETTINGS
+        from contract.layout import SETTINGS
         names = [n for n, _ in SETTINGS]
         values = ["nan", "inf", "-inf", "abc", "", "1e400", "4294967298", "0x10"]
         for k in range(30):

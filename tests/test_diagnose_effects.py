@@ -22,7 +22,7 @@ from fmu.packer import build_fmu
 from training.artefact import coefficients_array, load_artefact, settings_dict
 from training.diagnose import diagnose, holdout_rows
 from training.io import write_imu_csv
-from training.layout import INPUTS, OUTPUTS
+from contract.layout import INPUTS, OUTPUTS
 from training.pipeline import recording_parameters
 from training.simulator import load_scenario, simulate
 from training.train import train

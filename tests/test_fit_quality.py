@@ -17,7 +17,7 @@ from training.artefact import ModelArtefact
 from training.calibration_report import summary_text
 from training.fit_quality import (CROSS_AXIS_LIMIT_DEG, GYRO_NOISE_CLASS, SCALE_TOLERANCE, fit_warnings,
                                   noise_warnings)
-from training.layout import TRIAD_ORDER, settings_defaults
+from contract.layout import TRIAD_ORDER, settings_defaults
 from training.simulator import load_scenario, simulate
 from training.thermal import ThermalModel
 from training.train import train

@@ -16,8 +16,8 @@ import pytest
 
 from fmu.cosim import initialised_fmu
 from fmu.packer import build_fmu
-from fmu.variables import by_name
-from training.layout import identity_coefficients
+from contract.variables import by_name
+from contract.layout import identity_coefficients
 
 ERROR = 3                   # fmi2Error / fmi3Error
 CHILD_TIMEOUT_S = 60        # generous: one case takes about 0.1 s

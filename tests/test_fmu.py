@@ -20,9 +20,9 @@ from fmu.header import coefficient_header, read_header_arrays
 from fmu.model_description import LOG_CATEGORIES, model_description_xml
 from fmu.packer import build_fmu
 from fmu.validator import FMI2_CS_FUNCTIONS, exported_symbols, fmutool_problems, validate_fmu
-from fmu.variables import VARIABLES, by_name, inputs, outputs, parameters
-from training.errors import BuildError, ModelError
-from training.layout import (AUX_INPUTS, INPUTS, MAX_DEGREE, N_COEFFICIENTS, OUTPUTS, SETTINGS, TRIAD_BLOCK,
+from contract.variables import VARIABLES, by_name, inputs, outputs, parameters
+from contract.errors import BuildError, ModelError
+from contract.layout import (AUX_INPUTS, INPUTS, MAX_DEGREE, N_COEFFICIENTS, OUTPUTS, SETTINGS, TRIAD_BLOCK,
                              identity_coefficients, settings_array, settings_defaults)
 from training.runtime import run_batch
 
@@ -298,7 +298,7 @@ import numpy as np
 from fmpy import extract, read_model_description
 from fmpy.fmi2 import FMU2Slave
 from fmu.cosim import run_fmu
-from training.layout import INPUTS
+from contract.layout import INPUTS
 path, unzipped = sys.argv[1], sys.argv[2]
 for _ in range(3):
     run_fmu(path, np.arange(3) * 0.01, np.zeros((3, len(INPUTS))))

@@ -18,9 +18,9 @@ from fmu.cosim import FmuError, Stepper, initialised_fmu, run_fmu, step_samples,
 from fmu.model_description import FMI3_TYPES, LOG_CATEGORIES, TIME_VALUE_REFERENCE
 from fmu.packer import build_fmu
 from fmu.validator import FMI3_FUNCTIONS, exported_symbols, validate_fmu
-from fmu.variables import VARIABLES
+from contract.variables import VARIABLES
 from test_fmu import GOLDEN_TOLERANCE, TRAINED_SETTINGS, synthetic_recording, trained_coefficients
-from training.layout import settings_array
+from contract.layout import settings_array
 from training.runtime import run_batch
 
 

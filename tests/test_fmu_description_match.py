@@ -21,7 +21,7 @@ from test_fmu import TRAINED_SETTINGS, trained_coefficients
 from training.cli import main
 
 MD = "modelDescription.xml"
-TABLE = "the variable table (fmu/variables.py)"
+TABLE = "the variable table (contract/variables.py)"
 
 
 @pytest.fixture(scope="module", params=[2, 3], ids=["fmi2", "fmi3"])

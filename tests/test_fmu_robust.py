@@ -20,7 +20,7 @@ from fmu.compiler import FMPY_C_CODE as FMI_HEADERS, SOURCE_DIR, binary_path, fm
 from fmu.cosim import DISCARD, OK, WARNING, FmuError, Stepper, initialised_fmu, run_fmu
 from fmu.header import HEADER_NAME, coefficient_header
 from fmu.packer import build_fmu, reference_recording
-from training.layout import INPUTS, identity_coefficients
+from contract.layout import INPUTS, identity_coefficients
 
 C_TESTS = Path(__file__).parent / "c"
 STRICT = ["-std=c99", "-Wall", "-Wextra", "-Wpedantic", "-Werror"]

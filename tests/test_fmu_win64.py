@@ -24,7 +24,7 @@ from fmu.packer import REFERENCE_INPUT, REFERENCE_OUTPUT, build_fmu, read_refere
 from fmu.pe import MACHINE_AMD64, read_pe
 from fmu.validator import (EXPORTED_FUNCTIONS, REFERENCE_TOLERANCE, binary_member, binary_members, exported_symbols,
                            fmutool_problems, is_windows_system_dll, validate_fmu, windows_image)
-from training.layout import INPUTS, OUTPUTS, identity_coefficients
+from contract.layout import INPUTS, OUTPUTS, identity_coefficients
 
 #: mingw-w64's objdump, installed with the cross compiler (package WIN64_PACKAGE's dependency).
 WIN64_OBJDUMP = "x86_64-w64-mingw32-objdump"

@@ -28,7 +28,7 @@ import sys
 import numpy as np
 from ecospy import EcosLib, EcosSimulation, EcosSimulationStructure
 from fmu.packer import reference_recording
-from training.layout import INPUTS, OUTPUTS
+from contract.layout import INPUTS, OUTPUTS
 fmu_path, out_path = sys.argv[1:]
 EcosLib.set_log_level("warn")
 t, raw = reference_recording()

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from training.dataset import ImuData
-from training.errors import DataError
+from contract.errors import DataError
 from training.io import (find_recordings, load_many, read_imu_csv, recording_stem,
                          require_sensors, write_imu_csv)
 

@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from training import layout
+from contract import layout
 from training.bench import run_xio_fusion
 from training.cli import _param
 from training.evaluate import compute_metrics, tilt_from_level, tilt_heading_between

@@ -20,11 +20,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from training import layout, pf_settings, runtime
+from contract import layout
+from training import pf_settings, runtime
 from training.evaluate import quaternion_multiply, reference_quaternion_magnetic
 from training.simulator import load_scenario, simulate
 
-SCENARIOS = layout.__file__.rsplit("/training/", 1)[0] + "/scenarios"
+SCENARIOS = layout.__file__.rsplit("/contract/", 1)[0] + "/scenarios"
 GLITCH_S = 60.0                  # s, time of the glitch of the recovery cases
 #: Wrong but plausible fields: a random direction and a norm within ±NORM_SPREAD of |h_0|.
 NORM_SPREAD = 0.5

@@ -4,7 +4,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from training import layout, magpf, runtime
+from contract import layout
+from training import magpf, runtime
 from training import pf_settings as ps
 
 RATE_HZ = 100.0

@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from training import layout
+from contract import layout
 from training.artefact import coefficients_array, settings_dict
 from training.evaluate import compute_metrics, quaternion_multiply, reference_quaternion_magnetic
 from training.pipeline import recording_parameters, settings_with

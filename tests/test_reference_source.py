@@ -116,7 +116,7 @@ def test_train_cli_refuses_a_still_log_without_reference(tmp_path, capsys):
 def test_sidecar_site_gives_the_field_through_igrf():
     from datetime import datetime
 
-    from training.errors import ModelError
+    from contract.errors import ModelError
     from training.geomag import earth_field
     from training.recommend import sidecar_values
     site = {"latitude_deg": 47.8, "longitude_deg": 9.2, "altitude_km": 0.4, "date": "2020-06-01"}
@@ -141,7 +141,8 @@ NO_HARM_DEG = 0.05
 
 @pytest.mark.skipif(not BROAD_09.is_file(), reason=f"BROAD trial not found at {BROAD_09}")
 def test_self_calibration_of_a_real_log_does_no_harm():
-    from training import bench, layout
+    from contract import layout
+    from training import bench
     from training.artefact import coefficients_array, settings_dict
     from training.io import read_imu_csv
     from training.pipeline import recording_parameters, settings_with

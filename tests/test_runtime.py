@@ -7,8 +7,9 @@ import subprocess
 import numpy as np
 import pytest
 
-from training import layout, runtime
-from training.errors import BuildError
+from contract import layout
+from training import runtime
+from contract.errors import BuildError
 
 G = 9.80665                      # m/s², gravity the runtime assumes
 FIELD_NORM = 50.0                # µT

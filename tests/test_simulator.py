@@ -7,7 +7,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from training.errors import ScenarioError
+from contract.errors import ScenarioError
 from training.io import read_imu_csv, write_imu_csv
 from training.simulator import (GRAVITY_NED, STANDARD_GRAVITY, load_scenario, simulate,
                                 simulate_to_dir)

@@ -17,7 +17,8 @@ import pytest
 from fmu.compiler import SOURCE_DIR
 from fmu.cosim import OK, WARNING, Stepper, initialised_fmu
 from fmu.packer import build_fmu, reference_recording
-from training import layout, runtime
+from contract import layout
+from training import runtime
 
 #: s, the communication step of the importer, and the far clock of the issue.
 STEP_S, FAR_START_S = 0.01, 1e14

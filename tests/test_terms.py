@@ -7,7 +7,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from training import layout, runtime
+from contract import layout
+from training import runtime
 
 #: The runtime evaluates the same double expressions as the closed forms below; only the order of
 #: additions can differ, so agreement is to a few ulps of the magnitudes involved (≤ 1e-12).

@@ -2,7 +2,7 @@
 import numpy as np
 import pytest
 
-from training.layout import MAX_DEGREE, TRIAD_BLOCK, identity_block
+from contract.layout import MAX_DEGREE, TRIAD_BLOCK, identity_block
 from training.thermal import GainBiasFitter, ThermalModel, apply_thermal
 
 #: Horner (apply_thermal) vs explicit power sums (direct_evaluation) differ only by rounding:

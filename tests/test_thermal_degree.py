@@ -16,7 +16,7 @@ import pytest
 from training.artefact import ModelArtefact, coefficients_array, settings_dict
 from training.dataset import ImuData
 from training.degree import AUTO_MAX_DEGREE, choose_degree, parse_degree
-from training.layout import settings_array
+from contract.layout import settings_array
 from training.pipeline import recording_parameters
 from training.runtime import run_batch
 from training.simulator import GRAVITY_NED, load_scenario, simulate

@@ -10,7 +10,7 @@ import pytest
 from cli_errors import fails
 from training.cli import main
 from training.dataset import ImuData
-from training.errors import DataError
+from contract.errors import DataError
 from training.io import (GAP_STEP_FACTOR, MIN_MEDIAN_STEP_S, RATE_TOLERANCE, read_imu_csv,
                          report_load_notes, time_gaps, write_imu_csv)
 

@@ -1,6 +1,6 @@
 """Nonsense refused (issue 15 item 8): every value is checked against a declared type and range.
 
-One source, training/layout.py SETTING_RANGES: the CLI's --param, the model.json loader, the
+One source, contract/layout.py SETTING_RANGES: the CLI's --param, the model.json loader, the
 modelDescription.xml min/max and the C runtime's ImuPipelineSettingsCheck (pinned here bound by
 bound); the artefact's temperature models and terms against the physical bounds of
 training/model_checks.py; the sidecar fields against training/sidecar.py.
@@ -20,16 +20,16 @@ import pytest
 
 from cli_errors import fails
 from fmu.model_description import model_description_xml
-from fmu.variables import ranges_markdown
+from contract.variables import ranges_markdown
 from training import io, model_checks, sidecar
 from training.artefact import ModelArtefact, load_artefact
 from training.cli import _param, main
-from training.errors import DataError, ModelError
-from training.layout import (FIELD_NORM_MAX_UT, FIELD_NORM_MIN_UT, RAO_BLACKWELL_POSITIVE, SETTING_RANGES,
+from contract.errors import DataError, ModelError
+from contract.layout import (FIELD_NORM_MAX_UT, FIELD_NORM_MIN_UT, RAO_BLACKWELL_POSITIVE, SETTING_RANGES,
                              SETTINGS, settings_array)
 from training.runtime import load_runtime
 from training.mounting import MOUNT_SETTINGS, mounting_problem
-from training.schema import setting_problem
+from contract.schema import setting_problem
 from training.thermal import ThermalModel
 
 SOURCES = Path(__file__).resolve().parent.parent / "sources"

@@ -15,11 +15,11 @@ from pathlib import Path
 
 import numpy as np
 
-from .errors import ModelError
+from contract.errors import ModelError
 from .model_checks import flag_problem, term_problem, thermal_problem
 from .mounting import mounting_problem, settings_codes
-from .schema import setting_problem
-from .layout import (AUX_INPUTS, MAX_DEGREE, STAGE_BLOCKS, TERM_SIGNALS, TERM_TARGETS, TERMS_MAX,
+from contract.schema import setting_problem
+from contract.layout import (AUX_INPUTS, MAX_DEGREE, STAGE_BLOCKS, TERM_SIGNALS, TERM_TARGETS, TERMS_MAX,
                      TRIAD_ORDER, pack_coefficients, settings_defaults, terms_block)
 from .thermal import ThermalModel
 
@@ -35,10 +35,10 @@ _THERMAL_KEYS = ("enabled", "t0", "ts", "degree", "A", "g", "b")
 
 
 def library_versions() -> dict[str, str]:
-    """Versions of python, numpy, torch and our distribution (training.version.DISTRIBUTION) in
+    """Versions of python, numpy, torch and our distribution (contract.version.DISTRIBUTION) in
     this process."""
     import torch
-    from .version import DISTRIBUTION, package_version
+    from contract.version import DISTRIBUTION, package_version
     return {"python": platform.python_version(), "numpy": np.__version__,
             "torch": torch.__version__, DISTRIBUTION: package_version()}
 
@@ -46,7 +46,7 @@ def library_versions() -> dict[str, str]:
 def libraries_from_json(libraries: dict) -> dict:
     """The libraries of a model file, our version under DISTRIBUTION: files written before it
     recorded it under 'imufusion' (the name of x-io's Fusion package), renamed on load."""
-    from .version import DISTRIBUTION
+    from contract.version import DISTRIBUTION
     return {DISTRIBUTION if name == "imufusion" else name: version for name, version in libraries.items()}
 
 
@@ -61,15 +61,15 @@ class ModelArtefact:
 
     thermal: triad ('gyr', 'acc', 'mag') -> ThermalModel. fit_stats: triad -> dict of fit
     statistics (JSON scalars). training_data: [{'name', 'samples'}]. settings: setting name ->
-    recommended FMU parameter value (training.layout.SETTINGS units). notes: warnings.
+    recommended FMU parameter value (contract.layout.SETTINGS units). notes: warnings.
     blocks: flat coefficient blocks of the neural stages by name ('elm', 'psobp'; layouts in
     sources/ImuElm.h, sources/ImuPsoBp.h); an absent stage is disabled.
     terms: additive correction terms added by `imufmu diagnose`, each {'name', 'target', 'a', 'b',
-    'coefficient', 'lo', 'hi'} with target/a/b names from training.layout.TERM_TARGETS / TERM_SIGNALS
+    'coefficient', 'lo', 'hi'} with target/a/b names from contract.layout.TERM_TARGETS / TERM_SIGNALS
     (b may be None) and finite bounds lo <= hi of the regressor a·b; the runtime subtracts
     coefficient·clamp(a·b, lo, hi) from the target component (sources/ImuTerms.h).
     aux_inputs: what the FMU inputs aux_1.. carry, entry k for aux_{k+1} (at most
-    len(training.layout.AUX_INPUTS)): {'column': recording column 'aux_…', 'unit': unit text or '',
+    len(contract.layout.AUX_INPUTS)): {'column': recording column 'aux_…', 'unit': unit text or '',
     'meaning': free text}. A term on signal aux_k needs entry k.
     """
 
@@ -225,7 +225,7 @@ def _check_header(doc: dict, path) -> None:
 
 def _settings_from_json(doc, path) -> dict[str, float]:
     """Settings object -> dict; ModelError for an unknown name or a value outside the setting's
-    declared type and range (training.layout.SETTING_RANGES; a Boolean may be true/false), and for
+    declared type and range (contract.layout.SETTING_RANGES; a Boolean may be true/false), and for
     mounting codes that are no rotation (training.mounting)."""
     if not isinstance(doc, dict):
         _fail(path, "'settings' is not an object")
@@ -339,7 +339,7 @@ def _blocks_from_json(blocks, path) -> dict[str, list[float]]:
 
 
 def coefficients_array(artefact: ModelArtefact) -> np.ndarray:
-    """The flat coefficient array of training.layout, (N_COEFFICIENTS,) float64:
+    """The flat coefficient array of contract.layout, (N_COEFFICIENTS,) float64:
     [LAYOUT_VERSION, gyr, acc, mag thermal blocks, terms block, stage blocks]."""
     terms = terms_block([(t["target"], t["a"], t.get("b"), t["coefficient"], t["lo"], t["hi"])
                          for t in artefact.terms])
@@ -348,7 +348,7 @@ def coefficients_array(artefact: ModelArtefact) -> np.ndarray:
 
 
 def settings_dict(artefact: ModelArtefact) -> dict[str, float]:
-    """Every setting in training.layout.SETTINGS order: the artefact's value, else the default."""
+    """Every setting in contract.layout.SETTINGS order: the artefact's value, else the default."""
     values = settings_defaults()
     values.update(artefact.settings)
     return values

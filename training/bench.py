@@ -17,7 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
-from . import layout
+from contract import layout
 from .dataset import ImuData
 from .evaluate import quaternion_multiply, reference_quaternion_magnetic, tilt_heading_errors
 from .io import read_imu_csv

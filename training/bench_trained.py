@@ -22,7 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
-from . import layout
+from contract import layout
 from .bench import BROAD_CITATION, GROUPS, _group_means, broad_errors, run_vqf, trial_number, trial_paths
 from .dataset import ImuData
 from .io import read_imu_csv

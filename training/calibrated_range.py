@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .layout import TRIAD_ORDER
+from contract.layout import TRIAD_ORDER
 from .thermal import ThermalModel
 
 _NAMES = {"gyr": "gyroscope", "acc": "accelerometer", "mag": "magnetometer"}

@@ -13,7 +13,7 @@ import numpy as np
 from .artefact import ModelArtefact
 from .dataset import ImuData
 from .fit_quality import at_t0, cross_axis_deg, is_warning
-from .layout import TRIAD_ORDER
+from contract.layout import TRIAD_ORDER
 from .reference_source import SOURCE_TEXT
 from .thermal import ThermalModel, apply_thermal
 

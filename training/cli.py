@@ -10,7 +10,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from .errors import ImuFusionError, one_line
+from contract.errors import ImuFusionError, one_line
 
 
 def _existing_file(path: str, what: str) -> Path:
@@ -23,8 +23,8 @@ def _existing_file(path: str, what: str) -> Path:
 
 def _param(text: str) -> tuple[str, float]:
     """Parse NAME=VALUE for --param: a known setting with a value of its declared type and range
-    (training.schema); a value that looks like the wrong unit is taken, with a warning on stderr."""
-    from .schema import check_setting, unit_warning
+    (contract.schema); a value that looks like the wrong unit is taken, with a warning on stderr."""
+    from contract.schema import check_setting, unit_warning
     name, sep, value = text.partition("=")
     try:
         if not sep:
@@ -205,8 +205,8 @@ def _add_verb(sub, verb: str, help_text: str) -> argparse.ArgumentParser:
 
 def build_parser() -> argparse.ArgumentParser:
     """The one argparse parser with a subparser per verb; --version prints our distribution's
-    name and version (training.version)."""
-    from .version import DISTRIBUTION, package_version
+    name and version (contract.version)."""
+    from contract.version import DISTRIBUTION, package_version
     p = argparse.ArgumentParser(prog="imufmu", description="ImuFusion: train, build, validate and "
                                 "co-simulate the IMU calibration + attitude FMU.")
     p.add_argument("--version", action="version", version=f"imufmu ({DISTRIBUTION}) {package_version()}")

@@ -39,7 +39,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from .errors import DataError
+from contract.errors import DataError
 from .io import read_imu_csv
 from .psobp import (PsoBpFitter, apply_psobp, bias_targets, fit_gyro_residual_psobp,
                     temperature_rate)

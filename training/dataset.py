@@ -9,7 +9,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .layout import AUX_INPUTS
+from contract.layout import AUX_INPUTS
 
 TRIADS = ("gyr", "acc", "mag")
 AXES = ("x", "y", "z")
@@ -64,7 +64,7 @@ class ImuData:
         return bool(np.isfinite(getattr(self, triad)).any())
 
     def inputs(self, aux_columns: Sequence[str] = ()) -> np.ndarray:
-        """(N, len(training.layout.INPUTS)) array in runtime input order: gyr xyz, acc xyz, mag xyz,
+        """(N, len(contract.layout.INPUTS)) array in runtime input order: gyr xyz, acc xyz, mag xyz,
         temp, then aux_1..aux_4. aux_k is this recording's column aux_columns[k-1] (NaN cells stay
         NaN), 0 where not mapped; pass a model's `[a["column"] for a in artefact.aux_inputs]`.
         Raises ValueError naming the recording and the column when a mapped column is missing.

@@ -35,7 +35,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .holdout import HOLDOUT_FRACTION
-from .layout import MAX_DEGREE
+from contract.layout import MAX_DEGREE
 from .thermal import (CLUSTER_WIDTH_C, DEFAULT_T0, DEFAULT_TS, normalised_temperature,
                       temperature_clusters, temperature_normalisation)
 

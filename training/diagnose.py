@@ -32,7 +32,7 @@ from .diagnose_export import add_effect, aux_slots_needed, term_count
 from .diagnose_fit import Fit, Residuals, fit_candidates, offset_fit, predict
 from .effect_readings import DISPLAY, readings
 from .io import read_imu_csv
-from .layout import INPUTS, TERM_SIGNALS, TERMS_MAX, TRIAD_ORDER, settings_array
+from contract.layout import INPUTS, TERM_SIGNALS, TERMS_MAX, TRIAD_ORDER, settings_array
 from .pipeline import recording_parameters
 from .reference import derive_references
 from .runtime import run_batch, term_signals

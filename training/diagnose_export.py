@@ -18,7 +18,7 @@ import numpy as np
 
 from .artefact import ModelArtefact
 from .diagnose_fit import Fit, Residuals
-from .layout import INPUTS, TERMS_MAX
+from contract.layout import INPUTS, TERMS_MAX
 
 AXES = ("x", "y", "z")
 AUX_SLOTS = tuple(n for n in INPUTS if n.startswith("aux_"))

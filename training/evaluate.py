@@ -16,7 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .dataset import ImuData
-from .layout import OUTPUTS
+from contract.layout import OUTPUTS
 
 _COL = {name: i for i, name in enumerate(OUTPUTS)}
 

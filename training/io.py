@@ -22,8 +22,8 @@ import numpy as np
 
 from training import input_limits as limits
 from training.dataset import REF_Q_COLUMNS, TRIADS, ImuData, triad_columns
-from training.errors import DataError
-from training.layout import SETTINGS
+from contract.errors import DataError
+from contract.layout import SETTINGS
 from training.sidecar import check_sidecar
 
 FORMAT = "imu-csv/1"
@@ -55,7 +55,7 @@ MAX_LINE_CHARS = 100_000     # a longer line is refused (an imu-csv/1 row is a f
 BLOCK_CHARS = 4 * 2**20      # characters of text parsed at a time (about 40 k rows)
 SEGMENT_ROWS = 2**20         # rows per storage segment (8 MiB per column: each one its own memory map)
 MAX_SIDECAR_BYTES = 2**20    # a larger sidecar is refused (a sidecar is a few hundred bytes)
-#: The runtime's field_norm setting [µT] when the sidecar gives no earth_field.norm_ut (training/layout.py).
+#: The runtime's field_norm setting [µT] when the sidecar gives no earth_field.norm_ut (contract/layout.py).
 DEFAULT_FIELD_NORM_UT = dict(SETTINGS)["field_norm"]
 #: (column index, low, high, unit, the C limit it mirrors) of a column the loader checks cell by cell.
 ValueLimit = tuple[int, float, float, str, str]

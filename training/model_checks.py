@@ -13,7 +13,7 @@ import math
 import numpy as np
 
 from . import input_limits
-from .layout import FIELD_NORM_MAX_UT
+from contract.layout import FIELD_NORM_MAX_UT
 from .thermal import MIN_TS, ThermalModel
 
 #: Valid sensor temperatures [°C] (the runtime guard's, training/input_limits.py): the centre t0 of
@@ -88,7 +88,7 @@ def thermal_problem(model: ThermalModel, triad: str) -> str | None:
 def term_problem(term: dict) -> str | None:
     """Why a validated correction term's largest correction |coefficient|·max(|lo|, |hi|) exceeds
     the full scale of its target triad (the runtime clamps the regressor to [lo, hi]), or None."""
-    triad = term["target"].split("_")[0]  # a training.layout.TERM_TARGETS name: gyr_x .. mag_z
+    triad = term["target"].split("_")[0]  # a contract.layout.TERM_TARGETS name: gyr_x .. mag_z
     largest = abs(term["coefficient"]) * max(abs(term["lo"]), abs(term["hi"]))
     if not (math.isfinite(largest) and largest <= FULL_SCALE[triad]):
         return (f"corrects {term['target']} by up to {_num(largest)} {UNITS[triad]} (|coefficient| × "

@@ -68,8 +68,8 @@ def settings_codes(settings: dict[str, float]) -> tuple[int, int, int]:
 
 
 def array_codes(settings) -> tuple[int, int, int]:
-    """The mounting codes of a flat settings array (training.layout.SETTINGS order)."""
-    from .layout import SETTINGS
+    """The mounting codes of a flat settings array (contract.layout.SETTINGS order)."""
+    from contract.layout import SETTINGS
     names = [name for name, _ in SETTINGS]
     return tuple(int(settings[names.index(name)]) for name in MOUNT_SETTINGS)
 

@@ -195,7 +195,7 @@ def pf_settings_from_calibration(field_calibrated, t, field_norm: float, rate_hz
                                  gate_sigmas: float = GATE_SIGMAS,
                                  change_margin: float = CHANGE_MARGIN,
                                  settle_samples: float = SETTLE_SAMPLES) -> dict[str, float]:
-    """FMU settings of the particle filter (names of training.layout.SETTINGS) from calibration data.
+    """FMU settings of the particle filter (names of contract.layout.SETTINGS) from calibration data.
 
     field_calibrated: (N, 3) µT, the magnetometer after the trained calibration (several
     recordings may be concatenated: a non-increasing time or a gap starts a new segment);

@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from .dataset import ImuData
-from .errors import ImuFusionError
+from contract.errors import ImuFusionError
 from .evaluate import absent_outputs, compute_metrics, max_abs_difference, raw_sensor_metrics
 from .mounting import array_codes, body_references
 
@@ -73,7 +73,7 @@ class PipelineSummary:
 
 def uncompensated_settings(settings: np.ndarray) -> np.ndarray:
     """A copy of the flat settings with the temperature/gain/bias model switched off."""
-    from .layout import SETTINGS
+    from contract.layout import SETTINGS
     s = np.array(settings, dtype=float)
     s[[n for n, _ in SETTINGS].index("enable_thermal")] = 0.0
     return s
@@ -111,7 +111,7 @@ def recording_parameters(data: ImuData) -> dict[str, float]:
 
 def settings_with(settings: np.ndarray, overrides: dict[str, float]) -> np.ndarray:
     """Flat settings array with named overrides applied."""
-    from .layout import SETTINGS
+    from contract.layout import SETTINGS
     names = [n for n, _ in SETTINGS]
     s = np.array(settings, dtype=float)
     for k, v in overrides.items():
@@ -121,7 +121,7 @@ def settings_with(settings: np.ndarray, overrides: dict[str, float]) -> np.ndarr
 
 def write_outputs_csv(path: Path, t: np.ndarray, out: np.ndarray) -> Path:
     """Write runtime outputs as CSV: t then the OUTPUTS columns, exact float formatting."""
-    from .layout import OUTPUTS
+    from contract.layout import OUTPUTS
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     table = np.column_stack([t, out])
@@ -136,7 +136,7 @@ def run_pipeline(out_dir: Path, seed: int = 0, calibration: str = DEFAULT_CALIBR
     from fmu.packer import build_fmu
     from fmu.validator import validate_fmu
     from .artefact import coefficients_array, settings_dict
-    from .layout import settings_array
+    from contract.layout import settings_array
     from .report import write_report
     from .simulator import load_scenario, simulate
     from .io import write_imu_csv

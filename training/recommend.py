@@ -11,8 +11,8 @@ from __future__ import annotations
 import numpy as np
 
 from .dataset import ImuData
-from .errors import ModelError
-from .layout import settings_defaults
+from contract.errors import ModelError
+from contract.layout import settings_defaults
 from .mounting import recommended_mounting
 from .reference import true_runs
 from .reference_source import TriadReference

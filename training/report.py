@@ -6,7 +6,7 @@ from pathlib import Path
 import numpy as np
 
 from .evaluate import absent_note, present, tilt_heading_errors
-from .layout import OUTPUTS
+from contract.layout import OUTPUTS
 
 #: Rows of the summary table: metric key, label with unit.
 ROWS = (("rate_err_dps", "corrected rate error RMS [°/s]"),

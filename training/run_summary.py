@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .layout import OUTPUTS
+from contract.layout import OUTPUTS
 
 #: Output triads and the sensor whose absence makes them NaN (docs/fmu.md, "Absent sensors").
 SENSOR_OUTPUTS = {"gyroscope": ("rate_x", "rate_y", "rate_z"),

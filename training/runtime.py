@@ -18,8 +18,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .errors import BuildError
-from . import layout
+from contract.errors import BuildError
+from contract import layout
 
 SOURCES_DIR = Path(__file__).resolve().parent.parent / "sources"
 #: Compiler flags of the runtime library (strict: every warning is an error).
@@ -145,10 +145,10 @@ def _error(lib: ctypes.CDLL, code: int, settings: np.ndarray) -> ValueError:
 def run_batch(coefficients, settings, t, inputs) -> np.ndarray:
     """Run the C pipeline over a recording.
 
-    coefficients: (N_COEFFICIENTS,) flat coefficient array (training.layout); settings: flat settings
-    array (training.layout.settings_array()); t: (N,) times [s]; inputs: (N, len(INPUTS)) raw
+    coefficients: (N_COEFFICIENTS,) flat coefficient array (contract.layout); settings: flat settings
+    array (contract.layout.settings_array()); t: (N,) times [s]; inputs: (N, len(INPUTS)) raw
     gyr [rad/s], acc [m/s²], mag [µT], temp [°C] and the auxiliary inputs (ImuData.inputs). Returns (N, len(OUTPUTS)) outputs in the order of
-    training.layout.OUTPUTS, finite except the corrected triad of an absent sensor (NaN; docs/fmu.md,
+    contract.layout.OUTPUTS, finite except the corrected triad of an absent sensor (NaN; docs/fmu.md,
     "Absent sensors"). Only the differences of t are used: sample k is integrated over t[k] − t[k−1],
     the step size the FMU gets from fmu.cosim.run_fmu. Raises ValueError on bad shapes or when the
     runtime rejects the coefficients or settings.
@@ -170,8 +170,8 @@ def term_signals(t, components, temperature, aux=None) -> np.ndarray:
     """Correction-term signals of a series as the C pipeline forms them (sources/ImuTerms.h).
 
     t: (N,) s; components: (N, 9) compensated gyr [rad/s], acc [m/s²], mag [µT]; temperature:
-    (N,) °C; aux: (N, len(training.layout.AUX_INPUTS)) auxiliary inputs (default zeros). Returns
-    (N, len(training.layout.TERM_SIGNALS)); NaN where a signal is not computable.
+    (N,) °C; aux: (N, len(contract.layout.AUX_INPUTS)) auxiliary inputs (default zeros). Returns
+    (N, len(contract.layout.TERM_SIGNALS)); NaN where a signal is not computable.
     """
     lib = load_runtime()
     tt = _as_array("t", t, (-1,))

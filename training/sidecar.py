@@ -2,16 +2,16 @@
 
 training/io.py calls `check_sidecar` on every sidecar it reads. The earth-field values become the
 FMU settings field_norm, field_dip and declination, so their ranges are those settings' ranges
-(training/layout.py SETTING_RANGES) in the sidecar's units: one source for both.
+(contract/layout.py SETTING_RANGES) in the sidecar's units: one source for both.
 """
 from __future__ import annotations
 
 import math
 from pathlib import Path
 
-from .errors import DataError
-from .layout import SETTING_RANGES
-from .schema import number_text
+from contract.errors import DataError
+from contract.layout import SETTING_RANGES
+from contract.schema import number_text
 
 #: Sample rate [Hz]: at least one sample a day (a thermal soak log), at most 100 kHz (the loader's
 #: MIN_MEDIAN_STEP_S of 10 µs, training/io.py; pinned by tests/test_value_checks.py).

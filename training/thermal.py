@@ -24,7 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 
-from .layout import MAX_DEGREE, TRIAD_BLOCK
+from contract.layout import MAX_DEGREE, TRIAD_BLOCK
 
 #: Centre and half-range used when no temperature is known (identity normalisation) [°C].
 DEFAULT_T0 = 25.0
@@ -109,7 +109,7 @@ class ThermalModel:
                    np.zeros((3, 1)))
 
     def to_block(self) -> list[float]:
-        """The flat TRIAD_BLOCK-long block of training/layout.py (higher degrees zero-padded)."""
+        """The flat TRIAD_BLOCK-long block of contract/layout.py (higher degrees zero-padded)."""
         g = np.zeros((3, MAX_DEGREE))
         g[:, :self.degree] = self.g
         b = np.zeros((3, MAX_DEGREE + 1))

@@ -12,9 +12,9 @@ from .artefact import ModelArtefact
 from .calibrated_range import range_notes
 from .dataset import ImuData
 from .degree import AUTO, ceiling, choose_degree, parse_degree
-from .errors import ModelError
+from contract.errors import ModelError
 from .fit_quality import fit_warnings
-from .layout import TRIAD_ORDER
+from contract.layout import TRIAD_ORDER
 from .recommend import recommended_settings, sidecar_values
 from .reference import matched_raw
 from .reference_source import TriadReference, choose_reference

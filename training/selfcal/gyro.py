@@ -28,7 +28,7 @@ import numpy as np
 import torch
 
 from ..dataset import ImuData
-from ..layout import MAX_DEGREE
+from contract.layout import MAX_DEGREE
 from ..thermal import normalised_temperature
 from .accel import MAX_CONDITION, ModelCheck, gain_summary, judge
 from .rest import RestWindow

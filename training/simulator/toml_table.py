@@ -6,7 +6,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import ScenarioError
+from contract.errors import ScenarioError
 
 #: Marks a key without default: it must be present.
 REQUIRED = object()

@@ -1,7 +1,7 @@
-"""Checks of values against their declared type and range (training/layout.py SETTING_RANGES).
+"""Checks of values against their declared type and range (contract/layout.py SETTING_RANGES).
 
 One place decides whether a setting value is acceptable: `imufmu run --param`, the model artefact
-loader and the FMU's modelDescription.xml all use training.layout.SETTING_RANGES, and
+loader and the FMU's modelDescription.xml all use contract.layout.SETTING_RANGES, and
 tests/test_value_checks.py pins the C runtime's ImuPipelineSettingsCheck to the same table.
 Messages name the setting, the value (plain numbers) and the declared range in the setting's unit.
 """
@@ -9,9 +9,9 @@ from __future__ import annotations
 
 import math
 
-from .layout import SETTING_RANGES, SettingRange
+from contract.layout import SETTING_RANGES, SettingRange
 
-#: Message spelling of the FMI unit names of training.layout.SETTING_RANGES (the others as they are).
+#: Message spelling of the FMI unit names of contract.layout.SETTING_RANGES (the others as they are).
 _UNIT_TEXT = {"uT": "µT", "m/s2": "m/s²", "rad/s/sqrt(Hz)": "rad/s/√Hz"}
 #: Units a value is commonly given in by mistake, per FMI unit: (name, factor to that unit).
 MISTAKEN_UNITS = {"rad": (("deg", math.pi / 180.0),), "rad/s": (("deg/s", math.pi / 180.0),),

@@ -138,8 +138,8 @@ _PF_SPREAD = SettingRange(_REAL, 0.0, PF_SPREAD_MAX_UT, "uT")
 _MOUNT_AXIS = SettingRange(_INTEGER, -3.0, 3.0, nonzero=True)
 
 #: Type, range and unit (FMI spelling) of every setting, by name (SETTINGS order). The one source:
-#: fmu/variables.py takes the FMI types, units and the modelDescription.xml min/max from it,
-#: training/schema.py checks --param values and model.json against it, tests/test_value_checks.py
+#: contract/variables.py takes the FMI types, units and the modelDescription.xml min/max from it,
+#: contract/schema.py checks --param values and model.json against it, tests/test_value_checks.py
 #: pins the C runtime's ImuPipelineSettingsCheck to it.
 SETTING_RANGES = {
     "declination": SettingRange(_REAL, -math.pi, math.pi, "rad", typical=DECLINATION_TYPICAL_RAD),

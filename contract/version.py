@@ -7,7 +7,7 @@ from __future__ import annotations
 
 from importlib import metadata
 
-from . import __version__
+from contract import __version__
 
 #: pyproject.toml [project] name.
 DISTRIBUTION = "imufusion-fmu"

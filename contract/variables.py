@@ -12,8 +12,8 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import dataclass
 
-from training.layout import AUX_INPUTS, INPUTS, OUTPUTS, SETTING_RANGES, SETTINGS
-from training.schema import range_text
+from contract.layout import AUX_INPUTS, INPUTS, OUTPUTS, SETTING_RANGES, SETTINGS
+from contract.schema import range_text
 
 
 @dataclass(frozen=True)
@@ -29,7 +29,7 @@ class Variable:
     display_unit: str | None
     description: str
     start: float | int | bool | None
-    min: float | None = None    # declared range (parameters: training.layout.SETTING_RANGES)
+    min: float | None = None    # declared range (parameters: contract.layout.SETTING_RANGES)
     max: float | None = None
 
 
@@ -48,7 +48,7 @@ def _output(name: str, vr: int, unit: str, description: str, display_unit: str |
 
 def _parameter(name: str, vr: int, description: str, display_unit: str | None = None) -> Variable:
     """A fixed parameter (set before initialisation): type, unit, range and start value from
-    training.layout (SETTING_RANGES, SETTINGS); Integer and Boolean parameters carry no unit."""
+    contract.layout (SETTING_RANGES, SETTINGS); Integer and Boolean parameters carry no unit."""
     r = SETTING_RANGES[name]
     start = _DEFAULTS[name]
     if r.type == "Boolean":
@@ -143,7 +143,7 @@ _LAYOUT_2: tuple[Variable, ...] = (
                "filter's hard-iron standard deviation exceeds this (0: never)"),
 )
 
-#: Value reference of aux_1 (the auxiliary inputs are contiguous, in training.layout.AUX_INPUTS order).
+#: Value reference of aux_1 (the auxiliary inputs are contiguous, in contract.layout.AUX_INPUTS order).
 _FIRST_AUX_VR = 70
 
 _LAGS: tuple[Variable, ...] = (
@@ -201,17 +201,17 @@ VARIABLES: tuple[Variable, ...] = variable_table()
 
 
 def inputs() -> tuple[Variable, ...]:
-    """The inputs, in training.layout.INPUTS order."""
+    """The inputs, in contract.layout.INPUTS order."""
     return tuple(v for v in VARIABLES if v.causality == "input")
 
 
 def outputs() -> tuple[Variable, ...]:
-    """The outputs, in training.layout.OUTPUTS order."""
+    """The outputs, in contract.layout.OUTPUTS order."""
     return tuple(v for v in VARIABLES if v.causality == "output")
 
 
 def parameters() -> tuple[Variable, ...]:
-    """The parameters, in training.layout.SETTINGS order."""
+    """The parameters, in contract.layout.SETTINGS order."""
     return tuple(v for v in VARIABLES if v.causality == "parameter")
 
 
