@@ -110,7 +110,7 @@ def _gyro_heading_change(rate: np.ndarray, q: np.ndarray, t: np.ndarray, a: int,
 
 def main() -> None:
     from fmu.cosim import run_fmu
-    from fmu.packer import build_fmu
+    from training.fmu_build import build_fmu
     from training.artefact import coefficients_array, settings_dict
     from training.calibration_report import summary_text, write_calibration_report
     from training.pipeline import recording_parameters

@@ -28,7 +28,8 @@ from training.cli import main  # noqa: E402
 from training.evaluate import tilt_from_level, tilt_heading_between  # noqa: E402
 from training.io import read_imu_csv  # noqa: E402
 from contract.layout import OUTPUTS  # noqa: E402
-from training.mounting import IDENTITY, MOUNT_SETTINGS, Z_UP, body_attitude  # noqa: E402
+from contract.mounting import IDENTITY, MOUNT_SETTINGS, Z_UP  # noqa: E402
+from training.mounting import body_attitude  # noqa: E402
 
 XIO = ROOT.parent / "shared" / "data" / "xio_handheld" / "xio_handheld.csv.gz"
 _Q = [OUTPUTS.index(name) for name in ("q_w", "q_x", "q_y", "q_z")]

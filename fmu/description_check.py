@@ -50,7 +50,7 @@ from fmu.model_description import FMI3_TYPES, TIME_VALUE_REFERENCE
 from contract.variables import VARIABLES
 from contract.errors import ImuFusionError, ModelError, one_line
 from contract.layout import INPUTS, LAG_MAX_S, OUTPUTS, SETTINGS, TRIAD_ORDER
-from training.mounting import MOUNT_SETTINGS
+from contract.mounting import MOUNT_SETTINGS
 
 #: The archive members whose contents the static check reads.
 CONFIG_MEMBER = "sources/config.h"

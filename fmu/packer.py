@@ -32,7 +32,6 @@ from fmu.provenance import PROVENANCE_FILE, build_time, provenance_record, prove
 from contract.variables import Variable, variable_table
 from contract.errors import ModelError
 from contract.layout import AUX_INPUTS, INPUTS, OUTPUTS, SETTINGS, settings_array
-from training.runtime import run_batch
 
 DEFAULT_DESCRIPTION = ("IMU calibration and attitude: temperature-compensated gyro, accelerometer and "
                        "magnetometer, adaptive-gain Euler-angle fusion")
@@ -81,14 +80,13 @@ def _csv_text(t: np.ndarray, values: np.ndarray, names: tuple[str, ...]) -> str:
     return "\n".join(rows) + "\n"
 
 
-def reference_files(coefficients: np.ndarray, settings: dict[str, float]) -> dict[str, str]:
-    """The reference pair by FMU path: the built-in recording and the batch runtime's outputs
-    for it (row k = the estimate for sample k) with these coefficients and parameter values."""
+def reference_files(outputs: np.ndarray) -> dict[str, str]:
+    """The reference pair by FMU path: the built-in recording (`reference_recording`) and
+    `outputs`, (N, len(OUTPUTS)) what the model gives for it (row k = the estimate for sample k)."""
     t, inputs = reference_recording()
-    try:
-        outputs = run_batch(coefficients, settings_array(settings), t, inputs)
-    except ValueError as e:
-        raise ModelError(f"cannot compute the reference result: {e}") from e
+    outputs = np.asarray(outputs, dtype=float)
+    if outputs.shape != (t.size, len(OUTPUTS)):
+        raise ModelError(f"the reference outputs have shape {outputs.shape}, expected ({t.size}, {len(OUTPUTS)})")
     return {REFERENCE_INPUT: _csv_text(t, inputs, INPUTS), REFERENCE_OUTPUT: _csv_text(t, outputs, OUTPUTS)}
 
 
@@ -191,7 +189,7 @@ def compile_binaries(stage: Path, out_path: Path) -> None:
         compile_win64_binary(stage, compiler)
 
 
-def build_fmu(coefficients: np.ndarray, settings: dict, out_path: str | Path,
+def pack_fmu(coefficients: np.ndarray, settings: dict, out_path: str | Path, reference_outputs: np.ndarray,
               description: str = DEFAULT_DESCRIPTION,
               provenance: str = "untrained identity coefficients", fmi_version: int = 2,
               aux_inputs: Sequence[dict] = (), training_data: Sequence[dict] = (),
@@ -199,7 +197,9 @@ def build_fmu(coefficients: np.ndarray, settings: dict, out_path: str | Path,
     """Build ImuFusion.fmu for FMI `fmi_version` (2 or 3) at out_path and return its path.
 
     coefficients: (N_COEFFICIENTS,) flat array (contract/layout.py); settings: parameter start
-    values by name (missing names take the defaults); provenance goes into the coefficient
+    values by name (missing names take the defaults); reference_outputs: what the model gives for
+    `reference_recording()` with these coefficients and settings (the caller runs the model: the
+    packer knows no model, training.fmu_build does); provenance goes into the coefficient
     header's comment; aux_inputs: the model's ModelArtefact.aux_inputs (what aux_1.. carry);
     training_data and notes: the model's ModelArtefact.training_data and .notes, which go with the
     build time and what the coefficients calibrate into the provenance record (fmu.provenance).
@@ -230,7 +230,7 @@ def build_fmu(coefficients: np.ndarray, settings: dict, out_path: str | Path,
              "documentation/index.html": documentation_html(values, description, fmi_version, variables),
              AUX_INPUTS_FILE: json.dumps([dict(a) for a in aux_inputs], indent=2, ensure_ascii=False) + "\n",
              PROVENANCE_FILE: json.dumps(record, indent=2, ensure_ascii=False) + "\n",
-             **reference_files(np.asarray(coefficients, dtype=float), values)}
+             **reference_files(reference_outputs)}
     if fmi_version == 3:
         files[BUILD_DESCRIPTION] = build_description_xml(c_files)
     with tempfile.TemporaryDirectory(prefix="imufusion-fmu-") as tmp:

@@ -14,7 +14,8 @@ import numpy as np
 import pytest
 
 from fmu.cosim import OK, WARNING, initialised_fmu, step_samples, step_sizes
-from fmu.packer import build_fmu, reference_recording
+from fmu.packer import reference_recording
+from training.fmu_build import build_fmu
 from contract import layout
 from training import runtime
 from training.evaluate import reference_euler_magnetic, wrap_angle

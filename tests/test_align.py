@@ -7,7 +7,8 @@ import pytest
 from fmpy import read_model_description
 
 from fmu.cosim import run_fmu
-from fmu.packer import build_fmu, fmu_aux_columns
+from fmu.packer import fmu_aux_columns
+from training.fmu_build import build_fmu
 from contract import layout
 from training import runtime
 from training.cli import main

@@ -18,7 +18,7 @@ import numpy as np
 import pytest
 
 from fmu.cosim import run_fmu
-from fmu.packer import build_fmu
+from training.fmu_build import build_fmu
 from test_psobp import random_model
 from test_thermal_degree import static_recording
 from training import elm

@@ -18,7 +18,7 @@ import pytest
 
 from effects import EFFECTS, regressor_family
 from fmu.cosim import run_fmu
-from fmu.packer import build_fmu
+from training.fmu_build import build_fmu
 from training.artefact import coefficients_array, load_artefact, settings_dict
 from training.diagnose import diagnose, holdout_rows
 from training.io import write_imu_csv

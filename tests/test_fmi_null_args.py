@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 from fmu.cosim import initialised_fmu
-from fmu.packer import build_fmu
+from training.fmu_build import build_fmu
 from contract.variables import by_name
 from contract.layout import identity_coefficients
 

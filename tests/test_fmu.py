@@ -18,7 +18,7 @@ from fmu.compiler import SOURCE_DIR, compile_binary
 from fmu.cosim import FmuError, initialised_fmu, run_fmu, step_samples, step_sizes
 from fmu.header import coefficient_header, read_header_arrays
 from fmu.model_description import LOG_CATEGORIES, model_description_xml
-from fmu.packer import build_fmu
+from training.fmu_build import build_fmu
 from fmu.validator import FMI2_CS_FUNCTIONS, exported_symbols, fmutool_problems, validate_fmu
 from contract.variables import VARIABLES, by_name, inputs, outputs, parameters
 from contract.errors import BuildError, ModelError

@@ -16,7 +16,7 @@ from fmu.build_description import BUILD_DESCRIPTION
 from fmu.compiler import fmu_source_files
 from fmu.cosim import FmuError, Stepper, initialised_fmu, run_fmu, step_samples, step_sizes
 from fmu.model_description import FMI3_TYPES, LOG_CATEGORIES, TIME_VALUE_REFERENCE
-from fmu.packer import build_fmu
+from training.fmu_build import build_fmu
 from fmu.validator import FMI3_FUNCTIONS, exported_symbols, validate_fmu
 from contract.variables import VARIABLES
 from test_fmu import GOLDEN_TOLERANCE, TRAINED_SETTINGS, synthetic_recording, trained_coefficients

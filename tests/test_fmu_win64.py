@@ -20,7 +20,8 @@ from debian_tools import debian_tool
 from fmu.archive import extract_archive, read_description
 from fmu.compiler import C_FLAGS, FMPY_C_CODE, WIN64_COMPILER, WIN64_PACKAGE, WIN64_PLATFORMS
 from fmu.cosim import description_step_sizes
-from fmu.packer import REFERENCE_INPUT, REFERENCE_OUTPUT, build_fmu, read_reference_csv
+from fmu.packer import REFERENCE_INPUT, REFERENCE_OUTPUT, read_reference_csv
+from training.fmu_build import build_fmu
 from fmu.pe import MACHINE_AMD64, read_pe
 from fmu.validator import (EXPORTED_FUNCTIONS, REFERENCE_TOLERANCE, binary_member, binary_members, exported_symbols,
                            fmutool_problems, is_windows_system_dll, validate_fmu, windows_image)

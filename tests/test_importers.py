@@ -14,7 +14,8 @@ import numpy as np
 import pytest
 
 from fmu.cosim import run_fmu
-from fmu.packer import build_fmu, reference_recording
+from fmu.packer import reference_recording
+from training.fmu_build import build_fmu
 from test_fmu import TRAINED_SETTINGS, trained_coefficients
 
 #: Both importers run the same binary on the same samples; ecospy computes its communication

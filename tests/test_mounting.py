@@ -15,8 +15,8 @@ from training.bench import run_xio_fusion
 from training.cli import _param
 from training.evaluate import compute_metrics, tilt_from_level, tilt_heading_between
 from training.io import read_imu_csv
-from training.mounting import (IDENTITY, MOUNT_SETTINGS, Z_UP, body_attitude, body_references, mount_matrix, mounting_problem,
-                               recommended_mounting)
+from contract.mounting import IDENTITY, MOUNT_SETTINGS, Z_UP, mount_matrix, mounting_problem
+from training.mounting import body_attitude, body_references, recommended_mounting
 from training.runtime import run_batch
 from training.simulator import load_scenario, simulate
 from training.train import train
@@ -140,7 +140,7 @@ def test_an_fmu_with_a_mounting_validates_and_runs_as_the_batch_runtime(handheld
     """A mounting that swaps axes (body x = sensor y): every validate check passes (the binary's
     triad check follows the declared mounting) and the FMU gives the batch runtime's outputs."""
     from fmu.cosim import run_fmu
-    from fmu.packer import build_fmu
+    from training.fmu_build import build_fmu
     from fmu.validator import validate_fmu
     codes = (2, 1, -3)
     path = build_fmu(np.asarray(layout.identity_coefficients()), _mounted(codes), tmp_path / "ImuFusion.fmu")

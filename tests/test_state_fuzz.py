@@ -25,7 +25,7 @@ from fmpy.fmi1 import FMICallException
 from fmu.compiler import FMPY_C_CODE as FMI_HEADERS, SOURCE_DIR, fmu_source_files
 from fmu.cosim import Stepper, initialised_fmu
 from fmu.header import HEADER_NAME, coefficient_header
-from fmu.packer import build_fmu
+from training.fmu_build import build_fmu
 from contract.layout import INPUTS, identity_coefficients
 
 C_HARNESS = Path(__file__).parent / "c" / "state_fuzz.c"

@@ -16,7 +16,8 @@ import pytest
 
 from fmu.compiler import SOURCE_DIR
 from fmu.cosim import OK, WARNING, Stepper, initialised_fmu
-from fmu.packer import build_fmu, reference_recording
+from fmu.packer import reference_recording
+from training.fmu_build import build_fmu
 from contract import layout
 from training import runtime
 

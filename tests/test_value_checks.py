@@ -28,7 +28,7 @@ from contract.errors import DataError, ModelError
 from contract.layout import (FIELD_NORM_MAX_UT, FIELD_NORM_MIN_UT, RAO_BLACKWELL_POSITIVE, SETTING_RANGES,
                              SETTINGS, settings_array)
 from training.runtime import load_runtime
-from training.mounting import MOUNT_SETTINGS, mounting_problem
+from contract.mounting import MOUNT_SETTINGS, mounting_problem
 from contract.schema import setting_problem
 from training.thermal import ThermalModel
 

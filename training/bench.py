@@ -18,6 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from contract import layout
+
 from .dataset import ImuData
 from .evaluate import quaternion_multiply, reference_quaternion_magnetic, tilt_heading_errors
 from .io import read_imu_csv
@@ -180,7 +181,7 @@ def _group_means(rows: list[dict], key: str) -> dict[str, dict[str, float]]:
 def _fmu_identity(datas: list[ImuData], work: Path) -> dict:
     """Run the first FMU_TRIALS trials through the FMU (fmpy) and compare with the batch library."""
     from fmu.cosim import run_fmu
-    from fmu.packer import build_fmu
+    from .fmu_build import build_fmu
     fmu_path = build_fmu(np.array(layout.identity_coefficients()), {}, work / "ImuFusion.fmu")
     result = {}
     for data in datas[:FMU_TRIALS]:
@@ -308,7 +309,7 @@ def bench_speed(out_dir: str | Path) -> dict:
     prints it and returns the numbers (µs per sample, bytes, s)."""
     from vqf import VQF
     from fmu.cosim import run_fmu
-    from fmu.packer import build_fmu
+    from .fmu_build import build_fmu
     from .pipeline import DEFAULT_CALIBRATION, SCENARIO_DIR
     from .runtime import run_batch
     from .simulator import load_scenario, simulate

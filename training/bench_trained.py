@@ -23,6 +23,7 @@ from pathlib import Path
 import numpy as np
 
 from contract import layout
+
 from .bench import BROAD_CITATION, GROUPS, _group_means, broad_errors, run_vqf, trial_number, trial_paths
 from .dataset import ImuData
 from .io import read_imu_csv
@@ -52,7 +53,7 @@ def field_norm_spread(field: np.ndarray, data: ImuData) -> float:
 
 def _train_and_build(datasets: list[ImuData], out: Path, seed: int) -> Path:
     """train() -> model.json, calibration.md and the FMU in `out`; returns the FMU path."""
-    from fmu.packer import build_fmu
+    from .fmu_build import build_fmu
     from .artefact import coefficients_array, settings_dict
     from .calibration_report import write_calibration_report
     from .train import train

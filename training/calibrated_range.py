@@ -10,6 +10,7 @@ from __future__ import annotations
 import numpy as np
 
 from contract.layout import TRIAD_ORDER
+
 from .thermal import ThermalModel
 
 _NAMES = {"gyr": "gyroscope", "acc": "accelerometer", "mag": "magnetometer"}

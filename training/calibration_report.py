@@ -10,10 +10,11 @@ from pathlib import Path
 
 import numpy as np
 
+from contract.layout import TRIAD_ORDER
+
 from .artefact import ModelArtefact
 from .dataset import ImuData
 from .fit_quality import at_t0, cross_axis_deg, is_warning
-from contract.layout import TRIAD_ORDER
 from .reference_source import SOURCE_TEXT
 from .thermal import ThermalModel, apply_thermal
 

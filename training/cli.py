@@ -77,7 +77,7 @@ def cmd_train(args) -> None:
 
 def cmd_build_fmu(args) -> None:
     """imufmu build-fmu --model DIR/model.json --out FILE.fmu."""
-    from fmu.packer import build_fmu
+    from .fmu_build import build_fmu
     from .artefact import coefficients_array, load_artefact, settings_dict
     artefact = load_artefact(_existing_file(args.model, "model artefact"))
     path = build_fmu(coefficients_array(artefact), settings_dict(artefact), args.out,

@@ -40,9 +40,11 @@ import numpy as np
 import torch
 
 from contract.errors import DataError
+
 from .io import read_imu_csv
 from .psobp import (PsoBpFitter, apply_psobp, bias_targets, fit_gyro_residual_psobp,
                     temperature_rate)
+
 from .thermal import ThermalModel, apply_thermal, normalised_temperature, temperature_normalisation
 
 DPS = 180.0 / np.pi

@@ -34,8 +34,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .holdout import HOLDOUT_FRACTION
 from contract.layout import MAX_DEGREE
+
+from .holdout import HOLDOUT_FRACTION
 from .thermal import (CLUSTER_WIDTH_C, DEFAULT_T0, DEFAULT_TS, normalised_temperature,
                       temperature_clusters, temperature_normalisation)
 

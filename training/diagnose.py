@@ -25,6 +25,8 @@ from pathlib import Path
 
 import numpy as np
 
+from contract.layout import INPUTS, TERM_SIGNALS, TERMS_MAX, TRIAD_ORDER, settings_array
+
 from .artefact import ModelArtefact, coefficients_array, load_artefact, settings_dict
 from .candidates import TRIAD_NAMES, build_candidates, central_differences, instrument_signals
 from .dataset import ImuData
@@ -32,7 +34,6 @@ from .diagnose_export import add_effect, aux_slots_needed, term_count
 from .diagnose_fit import Fit, Residuals, fit_candidates, offset_fit, predict
 from .effect_readings import DISPLAY, readings
 from .io import read_imu_csv
-from contract.layout import INPUTS, TERM_SIGNALS, TERMS_MAX, TRIAD_ORDER, settings_array
 from .pipeline import recording_parameters
 from .reference import derive_references
 from .runtime import run_batch, term_signals

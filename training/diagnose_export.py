@@ -16,9 +16,10 @@ from dataclasses import replace
 
 import numpy as np
 
+from contract.layout import INPUTS, TERMS_MAX
+
 from .artefact import ModelArtefact
 from .diagnose_fit import Fit, Residuals
-from contract.layout import INPUTS, TERMS_MAX
 
 AXES = ("x", "y", "z")
 AUX_SLOTS = tuple(n for n in INPUTS if n.startswith("aux_"))

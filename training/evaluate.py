@@ -15,8 +15,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .dataset import ImuData
 from contract.layout import OUTPUTS
+
+from .dataset import ImuData
 
 _COL = {name: i for i, name in enumerate(OUTPUTS)}
 

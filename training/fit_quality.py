@@ -20,6 +20,7 @@ from __future__ import annotations
 import numpy as np
 
 from contract.layout import TRIAD_ORDER, settings_defaults
+
 from .thermal import ThermalModel
 
 #: Largest |gain − 1| of the sensor class, per triad [1].

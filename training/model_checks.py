@@ -12,8 +12,9 @@ import math
 
 import numpy as np
 
-from . import input_limits
 from contract.layout import FIELD_NORM_MAX_UT
+
+from . import input_limits
 from .thermal import MIN_TS, ThermalModel
 
 #: Valid sensor temperatures [°C] (the runtime guard's, training/input_limits.py): the centre t0 of

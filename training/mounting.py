@@ -1,10 +1,8 @@
-"""Mounting: the sensor's axes turned into the body axes by a signed axis permutation.
-
-The Python side of sources/ImuMount.h. Settings mount_x, mount_y, mount_z name the sensor axis
-that each body axis is, with its sign (1 = +x, 2 = +y, 3 = +z, negative: the opposite
-direction); the body axes are FRD, so at rest and level the specific force reads −g on body z.
-The runtime calibrates in the sensor's axes, then turns the result into the body axes, where it
-estimates the attitude and gives every vector output.
+"""Mounting in the data: what the mounting settings (contract.mounting) should be for a recording,
+and a recording's references expressed in the body axes of a mounting. The body axes are FRD, so
+at rest and level the specific force reads −g on body z. The runtime calibrates in the sensor's
+axes, then turns the result into the body axes, where it estimates the attitude and gives every
+vector output.
 
 `train` sets the mounting when the data tell and nothing else defines the body axes: with no
 attitude reference (which defines them), a board that at rest reads the specific force along +z
@@ -18,14 +16,10 @@ from dataclasses import replace
 
 import numpy as np
 
+from contract.mounting import IDENTITY, MOUNT_SETTINGS, Z_UP, mount_matrix
+
 from .dataset import ImuData
 
-#: The mounting settings, in body-axis order.
-MOUNT_SETTINGS = ("mount_x", "mount_y", "mount_z")
-#: Body axes = sensor axes.
-IDENTITY = (1, 2, 3)
-#: A board whose z axis points up, x forward: body = (x, −y, −z), 180° about x.
-Z_UP = (1, -2, -3)
 #: Standard gravity [m/s²].
 GRAVITY = 9.80665
 #: A sample counts as quasi-static for the direction of gravity when its specific force is within
@@ -39,39 +33,6 @@ MIN_STATIC_SAMPLES = 100
 #: The median quasi-static gravity direction must be within this angle of a sensor axis [deg]
 #: for train to act on it: 30° is a board visibly tilted, not mounted another way.
 AXIS_TOLERANCE_DEG = 30.0
-
-
-def mount_matrix(codes) -> np.ndarray:
-    """(3, 3) matrix M with v_body = M · v_sensor for the codes (mount_x, mount_y, mount_z)."""
-    m = np.zeros((3, 3))
-    for row, code in enumerate(codes):
-        m[row, abs(int(code)) - 1] = np.sign(code)
-    return m
-
-
-def mounting_problem(codes) -> str | None:
-    """Why the codes (mount_x, mount_y, mount_z) are no mounting, or None (the check of
-    ImuPipelineSettingsCheck: three different signed axes that stay right-handed)."""
-    if any(not float(c).is_integer() or abs(c) not in (1, 2, 3) for c in codes):
-        return "mount_x, mount_y, mount_z must each be ±1, ±2 or ±3 (a sensor axis with its sign)"
-    if len({abs(int(c)) for c in codes}) != 3:
-        return f"mount_x, mount_y, mount_z = {tuple(int(c) for c in codes)} name a sensor axis twice"
-    if round(np.linalg.det(mount_matrix(codes))) != 1:
-        return (f"mount_x, mount_y, mount_z = {tuple(int(c) for c in codes)} mirror the axes (left-handed); "
-                "flip the sign of one of them")
-    return None
-
-
-def settings_codes(settings: dict[str, float]) -> tuple[int, int, int]:
-    """The mounting codes of a settings dict (identity where a code is missing)."""
-    return tuple(int(settings.get(name, default)) for name, default in zip(MOUNT_SETTINGS, IDENTITY))
-
-
-def array_codes(settings) -> tuple[int, int, int]:
-    """The mounting codes of a flat settings array (contract.layout.SETTINGS order)."""
-    from contract.layout import SETTINGS
-    names = [name for name, _ in SETTINGS]
-    return tuple(int(settings[names.index(name)]) for name in MOUNT_SETTINGS)
 
 
 def _matrix_quaternion(m: np.ndarray) -> np.ndarray:

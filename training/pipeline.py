@@ -12,10 +12,13 @@ from pathlib import Path
 
 import numpy as np
 
-from .dataset import ImuData
 from contract.errors import ImuFusionError
+from contract.mounting import array_codes
+
+from .dataset import ImuData
 from .evaluate import absent_outputs, compute_metrics, max_abs_difference, raw_sensor_metrics
-from .mounting import array_codes, body_references
+
+from .mounting import body_references
 
 SCENARIO_DIR = Path(__file__).resolve().parents[1] / "scenarios"
 DEFAULT_CALIBRATION = "calibration.toml"
@@ -133,7 +136,7 @@ def write_outputs_csv(path: Path, t: np.ndarray, out: np.ndarray) -> Path:
 def run_pipeline(out_dir: Path, seed: int = 0, calibration: str = DEFAULT_CALIBRATION,
                  evaluations: tuple[str, ...] = DEFAULT_EVALUATIONS) -> PipelineSummary:
     """The main job on the bundled scenarios; writes everything under `out_dir`."""
-    from fmu.packer import build_fmu
+    from .fmu_build import build_fmu
     from fmu.validator import validate_fmu
     from .artefact import coefficients_array, settings_dict
     from contract.layout import settings_array

@@ -10,9 +10,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from .dataset import ImuData
 from contract.errors import ModelError
 from contract.layout import settings_defaults
+
+from .dataset import ImuData
 from .mounting import recommended_mounting
 from .reference import true_runs
 from .reference_source import TriadReference

@@ -5,8 +5,9 @@ from pathlib import Path
 
 import numpy as np
 
-from .evaluate import absent_note, present, tilt_heading_errors
 from contract.layout import OUTPUTS
+
+from .evaluate import absent_note, present, tilt_heading_errors
 
 #: Rows of the summary table: metric key, label with unit.
 ROWS = (("rate_err_dps", "corrected rate error RMS [°/s]"),

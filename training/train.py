@@ -8,13 +8,14 @@ import numpy as np
 import torch
 from tqdm import tqdm
 
+from contract.errors import ModelError
+from contract.layout import TRIAD_ORDER
+
 from .artefact import ModelArtefact
 from .calibrated_range import range_notes
 from .dataset import ImuData
 from .degree import AUTO, ceiling, choose_degree, parse_degree
-from contract.errors import ModelError
 from .fit_quality import fit_warnings
-from contract.layout import TRIAD_ORDER
 from .recommend import recommended_settings, sidecar_values
 from .reference import matched_raw
 from .reference_source import TriadReference, choose_reference

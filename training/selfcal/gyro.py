@@ -27,8 +27,9 @@ from dataclasses import dataclass, replace
 import numpy as np
 import torch
 
-from ..dataset import ImuData
 from contract.layout import MAX_DEGREE
+
+from ..dataset import ImuData
 from ..thermal import normalised_temperature
 from .accel import MAX_CONDITION, ModelCheck, gain_summary, judge
 from .rest import RestWindow

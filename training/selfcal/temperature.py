@@ -10,6 +10,7 @@ from __future__ import annotations
 import numpy as np
 
 from contract.layout import MAX_DEGREE
+
 from ..thermal import (CLUSTER_WIDTH_C, DEFAULT_T0, DEFAULT_TS, normalised_temperature,
                        temperature_normalisation)
 

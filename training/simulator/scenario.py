@@ -20,6 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from contract.errors import ScenarioError
+
 from .earth import EarthField
 from .segments import AXIS_VECTORS, Figure8, Handheld, Hold, Positions, Rotations, Segment
 from .sensors import MagDistortion, SensorModel, TriadErrors

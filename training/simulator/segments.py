@@ -13,6 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from contract.errors import ScenarioError
+
 from .quaternion import euler_from_quat, quat_conjugate, quat_from_euler, quat_multiply, quat_to_rotvec
 from .trajectory import (Chain, EulerMotion, Figure8Path, GatedClock, HeadingAngles, Motion,
                          RandomAngles, RandomPath, SineSum, Slew, Still)

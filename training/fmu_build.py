@@ -1,0 +1,36 @@
+"""Build the FMU of a model: run the model on the FMU's built-in reference recording through the
+batch runtime (the same C code), then hand coefficients, settings and those reference outputs to
+the packer (fmu.packer.pack_fmu), which knows no model."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from contract.errors import ModelError
+from contract.layout import settings_array
+from fmu.packer import pack_fmu, reference_recording
+
+from .runtime import run_batch
+
+
+def reference_outputs(coefficients: np.ndarray, settings: dict[str, float]) -> np.ndarray:
+    """(N, len(OUTPUTS)) batch-runtime outputs on fmu.packer.reference_recording() with these
+    coefficients and parameter values (missing names take the defaults)."""
+    t, inputs = reference_recording()
+    try:
+        values = settings_array(settings)
+    except KeyError as e:
+        raise ModelError(e.args[0]) from None
+    try:
+        return run_batch(coefficients, values, t, inputs)
+    except ValueError as e:
+        raise ModelError(f"cannot compute the reference result: {e}") from e
+
+
+def build_fmu(coefficients: np.ndarray, settings: dict, out_path: str | Path, **packing) -> Path:
+    """Build ImuFusion.fmu at out_path and return its path: fmu.packer.pack_fmu with the model's
+    reference outputs; `packing` are pack_fmu's keyword arguments (fmi_version, description,
+    provenance, aux_inputs, training_data, notes)."""
+    coefficients = np.asarray(coefficients, dtype=float)
+    return pack_fmu(coefficients, settings, out_path, reference_outputs(coefficients, settings), **packing)
