@@ -9,7 +9,8 @@ from __future__ import annotations
 
 import math
 
-from contract.layout import SETTING_RANGES, SettingRange
+from contract.layout import SETTING_RANGES
+from contract.ranges import SettingRange
 
 #: Message spelling of the FMI unit names of contract.layout.SETTING_RANGES (the others as they are).
 _UNIT_TEXT = {"uT": "µT", "m/s2": "m/s²", "rad/s/sqrt(Hz)": "rad/s/√Hz"}

@@ -1,24 +1,37 @@
-"""The one variable table of the ImuFusion FMU.
+"""The one variable table of the ImuFusion FMU: every variable with its value reference, causality,
+variability, type, unit, display unit, description, start value and (parameters) default and
+declared range. Everything else is derived from it:
 
-Every model variable with its value reference (pinned to the `ValueReference` enum of
-sources/config.h by tests/test_fmu.py), causality, variability, type, unit, display unit,
-description and start value. modelDescription.xml, the documentation and the co-simulation
-driver are all generated from this table. Variables added by a later layout version get value
-references after the last existing one. The descriptions of the auxiliary inputs depend on the
-model (`variable_table(artefact.aux_inputs)`); `VARIABLES` is the table of a model that maps none.
+- contract.layout: the orders of the runtime's flat arrays (INPUTS, OUTPUTS, SETTINGS — value-
+  reference order within each causality) and SETTING_RANGES;
+- contract.generate: the C enums of sources/ImuLayout.h, the value references and slot table of
+  sources/config.h, the README's variable table and docs/fmu.md's parameter table
+  (`python -m contract.generate` rewrites them; tests/test_generated.py fails when one is stale);
+- fmu.model_description: modelDescription.xml, and the FMU's documentation.
+
+Adding a parameter: one row here (the next free value reference; existing ones never change),
+`python -m contract.generate`, and the C code that uses it (sources/ImuPipeline.c). The
+descriptions of the auxiliary inputs depend on the model (`variable_table(artefact.aux_inputs)`);
+`VARIABLES` is the table of a model that maps none.
 """
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 
-from contract.layout import AUX_INPUTS, INPUTS, OUTPUTS, SETTING_RANGES, SETTINGS
-from contract.schema import range_text
+from contract.ranges import (BOOLEAN, DECLINATION_TYPICAL_RAD, FIELD_NORM_MAX_UT, FIELD_NORM_MIN_UT, FLAG,
+                             GYRO_NOISE_MAX, GYRO_RATE_SETTING_MAX, INT32_MAX, INTEGER, LAG, MOUNT_AXIS,
+                             PF_MAX_DECIMATION, PF_MAX_PARTICLES, PF_MAX_SPHERE_BINS, PF_NOISE_MAX_UT, PF_SPREAD,
+                             PF_THRESHOLD_HIGH_MAX, REAL, STANDARD_GRAVITY, TIME, TIME_SETTING_MAX_S, UNIT_FRACTION,
+                             SettingRange)
 
 
 @dataclass(frozen=True)
 class Variable:
-    """One FMU variable; `start` is None for outputs (their initial value is calculated)."""
+    """One FMU variable; `start` is None for outputs (their initial value is calculated).
+    Parameters also carry `default` (the start as the float the settings array holds) and `range`
+    (declared type and range, contract.ranges)."""
 
     name: str
     value_reference: int
@@ -29,8 +42,10 @@ class Variable:
     display_unit: str | None
     description: str
     start: float | int | bool | None
-    min: float | None = None    # declared range (parameters: contract.layout.SETTING_RANGES)
+    min: float | None = None    # declared range (parameters)
     max: float | None = None
+    default: float | None = None
+    range: SettingRange | None = None
 
 
 _NED = "body -> magnetic NED, ZYX Euler angles"
@@ -46,18 +61,17 @@ def _output(name: str, vr: int, unit: str, description: str, display_unit: str |
     return Variable(name, vr, "output", "continuous", "Real", unit, display_unit, description, None)
 
 
-def _parameter(name: str, vr: int, description: str, display_unit: str | None = None) -> Variable:
-    """A fixed parameter (set before initialisation): type, unit, range and start value from
-    contract.layout (SETTING_RANGES, SETTINGS); Integer and Boolean parameters carry no unit."""
-    r = SETTING_RANGES[name]
-    start = _DEFAULTS[name]
-    if r.type == "Boolean":
-        return Variable(name, vr, "parameter", "fixed", r.type, None, None, description, bool(start))
-    typed = int(start) if r.type == "Integer" else start
-    return Variable(name, vr, "parameter", "fixed", r.type, r.unit, display_unit, description, typed, r.min, r.max)
+def _parameter(name: str, vr: int, default: float, declared: SettingRange, description: str,
+               display_unit: str | None = None) -> Variable:
+    """A fixed parameter (set before initialisation) with its default [unit of the range] and declared
+    type and range; Integer and Boolean parameters carry no unit."""
+    if declared.type == BOOLEAN:
+        return Variable(name, vr, "parameter", "fixed", declared.type, None, None, description, bool(default),
+                        default=float(default), range=declared)
+    typed = int(default) if declared.type == INTEGER else default
+    return Variable(name, vr, "parameter", "fixed", declared.type, declared.unit, display_unit, description, typed,
+                    declared.min, declared.max, float(default), declared)
 
-
-_DEFAULTS = dict(SETTINGS)
 
 _LAYOUT_2: tuple[Variable, ...] = (
     _input("gyr_x", 0, "rad/s", "Raw angular rate about body x (sensor axes)", 0.0),
@@ -98,60 +112,99 @@ _LAYOUT_2: tuple[Variable, ...] = (
     _output("soft_iron_yy", 34, "1", "Particle-filter soft-iron matrix entry b22 (0 when enable_pf is off)"),
     _output("soft_iron_zz", 35, "1", "Particle-filter soft-iron matrix entry b33 (0 when enable_pf is off)"),
     _output("pf_neff", 36, "1", "Particle-filter effective sample size before resampling (0 when enable_pf is off)"),
-    _parameter("declination", 37, "Magnetic declination: heading = yaw + declination", "deg"),
-    _parameter("field_norm", 38, "Local earth-field magnitude"),
-    _parameter("gyro_noise", 39, "White-noise density of the corrected gyro"),
-    _parameter("gyro_bias_residual", 40, "Residual gyro bias after calibration"),
-    _parameter("mse_time_constant", 41, "Averaging time of the innovation mean-square errors"),
-    _parameter("angle_noise", 42, "Floor of the accelerometer/magnetometer angle error standard deviation", "deg"),
-    _parameter("enable_thermal", 43, "Apply the gain/bias temperature model"),
-    _parameter("attitude_mode", 44, "Attitude filter: 0 = adaptive-gain Euler fusion, 1 = quaternion filter "
+    _parameter("declination", 37, 0.0, SettingRange(REAL, -math.pi, math.pi, "rad", typical=DECLINATION_TYPICAL_RAD),
+               "Magnetic declination: heading = yaw + declination", "deg"),
+    _parameter("field_norm", 38, 50.0, SettingRange(REAL, FIELD_NORM_MIN_UT, FIELD_NORM_MAX_UT, "uT"),
+               "Local earth-field magnitude"),
+    _parameter("gyro_noise", 39, 3.0e-4, SettingRange(REAL, 0.0, GYRO_NOISE_MAX, "rad/s/sqrt(Hz)"),
+               "White-noise density of the corrected gyro"),
+    _parameter("gyro_bias_residual", 40, 3.0e-4, SettingRange(REAL, 0.0, GYRO_RATE_SETTING_MAX, "rad/s"),
+               "Residual gyro bias after calibration"),
+    _parameter("mse_time_constant", 41, 1.0, TIME,
+               "Averaging time of the innovation mean-square errors"),
+    _parameter("angle_noise", 42, 0.0175, SettingRange(REAL, 0.0, math.pi, "rad", min_open=True),
+               "Floor of the accelerometer/magnetometer angle error standard deviation", "deg"),
+    _parameter("enable_thermal", 43, 1.0, FLAG,
+               "Apply the gain/bias temperature model"),
+    _parameter("attitude_mode", 44, 1.0, SettingRange(INTEGER, 0.0, 1.0),
+               "Attitude filter: 0 = adaptive-gain Euler fusion, 1 = quaternion filter "
                "with gyro bias at rest and magnetic disturbance rejection"),
-    _parameter("field_dip", 45, "Local earth-field dip (inclination, positive down)", "deg"),
-    _parameter("tau_acc", 46, "Time constant of the inclination correction (quaternion filter)"),
-    _parameter("tau_mag", 47, "Time constant of the heading correction (quaternion filter)"),
-    _parameter("rest_gyro_threshold", 48, "Rest detection rate threshold for the gyro bias estimate "
+    _parameter("field_dip", 45, 1.0471975511965976, SettingRange(REAL, -0.5 * math.pi, 0.5 * math.pi, "rad"),
+               "Local earth-field dip (inclination, positive down)", "deg"),
+    _parameter("tau_acc", 46, 3.0, TIME,
+               "Time constant of the inclination correction (quaternion filter)"),
+    _parameter("tau_mag", 47, 9.0, TIME,
+               "Time constant of the heading correction (quaternion filter)"),
+    _parameter("rest_gyro_threshold", 48, 0.035, SettingRange(REAL, 0.0, GYRO_RATE_SETTING_MAX, "rad/s"),
+               "Rest detection rate threshold for the gyro bias estimate "
                "(0 = no bias estimation)", "deg/s"),
-    _parameter("rest_acc_threshold", 49, "Rest detection specific-force deviation threshold"),
-    _parameter("mag_reject_time", 50, "Longest rejection of a magnetic field whose norm or dip is disturbed "
+    _parameter("rest_acc_threshold", 49, 0.5, SettingRange(REAL, 0.0, STANDARD_GRAVITY, "m/s2", min_open=True),
+               "Rest detection specific-force deviation threshold"),
+    _parameter("mag_reject_time", 50, 60.0, SettingRange(REAL, 0.0, TIME_SETTING_MAX_S, "s"),
+               "Longest rejection of a magnetic field whose norm or dip is disturbed "
                "(0 = no rejection; quaternion filter)"),
-    _parameter("enable_elm", 51, "Apply the extreme-learning-machine model of the nonlinear "
+    _parameter("enable_elm", 51, 0.0, FLAG,
+               "Apply the extreme-learning-machine model of the nonlinear "
                "magnetometer distortion (when the artefact carries one)"),
-    _parameter("enable_pf", 52, "Online hard/soft-iron estimation by particle filter on the calibrated field"),
-    _parameter("pf_particles", 53, "Particle count of the filter (2..512)"),
-    _parameter("pf_measurement_noise", 54, "Field noise per axis assumed by the filter"),
-    _parameter("pf_process_noise_hard", 55, "Random-walk standard deviation of the hard iron per filter update"),
-    _parameter("pf_process_noise_soft", 56, "Random-walk standard deviation of the soft-iron entries per filter update"),
-    _parameter("pf_prior_spread_hard", 57, "Prior standard deviation of the hard iron around the trained calibration"),
-    _parameter("pf_prior_spread_soft", 58, "Prior standard deviation of the soft-iron entries"),
-    _parameter("pf_decimation", 59, "Filter every n-th valid sample (the field is compensated every sample)"),
-    _parameter("pf_seed", 60, "Seed of the filter's PCG32 random numbers"),
-    _parameter("pf_threshold_high", 61, "High-weight threshold omega1 of double-threshold splitting, relative to 1/N"),
-    _parameter("pf_threshold_low", 62, "Low-weight threshold omega2 of double-threshold splitting, relative to 1/N"),
-    _parameter("pf_sphere_bins", 63, "Cells per cube-face side of the buffer of field directions (0 = current sample only)"),
-    _parameter("enable_psobp", 64, "Apply the PSO-BP network (temperature and its rate) to the gyro bias "
+    _parameter("enable_pf", 52, 0.0, FLAG,
+               "Online hard/soft-iron estimation by particle filter on the calibrated field"),
+    _parameter("pf_particles", 53, 128.0, SettingRange(INTEGER, 2.0, PF_MAX_PARTICLES),
+               "Particle count of the filter (2..512)"),
+    _parameter("pf_measurement_noise", 54, 0.3, SettingRange(REAL, 0.0, PF_NOISE_MAX_UT, "uT", min_open=True),
+               "Field noise per axis assumed by the filter"),
+    _parameter("pf_process_noise_hard", 55, 0.01, SettingRange(REAL, 0.0, PF_NOISE_MAX_UT, "uT"),
+               "Random-walk standard deviation of the hard iron per filter update"),
+    _parameter("pf_process_noise_soft", 56, 2e-4, UNIT_FRACTION,
+               "Random-walk standard deviation of the soft-iron entries per filter update"),
+    _parameter("pf_prior_spread_hard", 57, 3.0, PF_SPREAD,
+               "Prior standard deviation of the hard iron around the trained calibration"),
+    _parameter("pf_prior_spread_soft", 58, 0.02, UNIT_FRACTION,
+               "Prior standard deviation of the soft-iron entries"),
+    _parameter("pf_decimation", 59, 16.0, SettingRange(INTEGER, 1.0, PF_MAX_DECIMATION),
+               "Filter every n-th valid sample (the field is compensated every sample)"),
+    _parameter("pf_seed", 60, 1.0, SettingRange(INTEGER, 0.0, INT32_MAX),
+               "Seed of the filter's PCG32 random numbers"),
+    _parameter("pf_threshold_high", 61, 2.0, SettingRange(REAL, 1.0, PF_THRESHOLD_HIGH_MAX, min_open=True),
+               "High-weight threshold omega1 of double-threshold splitting, relative to 1/N"),
+    _parameter("pf_threshold_low", 62, 0.5, SettingRange(REAL, 0.0, 1.0, min_open=True, max_open=True),
+               "Low-weight threshold omega2 of double-threshold splitting, relative to 1/N"),
+    _parameter("pf_sphere_bins", 63, 2.0, SettingRange(INTEGER, 0.0, PF_MAX_SPHERE_BINS),
+               "Cells per cube-face side of the buffer of field directions (0 = current sample only)"),
+    _parameter("enable_psobp", 64, 0.0, FLAG,
+               "Apply the PSO-BP network (temperature and its rate) to the gyro bias "
                "that the gain/bias polynomial leaves (when the artefact carries one)"),
-    _parameter("pf_rao_blackwell", 65, "Particle filter samples the hard iron only and integrates the soft "
+    _parameter("pf_rao_blackwell", 65, 1.0, FLAG,
+               "Particle filter samples the hard iron only and integrates the soft "
                "iron out exactly (off: the method's 9-state filter with splitting and restoration network)"),
-    _parameter("pf_min_rotation", 66, "Turn of the field direction since the last sample used before the "
+    _parameter("pf_min_rotation", 66, 0.008726646259971648, SettingRange(REAL, 0.0, 0.5 * math.pi, "rad"),
+               "Turn of the field direction since the last sample used before the "
                "filter uses a sample (thins samples at rest)", "deg"),
-    _parameter("pf_change_spread_hard", 67, "Prior standard deviation of the hard iron around the estimate "
+    _parameter("pf_change_spread_hard", 67, 30.0, PF_SPREAD,
+               "Prior standard deviation of the hard iron around the estimate "
                "after a declared change of environment"),
-    _parameter("pf_hold_prior", 68, "Particle filter holds the prior (trained) calibration until the first "
+    _parameter("pf_hold_prior", 68, 1.0, FLAG,
+               "Particle filter holds the prior (trained) calibration until the first "
                "declared change of environment"),
-    _parameter("pf_settle_spread", 69, "The attitude filter ignores the magnetometer while the particle "
+    _parameter("pf_settle_spread", 69, 1.0, PF_SPREAD,
+               "The attitude filter ignores the magnetometer while the particle "
                "filter's hard-iron standard deviation exceeds this (0: never)"),
 )
 
-#: Value reference of aux_1 (the auxiliary inputs are contiguous, in contract.layout.AUX_INPUTS order).
+#: The auxiliary inputs: signals from outside the IMU (motor current, heater power, supply voltage, …)
+#: that diagnosed correction terms may use, in their own units; 0 where a model maps none.
+AUX_INPUTS = ("aux_1", "aux_2", "aux_3", "aux_4")
+#: Value reference of aux_1 (the auxiliary inputs are contiguous, in AUX_INPUTS order).
 _FIRST_AUX_VR = 70
 
 _LAGS: tuple[Variable, ...] = (
-    _parameter("lag_gyr", 74, "How long the gyro input lags true time (negative: it leads, within [-1, 1] s); "
+    _parameter("lag_gyr", 74, 0.0, LAG,
+               "How long the gyro input lags true time (negative: it leads, within [-1, 1] s); "
                "the compensated rates are aligned to true time before the correction terms"),
-    _parameter("lag_acc", 75, "How long the accelerometer input lags true time (negative: it leads, within "
+    _parameter("lag_acc", 75, 0.0, LAG,
+               "How long the accelerometer input lags true time (negative: it leads, within "
                "[-1, 1] s); the compensated specific force is aligned to true time before the correction terms"),
-    _parameter("lag_mag", 76, "How long the magnetometer input lags true time (negative: it leads, within "
+    _parameter("lag_mag", 76, 0.0, LAG,
+               "How long the magnetometer input lags true time (negative: it leads, within "
                "[-1, 1] s); the compensated field is aligned to true time before the correction terms"),
 )
 
@@ -166,7 +219,8 @@ _LAYOUT_4_OUTPUTS: tuple[Variable, ...] = (
 
 #: Parameters added by layout version 4, after calibration_valid.
 _MOUNTING: tuple[Variable, ...] = tuple(
-    _parameter(f"mount_{axis}", 78 + k, f"The sensor axis that is body {axis} (FRD: x forward, y right, z down), "
+    _parameter(f"mount_{axis}", 78 + k, float(k + 1), MOUNT_AXIS,
+               f"The sensor axis that is body {axis} (FRD: x forward, y right, z down), "
                "with its sign: 1 = +x, 2 = +y, 3 = +z, -1 = -x, -2 = -y, -3 = -z; the three must name different "
                "axes and stay right-handed. A board with z up and x forward: 1, -2, -3")
     for k, axis in enumerate("xyz"))
@@ -221,24 +275,3 @@ def by_name(name: str) -> Variable:
         if v.name == name:
             return v
     raise KeyError(f"unknown FMU variable '{name}' (known: {', '.join(v.name for v in VARIABLES)})")
-
-
-
-def markdown_table() -> str:
-    """The variable table as Markdown (README.md embeds it; tests/test_readme.py keeps them equal)."""
-    lines = ["| variable | causality | unit | description |", "|---|---|---|---|"]
-    for v in VARIABLES:
-        unit = v.unit or "1"
-        if v.display_unit:
-            unit += f" (shown in {v.display_unit})"
-        lines.append(f"| `{v.name}` | {v.causality} | {unit} | {v.description} |")
-    return "\n".join(lines)
-
-
-def ranges_markdown() -> str:
-    """The parameters' declared types and ranges as Markdown (docs/fmu.md embeds it;
-    tests/test_value_checks.py keeps them equal). ( ) marks a bound that is itself refused."""
-    lines = ["| parameter | type | range | default |", "|---|---|---|---|"]
-    for v in parameters():
-        lines.append(f"| `{v.name}` | {v.type} | {range_text(v.name)} | {_DEFAULTS[v.name]:g} |")
-    return "\n".join(lines)

@@ -49,7 +49,8 @@ from fmu.header import HEADER_NAME, read_header_arrays
 from fmu.model_description import FMI3_TYPES, TIME_VALUE_REFERENCE
 from contract.variables import VARIABLES
 from contract.errors import ImuFusionError, ModelError, one_line
-from contract.layout import INPUTS, LAG_MAX_S, OUTPUTS, SETTINGS, TRIAD_ORDER
+from contract.layout import INPUTS, OUTPUTS, SETTINGS, TRIAD_ORDER
+from contract.ranges import LAG_MAX_S
 from contract.mounting import MOUNT_SETTINGS
 
 #: The archive members whose contents the static check reads.
@@ -73,7 +74,7 @@ _TABLE_TYPES = {fmi3: table for table, fmi3 in FMI3_TYPES.items()}
 #: limits (100 rad/s, 2000 m/s², a field between 0.02 and 20 field norms).
 INPUT_STEPS = {"gyr": 0.1, "acc": 1.0, "mag": 5.0}
 #: Communication step [s] and steps each input is held: longer than the largest time-alignment
-#: lag (contract.layout.LAG_MAX_S), so every triad's aligned value is the held one.
+#: lag (contract.ranges.LAG_MAX_S), so every triad's aligned value is the held one.
 HOLD_STEP_S = 0.01
 HOLD_STEPS = math.ceil(LAG_MAX_S / HOLD_STEP_S) + 2
 #: The raw triad inputs; OUTPUTS[k] is the corrected INPUTS[k] for each of them (contract.layout).

@@ -40,7 +40,7 @@ void ImuGuardInitialOutputs(double declination, double out[IMU_OUTPUT_COUNT])
     for (i = 0; i < IMU_OUTPUT_COUNT; i++) {
         out[i] = 0.0;
     }
-    out[ImuOutQw] = 1.0;
+    out[ImuOutQW] = 1.0;
     out[ImuOutHeading] = declination;
 }
 

@@ -2,7 +2,9 @@
  * @file ImuLayout.h
  * @brief Sizes and orders of the flat arrays shared with Python (contract/layout.py).
  *
- * tests/test_layout.py pins these numbers to the Python side through ImuBatchLayout().
+ * The array enums are generated from the variable table (contract/variables.py, `python -m
+ * contract.generate`); tests/test_runtime.py pins the block sizes to the Python side through
+ * ImuBatchLayout().
  */
 #ifndef IMU_LAYOUT_H
 #define IMU_LAYOUT_H
@@ -14,77 +16,109 @@
 #define IMU_LAYOUT_VERSION 4
 
 /** Runtime inputs per sample (rad/s, m/s^2, uT, degC; auxiliary inputs in their own units). */
+/* generated:begin inputs (python -m contract.generate, from contract/variables.py; do not edit) */
 typedef enum {
-    ImuInGyrX, ImuInGyrY, ImuInGyrZ,
-    ImuInAccX, ImuInAccY, ImuInAccZ,
-    ImuInMagX, ImuInMagY, ImuInMagZ,
-    ImuInTemp,
-    ImuInAux1, ImuInAux2, ImuInAux3, ImuInAux4, /* signals from outside the IMU for the correction terms */
+    ImuInGyrX, /* rad/s */
+    ImuInGyrY, /* rad/s */
+    ImuInGyrZ, /* rad/s */
+    ImuInAccX, /* m/s2 */
+    ImuInAccY, /* m/s2 */
+    ImuInAccZ, /* m/s2 */
+    ImuInMagX, /* uT */
+    ImuInMagY, /* uT */
+    ImuInMagZ, /* uT */
+    ImuInTemp, /* degC */
+    ImuInAux1, /* 1 */
+    ImuInAux2, /* 1 */
+    ImuInAux3, /* 1 */
+    ImuInAux4, /* 1 */
     IMU_INPUT_COUNT
 } ImuInput;
+/* generated:end inputs */
 
 /* The auxiliary inputs are the last IMU_TERMS_AUX_COUNT inputs. */
 typedef char ImuLayoutCheckAux[(IMU_INPUT_COUNT - ImuInAux1 == IMU_TERMS_AUX_COUNT) ? 1 : -1];
 
 /** Runtime outputs per sample. */
+/* generated:begin outputs (python -m contract.generate, from contract/variables.py; do not edit) */
 typedef enum {
-    ImuOutRateX, ImuOutRateY, ImuOutRateZ,        /* rad/s */
-    ImuOutAccelX, ImuOutAccelY, ImuOutAccelZ,     /* m/s^2 */
-    ImuOutFieldX, ImuOutFieldY, ImuOutFieldZ,     /* uT */
-    ImuOutRoll, ImuOutPitch, ImuOutYaw,           /* rad, body -> magnetic NED, ZYX */
-    ImuOutHeading,                                /* rad, yaw + declination */
-    ImuOutQw, ImuOutQx, ImuOutQy, ImuOutQz,       /* body -> magnetic NED */
-    ImuOutGainRoll, ImuOutGainPitch, ImuOutGainYaw, /* 1 */
-    ImuOutHardIronX, ImuOutHardIronY, ImuOutHardIronZ, /* uT, particle-filter hard iron */
-    ImuOutSoftIronXx, ImuOutSoftIronYy, ImuOutSoftIronZz, /* 1, particle-filter soft-iron diagonal */
-    ImuOutPfNeff,                                 /* 1, effective sample size (0 when off) */
-    ImuOutCalibrationValid,                       /* 1 while every model input is inside its calibrated range, else 0 (layout 4) */
+    ImuOutRateX,            /* rad/s */
+    ImuOutRateY,            /* rad/s */
+    ImuOutRateZ,            /* rad/s */
+    ImuOutAccelX,           /* m/s2 */
+    ImuOutAccelY,           /* m/s2 */
+    ImuOutAccelZ,           /* m/s2 */
+    ImuOutFieldX,           /* uT */
+    ImuOutFieldY,           /* uT */
+    ImuOutFieldZ,           /* uT */
+    ImuOutRoll,             /* rad */
+    ImuOutPitch,            /* rad */
+    ImuOutYaw,              /* rad */
+    ImuOutHeading,          /* rad */
+    ImuOutQW,               /* 1 */
+    ImuOutQX,               /* 1 */
+    ImuOutQY,               /* 1 */
+    ImuOutQZ,               /* 1 */
+    ImuOutGainRoll,         /* 1 */
+    ImuOutGainPitch,        /* 1 */
+    ImuOutGainYaw,          /* 1 */
+    ImuOutHardIronX,        /* uT */
+    ImuOutHardIronY,        /* uT */
+    ImuOutHardIronZ,        /* uT */
+    ImuOutSoftIronXx,       /* 1 */
+    ImuOutSoftIronYy,       /* 1 */
+    ImuOutSoftIronZz,       /* 1 */
+    ImuOutPfNeff,           /* 1 */
+    ImuOutCalibrationValid, /* 1 */
     IMU_OUTPUT_COUNT
 } ImuOutput;
+/* generated:end outputs */
 
 /** Settings (FMU parameters) in the flat settings array. */
+/* generated:begin settings (python -m contract.generate, from contract/variables.py; do not edit) */
 typedef enum {
-    ImuSetDeclination,       /* rad */
-    ImuSetFieldNorm,         /* uT */
-    ImuSetGyroNoise,         /* rad/s/sqrt(Hz) */
-    ImuSetGyroBiasResidual,  /* rad/s */
-    ImuSetMseTimeConstant,   /* s */
-    ImuSetAngleNoise,        /* rad */
-    ImuSetEnableThermal,     /* 0 or 1 */
-    ImuSetAttitudeMode,      /* 0 Euler, 1 quaternion */
-    ImuSetFieldDip,          /* rad */
-    ImuSetTauAcc,            /* s */
-    ImuSetTauMag,            /* s */
-    ImuSetRestGyroThreshold, /* rad/s */
-    ImuSetRestAccThreshold,  /* m/s^2 */
-    ImuSetMagRejectTime,     /* s */
-    ImuSetEnableElm,         /* 0 or 1 */
-    ImuSetEnablePf,          /* 0 or 1 */
-    ImuSetPfParticles,       /* 1 */
+    ImuSetDeclination,        /* rad */
+    ImuSetFieldNorm,          /* uT */
+    ImuSetGyroNoise,          /* rad/s/sqrt(Hz) */
+    ImuSetGyroBiasResidual,   /* rad/s */
+    ImuSetMseTimeConstant,    /* s */
+    ImuSetAngleNoise,         /* rad */
+    ImuSetEnableThermal,      /* 0 or 1 */
+    ImuSetAttitudeMode,       /* whole number */
+    ImuSetFieldDip,           /* rad */
+    ImuSetTauAcc,             /* s */
+    ImuSetTauMag,             /* s */
+    ImuSetRestGyroThreshold,  /* rad/s */
+    ImuSetRestAccThreshold,   /* m/s2 */
+    ImuSetMagRejectTime,      /* s */
+    ImuSetEnableElm,          /* 0 or 1 */
+    ImuSetEnablePf,           /* 0 or 1 */
+    ImuSetPfParticles,        /* whole number */
     ImuSetPfMeasurementNoise, /* uT */
-    ImuSetPfProcessNoiseHard, /* uT per update */
-    ImuSetPfProcessNoiseSoft, /* 1 per update */
-    ImuSetPfPriorSpreadHard, /* uT */
-    ImuSetPfPriorSpreadSoft, /* 1 */
-    ImuSetPfDecimation,      /* samples */
-    ImuSetPfSeed,            /* 1 */
-    ImuSetPfThresholdHigh,   /* 1/N */
-    ImuSetPfThresholdLow,    /* 1/N */
-    ImuSetPfSphereBins,      /* cells per cube-face side */
-    ImuSetEnablePsoBp,       /* 0 or 1 */
-    ImuSetPfRaoBlackwell,    /* 0 or 1 */
-    ImuSetPfMinRotation,     /* rad */
+    ImuSetPfProcessNoiseHard, /* uT */
+    ImuSetPfProcessNoiseSoft, /* 1 */
+    ImuSetPfPriorSpreadHard,  /* uT */
+    ImuSetPfPriorSpreadSoft,  /* 1 */
+    ImuSetPfDecimation,       /* whole number */
+    ImuSetPfSeed,             /* whole number */
+    ImuSetPfThresholdHigh,    /* 1 */
+    ImuSetPfThresholdLow,     /* 1 */
+    ImuSetPfSphereBins,       /* whole number */
+    ImuSetEnablePsobp,        /* 0 or 1 */
+    ImuSetPfRaoBlackwell,     /* 0 or 1 */
+    ImuSetPfMinRotation,      /* rad */
     ImuSetPfChangeSpreadHard, /* uT */
-    ImuSetPfHoldPrior,       /* 0 or 1 */
-    ImuSetPfSettleSpread,    /* uT */
-    ImuSetLagGyr,            /* s, how long the gyro input lags true time (ImuAlign.h) */
-    ImuSetLagAcc,            /* s */
-    ImuSetLagMag,            /* s */
-    ImuSetMountX,            /* signed sensor axis that is body x: 1..3 = +x..+z, -1..-3 = -x..-z (ImuMount.h) */
-    ImuSetMountY,            /* signed sensor axis that is body y */
-    ImuSetMountZ,            /* signed sensor axis that is body z */
+    ImuSetPfHoldPrior,        /* 0 or 1 */
+    ImuSetPfSettleSpread,     /* uT */
+    ImuSetLagGyr,             /* s */
+    ImuSetLagAcc,             /* s */
+    ImuSetLagMag,             /* s */
+    ImuSetMountX,             /* whole number */
+    ImuSetMountY,             /* whole number */
+    ImuSetMountZ,             /* whole number */
     IMU_SETTING_COUNT
 } ImuSetting;
+/* generated:end settings */
 
 #define IMU_THERMAL_MAX_DEGREE 3
 /** One triad block: enabled, t0, ts, degree, A[9], g[3][MAX], b[3][MAX+1], then (layout 4) the

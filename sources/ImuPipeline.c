@@ -88,7 +88,7 @@ int ImuPipelineSettingsFromArray(ImuPipelineSettings *s, const double *a, size_t
     s->enableElm = ImuPipelineFlag(a[ImuSetEnableElm]);
     s->enablePf = ImuPipelineFlag(a[ImuSetEnablePf]);
     s->pfSeed = ImuPipelineInteger(a[ImuSetPfSeed]);
-    s->enablePsoBp = ImuPipelineFlag(a[ImuSetEnablePsoBp]);
+    s->enablePsoBp = ImuPipelineFlag(a[ImuSetEnablePsobp]);
     s->align.lag[0] = a[ImuSetLagGyr];
     s->align.lag[1] = a[ImuSetLagAcc];
     s->align.lag[2] = a[ImuSetLagMag];
@@ -339,7 +339,7 @@ void ImuPipelineUpdate(ImuPipeline *p, double t, double dt, const double in[IMU_
     ImuAttitudeUpdate(&p->attitude, &out[ImuOutRateX], &out[ImuOutAccelX], ImuPipelineHeadingField(p, out), dt);
     ImuAttitudeGetEuler(&p->attitude, &out[ImuOutRoll]);
     out[ImuOutHeading] = ImuWrapAngle(out[ImuOutYaw] + p->settings.declination);
-    ImuAttitudeGetQuaternion(&p->attitude, &out[ImuOutQw]);
+    ImuAttitudeGetQuaternion(&p->attitude, &out[ImuOutQW]);
     ImuAttitudeGetGains(&p->attitude, &out[ImuOutGainRoll]);
 }
 

@@ -2,20 +2,18 @@
  * @file config.h
  * @brief Model identity and the value references of the ImuFusion FMU.
  *
- * The value references mirror the variable table in contract/variables.py (tests/test_fmu.py pins
- * the two together). Each group is contiguous and in the order of ImuLayout.h, so model.c maps
- * a value reference to an array index by subtracting the group's first value reference and adding
- * the group's first array index. Variables added by later layout versions form new groups after
- * the last value reference, so existing value references never change.
+ * The value references, their types and their array slots are generated from the variable table
+ * (contract/variables.py) by `python -m contract.generate`; tests/test_generated.py fails when
+ * they are stale. New variables take the next free value reference, so existing ones never change.
  */
 #ifndef IMU_CONFIG_H
 #define IMU_CONFIG_H
 
 #define MODEL_NAME "ImuFusion"
 
+/* generated:begin value-references (python -m contract.generate, from contract/variables.py; do not edit) */
 /** Value references of every model variable. */
 typedef enum {
-    /* inputs: raw sample (ImuInput order) */
     vr_gyr_x = 0,
     vr_gyr_y = 1,
     vr_gyr_z = 2,
@@ -26,7 +24,6 @@ typedef enum {
     vr_mag_y = 7,
     vr_mag_z = 8,
     vr_temp = 9,
-    /* outputs: estimate for the last consumed sample (ImuOutput order) */
     vr_rate_x = 10,
     vr_rate_y = 11,
     vr_rate_z = 12,
@@ -54,7 +51,6 @@ typedef enum {
     vr_soft_iron_yy = 34,
     vr_soft_iron_zz = 35,
     vr_pf_neff = 36,
-    /* parameters: settings (ImuSetting order) */
     vr_declination = 37,
     vr_field_norm = 38,
     vr_gyro_noise = 39,
@@ -88,38 +84,117 @@ typedef enum {
     vr_pf_change_spread_hard = 67,
     vr_pf_hold_prior = 68,
     vr_pf_settle_spread = 69,
-    /* inputs (layout version 3): auxiliary inputs (ImuInAux1..) */
     vr_aux_1 = 70,
     vr_aux_2 = 71,
     vr_aux_3 = 72,
     vr_aux_4 = 73,
-    /* parameters (layout version 3): triad lags (ImuSetLagGyr..) */
     vr_lag_gyr = 74,
     vr_lag_acc = 75,
     vr_lag_mag = 76,
-    /* outputs (layout version 4): calibrated-range flag (ImuOutCalibrationValid) */
     vr_calibration_valid = 77,
-    /* parameters (layout version 4): mounting, sensor -> body axes (ImuSetMountX..) */
     vr_mount_x = 78,
     vr_mount_y = 79,
     vr_mount_z = 80
 } ValueReference;
 
-/** Parameters of type Boolean; every other variable is Real (FMI 3: Float64) unless VR_IS_INTEGER. */
+#define VR_COUNT 81
+
+/** Parameters of type Boolean (FMI 3: Boolean). */
 #define VR_IS_BOOLEAN(vr) ((vr) == vr_enable_thermal || (vr) == vr_enable_elm || (vr) == vr_enable_pf || (vr) == vr_enable_psobp || (vr) == vr_pf_rao_blackwell || (vr) == vr_pf_hold_prior)
 /** Parameters of type Integer (FMI 3: Int32), stored as whole numbers in the settings array. */
 #define VR_IS_INTEGER(vr) ((vr) == vr_attitude_mode || (vr) == vr_pf_particles || (vr) == vr_pf_decimation || (vr) == vr_pf_seed || (vr) == vr_pf_sphere_bins || (vr) == vr_mount_x || (vr) == vr_mount_y || (vr) == vr_mount_z)
 
+/** Where each value reference lives: {'i' inputs / 'o' outputs / 's' settings, array index}. */
+#define IMU_VR_SLOTS { \
+    {'i', ImuInGyrX}, \
+    {'i', ImuInGyrY}, \
+    {'i', ImuInGyrZ}, \
+    {'i', ImuInAccX}, \
+    {'i', ImuInAccY}, \
+    {'i', ImuInAccZ}, \
+    {'i', ImuInMagX}, \
+    {'i', ImuInMagY}, \
+    {'i', ImuInMagZ}, \
+    {'i', ImuInTemp}, \
+    {'o', ImuOutRateX}, \
+    {'o', ImuOutRateY}, \
+    {'o', ImuOutRateZ}, \
+    {'o', ImuOutAccelX}, \
+    {'o', ImuOutAccelY}, \
+    {'o', ImuOutAccelZ}, \
+    {'o', ImuOutFieldX}, \
+    {'o', ImuOutFieldY}, \
+    {'o', ImuOutFieldZ}, \
+    {'o', ImuOutRoll}, \
+    {'o', ImuOutPitch}, \
+    {'o', ImuOutYaw}, \
+    {'o', ImuOutHeading}, \
+    {'o', ImuOutQW}, \
+    {'o', ImuOutQX}, \
+    {'o', ImuOutQY}, \
+    {'o', ImuOutQZ}, \
+    {'o', ImuOutGainRoll}, \
+    {'o', ImuOutGainPitch}, \
+    {'o', ImuOutGainYaw}, \
+    {'o', ImuOutHardIronX}, \
+    {'o', ImuOutHardIronY}, \
+    {'o', ImuOutHardIronZ}, \
+    {'o', ImuOutSoftIronXx}, \
+    {'o', ImuOutSoftIronYy}, \
+    {'o', ImuOutSoftIronZz}, \
+    {'o', ImuOutPfNeff}, \
+    {'s', ImuSetDeclination}, \
+    {'s', ImuSetFieldNorm}, \
+    {'s', ImuSetGyroNoise}, \
+    {'s', ImuSetGyroBiasResidual}, \
+    {'s', ImuSetMseTimeConstant}, \
+    {'s', ImuSetAngleNoise}, \
+    {'s', ImuSetEnableThermal}, \
+    {'s', ImuSetAttitudeMode}, \
+    {'s', ImuSetFieldDip}, \
+    {'s', ImuSetTauAcc}, \
+    {'s', ImuSetTauMag}, \
+    {'s', ImuSetRestGyroThreshold}, \
+    {'s', ImuSetRestAccThreshold}, \
+    {'s', ImuSetMagRejectTime}, \
+    {'s', ImuSetEnableElm}, \
+    {'s', ImuSetEnablePf}, \
+    {'s', ImuSetPfParticles}, \
+    {'s', ImuSetPfMeasurementNoise}, \
+    {'s', ImuSetPfProcessNoiseHard}, \
+    {'s', ImuSetPfProcessNoiseSoft}, \
+    {'s', ImuSetPfPriorSpreadHard}, \
+    {'s', ImuSetPfPriorSpreadSoft}, \
+    {'s', ImuSetPfDecimation}, \
+    {'s', ImuSetPfSeed}, \
+    {'s', ImuSetPfThresholdHigh}, \
+    {'s', ImuSetPfThresholdLow}, \
+    {'s', ImuSetPfSphereBins}, \
+    {'s', ImuSetEnablePsobp}, \
+    {'s', ImuSetPfRaoBlackwell}, \
+    {'s', ImuSetPfMinRotation}, \
+    {'s', ImuSetPfChangeSpreadHard}, \
+    {'s', ImuSetPfHoldPrior}, \
+    {'s', ImuSetPfSettleSpread}, \
+    {'i', ImuInAux1}, \
+    {'i', ImuInAux2}, \
+    {'i', ImuInAux3}, \
+    {'i', ImuInAux4}, \
+    {'s', ImuSetLagGyr}, \
+    {'s', ImuSetLagAcc}, \
+    {'s', ImuSetLagMag}, \
+    {'o', ImuOutCalibrationValid}, \
+    {'s', ImuSetMountX}, \
+    {'s', ImuSetMountY}, \
+    {'s', ImuSetMountZ} \
+}
+/** The value references of the inputs, in ImuInput order. */
+#define IMU_INPUT_VRS {vr_gyr_x, vr_gyr_y, vr_gyr_z, vr_acc_x, vr_acc_y, vr_acc_z, vr_mag_x, vr_mag_y, vr_mag_z, vr_temp, vr_aux_1, vr_aux_2, vr_aux_3, vr_aux_4}
+/** The value references of the outputs, in ImuOutput order. */
+#define IMU_OUTPUT_VRS {vr_rate_x, vr_rate_y, vr_rate_z, vr_accel_x, vr_accel_y, vr_accel_z, vr_field_x, vr_field_y, vr_field_z, vr_roll, vr_pitch, vr_yaw, vr_heading, vr_q_w, vr_q_x, vr_q_y, vr_q_z, vr_gain_roll, vr_gain_pitch, vr_gain_yaw, vr_hard_iron_x, vr_hard_iron_y, vr_hard_iron_z, vr_soft_iron_xx, vr_soft_iron_yy, vr_soft_iron_zz, vr_pf_neff, vr_calibration_valid}
+/* generated:end value-references */
+
 /** FMI 3 only: the independent variable "time" [s], outside the variable table's range. */
 #define VR_TIME 1000000u
-
-#define VR_FIRST_INPUT vr_gyr_x
-#define VR_FIRST_OUTPUT vr_rate_x
-#define VR_FIRST_SETTING vr_declination
-#define VR_FIRST_AUX vr_aux_1
-#define VR_FIRST_LAG vr_lag_gyr
-#define VR_FIRST_VALIDITY vr_calibration_valid
-#define VR_FIRST_MOUNT vr_mount_x
-#define VR_COUNT (vr_mount_z + 1)
 
 #endif

@@ -12,33 +12,14 @@
 
 #include "ImuCoefficientsData.h"
 
-/** Where a contiguous group of value references (config.h) lives in ModelData. */
+/** Where a value reference lives in ModelData: its array and index there (config.h IMU_VR_SLOTS). */
 typedef struct {
-    unsigned int firstVr; /* value reference of the group's first variable */
-    int count;            /* variables in the group */
-    char causality;       /* 'i' inputs[], 'o' outputs[], 's' settings[] */
-    int firstIndex;       /* array index of the group's first variable (ImuLayout.h order) */
-} VariableGroup;
+    char causality; /* 'i' inputs[], 'o' outputs[], 's' settings[] */
+    int index;      /* array index (ImuLayout.h order) */
+} VariableSlot;
 
-/** The value-reference groups in value-reference order; together they cover 0..VR_COUNT - 1. */
-static const VariableGroup variableGroups[] = {
-    {VR_FIRST_INPUT, ImuInAux1, 'i', 0},
-    {VR_FIRST_OUTPUT, ImuOutCalibrationValid, 'o', 0},
-    {VR_FIRST_SETTING, ImuSetLagGyr, 's', 0},
-    {VR_FIRST_AUX, IMU_INPUT_COUNT - ImuInAux1, 'i', ImuInAux1},
-    {VR_FIRST_LAG, ImuSetMountX - ImuSetLagGyr, 's', ImuSetLagGyr},
-    {VR_FIRST_VALIDITY, IMU_OUTPUT_COUNT - ImuOutCalibrationValid, 'o', ImuOutCalibrationValid},
-    {VR_FIRST_MOUNT, IMU_SETTING_COUNT - ImuSetMountX, 's', ImuSetMountX}
-};
-
-/* The groups of config.h must be contiguous and match the array sizes of ImuLayout.h. */
-typedef char ModelCheckInputs[(VR_FIRST_OUTPUT - VR_FIRST_INPUT == ImuInAux1) ? 1 : -1];
-typedef char ModelCheckOutputs[(VR_FIRST_SETTING - VR_FIRST_OUTPUT == ImuOutCalibrationValid) ? 1 : -1];
-typedef char ModelCheckSettings[(VR_FIRST_AUX - VR_FIRST_SETTING == ImuSetLagGyr) ? 1 : -1];
-typedef char ModelCheckAux[(VR_FIRST_LAG - VR_FIRST_AUX == IMU_INPUT_COUNT - ImuInAux1) ? 1 : -1];
-typedef char ModelCheckLags[(VR_FIRST_VALIDITY - VR_FIRST_LAG == ImuSetMountX - ImuSetLagGyr) ? 1 : -1];
-typedef char ModelCheckValidity[(VR_FIRST_MOUNT - VR_FIRST_VALIDITY == IMU_OUTPUT_COUNT - ImuOutCalibrationValid) ? 1 : -1];
-typedef char ModelCheckMount[(VR_COUNT - VR_FIRST_MOUNT == IMU_SETTING_COUNT - ImuSetMountX) ? 1 : -1];
+/** The slot of every value reference 0..VR_COUNT - 1, generated from the variable table. */
+static const VariableSlot variableSlots[VR_COUNT] = IMU_VR_SLOTS;
 
 #define MODEL_STATE_MAGIC 0x494D5546u /* "IMUF" */
 #define MODEL_LOG_BUFFER_SIZE 640
@@ -89,16 +70,12 @@ static void setStartValues(ModelData *m) {
 
 /** @brief Array of vr ('i' inputs, 'o' outputs, 's' settings; 0 for an unknown vr) and its index there. */
 static char locate(unsigned int vr, int *index) {
-    size_t g;
-    for (g = 0; g < sizeof variableGroups / sizeof variableGroups[0]; g++) {
-        const VariableGroup *group = &variableGroups[g];
-        if (vr >= group->firstVr && vr - group->firstVr < (unsigned int)group->count) {
-            *index = group->firstIndex + (int)(vr - group->firstVr);
-            return group->causality;
-        }
+    if (vr >= VR_COUNT) {
+        *index = -1;
+        return 0;
     }
-    *index = -1;
-    return 0;
+    *index = variableSlots[vr].index;
+    return variableSlots[vr].causality;
 }
 
 /** @brief Index of the parameter vr in the settings array (vr must be a parameter). */

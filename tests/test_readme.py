@@ -1,19 +1,13 @@
-"""README.md stays true: its variable table, its two set-up commands and .ci/run agree with the code."""
+"""README.md stays true: its two set-up commands and .ci/run agree with the code (its variable table:
+tests/test_generated.py)."""
 from __future__ import annotations
 
 import re
 from pathlib import Path
 
-from contract.variables import markdown_table
 
 ROOT = Path(__file__).resolve().parents[1]
 README = (ROOT / "README.md").read_text()
-
-
-def test_variable_table_is_current():
-    block = re.search(r"<!-- variables:begin[^>]*-->\n(.*?)\n<!-- variables:end -->", README, re.S)
-    assert block, "README.md lost its variables block"
-    assert block.group(1) == markdown_table(), "regenerate the README table from contract.variables"
 
 
 def test_ci_runs_the_readme_test_command():

@@ -19,6 +19,7 @@ from fmu.cosim import OK, WARNING, Stepper, initialised_fmu
 from fmu.packer import reference_recording
 from training.fmu_build import build_fmu
 from contract import layout
+from contract.ranges import STANDARD_GRAVITY
 from training import runtime
 
 #: s, the communication step of the importer, and the far clock of the issue.
@@ -73,7 +74,7 @@ def turning_without_field(n: int) -> np.ndarray:
     """(n, len(INPUTS)) a level sensor turning at YAW_RATE about down, no magnetometer (NaN)."""
     x = np.zeros((n, len(layout.INPUTS)))
     x[:, 2] = YAW_RATE
-    x[:, 5] = -layout.STANDARD_GRAVITY
+    x[:, 5] = -STANDARD_GRAVITY
     x[:, 6:9] = np.nan
     x[:, 9] = 25.0
     return x

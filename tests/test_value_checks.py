@@ -20,13 +20,13 @@ import pytest
 
 from cli_errors import fails
 from fmu.model_description import model_description_xml
-from contract.variables import ranges_markdown
+from contract.generate import ranges_markdown
 from training import io, model_checks, sidecar
 from training.artefact import ModelArtefact, load_artefact
 from training.cli import _param, main
 from contract.errors import DataError, ModelError
-from contract.layout import (FIELD_NORM_MAX_UT, FIELD_NORM_MIN_UT, RAO_BLACKWELL_POSITIVE, SETTING_RANGES,
-                             SETTINGS, settings_array)
+from contract.layout import SETTING_RANGES, SETTINGS, settings_array
+from contract.ranges import FIELD_NORM_MAX_UT, FIELD_NORM_MIN_UT, RAO_BLACKWELL_POSITIVE
 from training.runtime import load_runtime
 from contract.mounting import MOUNT_SETTINGS, mounting_problem
 from contract.schema import setting_problem
@@ -44,17 +44,6 @@ def test_every_setting_has_a_range_that_holds_its_default():
 
 def test_docs_show_the_table():
     assert ranges_markdown() in (SOURCES.parent / "docs" / "fmu.md").read_text()
-
-
-def test_config_h_types_are_the_table_types():
-    text = (SOURCES / "config.h").read_text()
-
-    def names(macro: str) -> set[str]:
-        body = re.search(rf"#define {macro}\(vr\) (.*)", text).group(1)
-        return set(re.findall(r"vr_(\w+)", body))
-
-    assert names("VR_IS_BOOLEAN") == {n for n, r in SETTING_RANGES.items() if r.type == "Boolean"}
-    assert names("VR_IS_INTEGER") == {n for n, r in SETTING_RANGES.items() if r.type == "Integer"}
 
 
 # ----------------------------------------------------------------------------- C limits = table = modelDescription

@@ -12,7 +12,7 @@ import math
 
 import numpy as np
 
-from contract.layout import FIELD_NORM_MAX_UT
+from contract.ranges import FIELD_NORM_MAX_UT
 
 from . import input_limits
 from .thermal import MIN_TS, ThermalModel

@@ -70,18 +70,12 @@ static fmi3Instance start(ErrorLog *log) {
 /** @brief Step samples from..to-1 from time t0 [s]; 1 if every output of every step was finite,
  *         0 if one was not, -1 if a doStep returned Error. */
 static int run(fmi3Instance s, int from, int to, double t0) {
-    fmi3ValueReference inputVrs[IMU_INPUT_COUNT], outVrs[IMU_OUTPUT_COUNT];
+    static const fmi3ValueReference inputVrs[IMU_INPUT_COUNT] = IMU_INPUT_VRS;
+    static const fmi3ValueReference outVrs[IMU_OUTPUT_COUNT] = IMU_OUTPUT_VRS;
     double x[IMU_INPUT_COUNT], out[IMU_OUTPUT_COUNT];
     fmi3Boolean event, terminate, early;
     fmi3Float64 last;
     int k, j, finite = 1;
-    for (j = 0; j < IMU_INPUT_COUNT; j++) {
-        inputVrs[j] = (fmi3ValueReference)(j < ImuInAux1 ? VR_FIRST_INPUT + j : VR_FIRST_AUX + j - ImuInAux1);
-    }
-    for (j = 0; j < IMU_OUTPUT_COUNT; j++) {
-        outVrs[j] = (fmi3ValueReference)(j < ImuOutCalibrationValid ? VR_FIRST_OUTPUT + j
-                                                                     : VR_FIRST_VALIDITY + j - ImuOutCalibrationValid);
-    }
     for (k = from; k < to; k++) {
         sample(k, x);
         fmi3SetFloat64(s, inputVrs, IMU_INPUT_COUNT, x, IMU_INPUT_COUNT);

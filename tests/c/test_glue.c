@@ -58,10 +58,7 @@ static void sample(int k, double x[IMU_INPUT_COUNT]) {
     }
 }
 
-static const fmi3ValueReference inputVrs[IMU_INPUT_COUNT] = {
-    vr_gyr_x, vr_gyr_y, vr_gyr_z, vr_acc_x, vr_acc_y, vr_acc_z, vr_mag_x, vr_mag_y, vr_mag_z, vr_temp,
-    vr_aux_1, vr_aux_2, vr_aux_3, vr_aux_4
-};
+static const fmi3ValueReference inputVrs[IMU_INPUT_COUNT] = IMU_INPUT_VRS;
 
 /** @brief Instantiate and initialise an FMI 3 instance logging into log (field_norm [uT] set first). */
 static fmi3Instance start(LogCount *log, double fieldNorm) {
@@ -82,14 +79,10 @@ static fmi3Instance start(LogCount *log, double fieldNorm) {
 
 /** @brief Set sample x, step from t [s] by h [s], read every output; the doStep status. */
 static fmi3Status step(fmi3Instance s, const double x[IMU_INPUT_COUNT], double t, double h, double out[IMU_OUTPUT_COUNT]) {
-    fmi3ValueReference outVrs[IMU_OUTPUT_COUNT];
+    static const fmi3ValueReference outVrs[IMU_OUTPUT_COUNT] = IMU_OUTPUT_VRS;
     fmi3Boolean event, terminate, early;
     fmi3Float64 last;
     fmi3Status status;
-    int j;
-    for (j = 0; j < IMU_OUTPUT_COUNT; j++) {
-        outVrs[j] = (fmi3ValueReference)(VR_FIRST_OUTPUT + j);
-    }
     fmi3SetFloat64(s, inputVrs, IMU_INPUT_COUNT, x, IMU_INPUT_COUNT);
     status = fmi3DoStep(s, t, h, fmi3True, &event, &terminate, &early, &last);
     fmi3GetFloat64(s, outVrs, IMU_OUTPUT_COUNT, out, IMU_OUTPUT_COUNT);

@@ -1,0 +1,148 @@
+"""Everything written from the variable table (contract/variables.py), in marked regions of files
+that are otherwise written by hand:
+
+- sources/ImuLayout.h: the enums of the runtime's input, output and settings arrays;
+- sources/config.h: the value references, which parameters are Boolean or Integer, VR_COUNT and
+  the slot of every value reference in those arrays (model.c's variable lookup);
+- README.md: the variable table; docs/fmu.md: the parameters' types, ranges and defaults.
+
+A region runs from a line holding `generated:begin NAME` to one holding `generated:end NAME`
+(C comments or HTML comments). `python -m contract.generate` rewrites every region and names the
+files it changed; tests/test_generated.py fails when a region is stale.
+"""
+from __future__ import annotations
+
+import re
+import sys
+from collections.abc import Callable
+from pathlib import Path
+
+from contract.schema import range_text
+from contract.variables import VARIABLES, Variable
+
+ROOT = Path(__file__).resolve().parent.parent
+
+#: C enum constant prefix and the C type name of each array, by causality.
+_C_ARRAYS = {"input": ("ImuIn", "ImuInput", "IMU_INPUT_COUNT"),
+             "output": ("ImuOut", "ImuOutput", "IMU_OUTPUT_COUNT"),
+             "parameter": ("ImuSet", "ImuSetting", "IMU_SETTING_COUNT")}
+#: model.c's one-letter tag of the array each causality lives in.
+_SLOT_TAG = {"input": "i", "output": "o", "parameter": "s"}
+
+
+def c_name(v: Variable) -> str:
+    """The C enum constant of v's array slot: the prefix and the name in CamelCase (gyr_x -> ImuInGyrX)."""
+    return _C_ARRAYS[v.causality][0] + "".join(part.capitalize() for part in v.name.split("_"))
+
+
+def _unit_comment(v: Variable) -> str:
+    """'/* unit */' of a variable (1 when dimensionless; Integer and Boolean parameters: their type)."""
+    unit = v.unit or ("0 or 1" if v.type == "Boolean" else ("whole number" if v.type == "Integer" else "1"))
+    return f"/* {unit} */"
+
+
+def _of(causality: str) -> list[Variable]:
+    return [v for v in VARIABLES if v.causality == causality]
+
+
+def c_array_enum(causality: str) -> str:
+    """The typedef enum of one array (value-reference order within the causality)."""
+    _, type_name, count = _C_ARRAYS[causality]
+    width = max(len(c_name(v)) for v in _of(causality)) + 1
+    lines = ["typedef enum {"]
+    lines += [f"    {c_name(v) + ',':<{width}} {_unit_comment(v)}" for v in _of(causality)]
+    lines += [f"    {count}", f"}} {type_name};"]
+    return "\n".join(lines)
+
+
+def c_value_references() -> str:
+    """config.h: the ValueReference enum, VR_COUNT, VR_IS_BOOLEAN / VR_IS_INTEGER, IMU_VR_SLOTS and the
+    value references of the inputs and outputs in array order (IMU_INPUT_VRS, IMU_OUTPUT_VRS)."""
+    lines = ["/** Value references of every model variable. */", "typedef enum {"]
+    lines += [f"    vr_{v.name} = {v.value_reference}{',' if k + 1 < len(VARIABLES) else ''}"
+              for k, v in enumerate(VARIABLES)]
+    lines += ["} ValueReference;", "", f"#define VR_COUNT {len(VARIABLES)}", ""]
+    for macro, type_name in (("VR_IS_BOOLEAN", "Boolean"), ("VR_IS_INTEGER", "Integer")):
+        names = " || ".join(f"(vr) == vr_{v.name}" for v in VARIABLES if v.causality == "parameter"
+                            and v.type == type_name)
+        lines += [f"/** Parameters of type {type_name} (FMI 3: {'Boolean' if type_name == 'Boolean' else 'Int32'})"
+                  f"{'' if type_name == 'Boolean' else ', stored as whole numbers in the settings array'}. */",
+                  f"#define {macro}(vr) ({names})"]
+    lines += ["", "/** Where each value reference lives: {'i' inputs / 'o' outputs / 's' settings, array index}. */",
+              "#define IMU_VR_SLOTS { \\"]
+    lines += [f"    {{'{_SLOT_TAG[v.causality]}', {c_name(v)}}}{',' if k + 1 < len(VARIABLES) else ''} \\"
+              for k, v in enumerate(VARIABLES)]
+    lines += ["}"]
+    for causality, macro in (("input", "IMU_INPUT_VRS"), ("output", "IMU_OUTPUT_VRS")):
+        vrs = ", ".join(f"vr_{v.name}" for v in _of(causality))
+        lines += [f"/** The value references of the {causality}s, in {_C_ARRAYS[causality][1]} order. */",
+                  f"#define {macro} {{{vrs}}}"]
+    return "\n".join(lines)
+
+
+def markdown_table() -> str:
+    """The variable table as Markdown (README.md)."""
+    lines = ["| variable | causality | unit | description |", "|---|---|---|---|"]
+    for v in VARIABLES:
+        unit = v.unit or "1"
+        if v.display_unit:
+            unit += f" (shown in {v.display_unit})"
+        lines.append(f"| `{v.name}` | {v.causality} | {unit} | {v.description} |")
+    return "\n".join(lines)
+
+
+def ranges_markdown() -> str:
+    """The parameters' declared types, ranges and defaults as Markdown (docs/fmu.md).
+    ( ) marks a bound that is itself refused."""
+    lines = ["| parameter | type | range | default |", "|---|---|---|---|"]
+    for v in _of("parameter"):
+        lines.append(f"| `{v.name}` | {v.type} | {range_text(v.name)} | {v.default:g} |")
+    return "\n".join(lines)
+
+
+#: File (relative to the repository) -> {region name: its text}.
+REGIONS: dict[str, dict[str, Callable[[], str]]] = {
+    "sources/ImuLayout.h": {"inputs": lambda: c_array_enum("input"), "outputs": lambda: c_array_enum("output"),
+                            "settings": lambda: c_array_enum("parameter")},
+    "sources/config.h": {"value-references": c_value_references},
+    "README.md": {"variables": markdown_table},
+    "docs/fmu.md": {"parameter-ranges": ranges_markdown},
+}
+
+
+def _region_pattern(name: str) -> re.Pattern:
+    """A marked region: the begin line, the text, the end line."""
+    return re.compile(rf"(^[^\n]*generated:begin {re.escape(name)}\b[^\n]*\n)(.*?)(^[^\n]*generated:end {re.escape(name)}\b)",
+                      re.S | re.M)
+
+
+def rendered(path: str, text: str) -> str:
+    """`text` (the file at `path`) with every region of REGIONS[path] regenerated; ValueError when a
+    region's markers are missing."""
+    for name, make in REGIONS[path].items():
+        pattern = _region_pattern(name)
+        if not pattern.search(text):
+            raise ValueError(f"{path}: no 'generated:begin {name}' ... 'generated:end {name}' region")
+        text = pattern.sub(lambda m: m.group(1) + make() + "\n" + m.group(3), text, count=1)
+    return text
+
+
+def stale(root: Path = ROOT) -> list[str]:
+    """The files whose regions differ from what the table generates."""
+    return [path for path in REGIONS if rendered(path, (root / path).read_text()) != (root / path).read_text()]
+
+
+def main() -> int:
+    """Rewrite every stale file; print what changed."""
+    changed = stale()
+    for path in changed:
+        target = ROOT / path
+        target.write_text(rendered(path, target.read_text()))
+        print(f"rewrote {path}")
+    if not changed:
+        print("every generated region is current")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
