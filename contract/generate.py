@@ -1,7 +1,8 @@
 """Everything written from the variable table (contract/variables.py), in marked regions of files
 that are otherwise written by hand:
 
-- sources/ImuLayout.h: the enums of the runtime's input, output and settings arrays;
+- sources/ImuLayout.h: the enums of the runtime's input, output and settings arrays, and the
+  declared range of every setting (the C runtime's one range check, ImuPipelineSettingsCheck);
 - sources/config.h: the value references, which parameters are Boolean or Integer, VR_COUNT and
   the slot of every value reference in those arrays (model.c's variable lookup);
 - README.md: the variable table; docs/fmu.md: the parameters' types, ranges and defaults.
@@ -80,6 +81,32 @@ def c_value_references() -> str:
     return "\n".join(lines)
 
 
+#: ImuSettingRange flags (sources/ImuLayout.h).
+_RANGE_FLAGS = {"min_open": 1, "max_open": 2, "whole": 4, "nonzero": 8}
+
+
+def range_problem_text(v: Variable) -> str:
+    """The C runtime's message for a value of parameter v outside its declared range."""
+    prefix = "finite and within " if v.type == "Real" else ""
+    return f"{v.name} must be {prefix}{range_text(v.name, ascii_only=True)}"
+
+
+def c_setting_ranges() -> str:
+    """IMU_SETTING_RANGES: {min, max, flags, message} of every setting (ImuSetting order), the
+    declared ranges of the table as exact doubles."""
+    lines = ["/** Declared range of every setting, in ImuSetting order (ImuSettingRange). */",
+             "#define IMU_SETTING_RANGES { \\"]
+    params = _of("parameter")
+    for k, v in enumerate(params):
+        r = v.range
+        flags = ((_RANGE_FLAGS["min_open"] if r.min_open else 0) | (_RANGE_FLAGS["max_open"] if r.max_open else 0)
+                 | (_RANGE_FLAGS["whole"] if r.type != "Real" else 0) | (_RANGE_FLAGS["nonzero"] if r.nonzero else 0))
+        lines.append(f"    {{{float(r.min)!r}, {float(r.max)!r}, {flags}, \"{range_problem_text(v)}\"}}"
+                     f"{',' if k + 1 < len(params) else ''} \\")
+    lines.append("}")
+    return "\n".join(lines)
+
+
 def markdown_table() -> str:
     """The variable table as Markdown (README.md)."""
     lines = ["| variable | causality | unit | description |", "|---|---|---|---|"]
@@ -103,7 +130,7 @@ def ranges_markdown() -> str:
 #: File (relative to the repository) -> {region name: its text}.
 REGIONS: dict[str, dict[str, Callable[[], str]]] = {
     "sources/ImuLayout.h": {"inputs": lambda: c_array_enum("input"), "outputs": lambda: c_array_enum("output"),
-                            "settings": lambda: c_array_enum("parameter")},
+                            "settings": lambda: c_array_enum("parameter"), "setting-ranges": c_setting_ranges},
     "sources/config.h": {"value-references": c_value_references},
     "README.md": {"variables": markdown_table},
     "docs/fmu.md": {"parameter-ranges": ranges_markdown},

@@ -19,10 +19,11 @@ MISTAKEN_UNITS = {"rad": (("deg", math.pi / 180.0),), "rad/s": (("deg/s", math.p
                   "uT": (("nT", 1e-3), ("G", 100.0))}
 
 
-def _unit_suffix(name: str) -> str:
-    """' µT' etc.: the unit of setting `name` as written after a number ('' when dimensionless)."""
+def _unit_suffix(name: str, ascii_only: bool = False) -> str:
+    """' µT' etc.: the unit of setting `name` as written after a number ('' when dimensionless);
+    ascii_only: its FMI spelling (' uT'), for the C runtime's messages."""
     unit = SETTING_RANGES[name].unit
-    return f" {_UNIT_TEXT.get(unit, unit)}" if unit else ""
+    return f" {unit if ascii_only else _UNIT_TEXT.get(unit, unit)}" if unit else ""
 
 
 def number_text(x: float) -> str:
@@ -31,15 +32,16 @@ def number_text(x: float) -> str:
     return str(int(x)) if x.is_integer() and abs(x) < 1e16 else f"{x:.7g}"
 
 
-def range_text(name: str) -> str:
-    """The declared range of setting `name`, e.g. '[-3.141593, 3.141593] rad' or '2..512'."""
+def range_text(name: str, ascii_only: bool = False) -> str:
+    """The declared range of setting `name`, e.g. '[-3.141593, 3.141593] rad' or '2..512';
+    ascii_only: units in their FMI spelling (the C runtime's messages)."""
     r = SETTING_RANGES[name]
     if r.type == "Boolean":
         return "0 or 1"
     if r.type == "Integer":
         return f"a whole number in {int(r.min)}..{int(r.max)}{' other than 0' if r.nonzero else ''}"
     return (f"{'(' if r.min_open else '['}{number_text(r.min)}, {number_text(r.max)}"
-            f"{')' if r.max_open else ']'}{_unit_suffix(name)}")
+            f"{')' if r.max_open else ']'}{_unit_suffix(name, ascii_only)}")
 
 
 def _within(value: float, r: SettingRange) -> bool:

@@ -9,26 +9,6 @@
 
 enum { ImuAlignGyr = 0, ImuAlignMag = 2 }; /* triad indices: the gyro rotates the magnetometer */
 
-int ImuAlignSettingsCheck(const ImuAlignSettings *s, const char **message)
-{
-    static const char *const problems[3] = {
-        "lag_gyr must be finite and within [-1, 1] [s]",
-        "lag_acc must be finite and within [-1, 1] [s]",
-        "lag_mag must be finite and within [-1, 1] [s]"
-    };
-    const char *text = NULL;
-    int i;
-    for (i = 0; i < 3 && text == NULL; i++) {
-        if (!(fabs(s->lag[i]) <= IMU_ALIGN_MAX_LAG)) { /* also true for NaN */
-            text = problems[i];
-        }
-    }
-    if (message != NULL) {
-        *message = text;
-    }
-    return text == NULL ? 0 : -1;
-}
-
 int ImuAlignStateValid(const ImuAlignState *s)
 {
     return s->count >= 0 && s->count <= IMU_ALIGN_CAPACITY && s->head >= 0 && s->head < IMU_ALIGN_CAPACITY;

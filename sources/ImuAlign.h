@@ -29,8 +29,6 @@
 
 /** Buffered samples: the reach of a lag is IMU_ALIGN_CAPACITY - 1 sample intervals. */
 #define IMU_ALIGN_CAPACITY 64
-/** Largest |lag| [s] the settings check accepts. */
-#define IMU_ALIGN_MAX_LAG 1.0
 
 /** User settings: lag [s] of the gyro, accelerometer and magnetometer input behind true time. */
 typedef struct {
@@ -45,8 +43,6 @@ typedef struct {
     int head;                             /* index of the newest sample */
 } ImuAlignState;
 
-/** @brief Check the lags (within +-IMU_ALIGN_MAX_LAG s); -1 with *message (if not NULL) naming the setting, else 0. */
-IMU_HIDDEN int ImuAlignSettingsCheck(const ImuAlignSettings *s, const char **message);
 /** @brief 1 if the buffer's count (0..IMU_ALIGN_CAPACITY) and head (0..IMU_ALIGN_CAPACITY - 1) can
  *         index it (a restored FMU state), else 0. */
 IMU_HIDDEN int ImuAlignStateValid(const ImuAlignState *s);

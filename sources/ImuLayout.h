@@ -120,6 +120,67 @@ typedef enum {
 } ImuSetting;
 /* generated:end settings */
 
+/** Flags of a declared setting range. */
+enum {
+    IMU_RANGE_MIN_OPEN = 1, /* the minimum itself is refused */
+    IMU_RANGE_MAX_OPEN = 2, /* the maximum itself is refused */
+    IMU_RANGE_WHOLE = 4,    /* a whole number (Integer and Boolean settings) */
+    IMU_RANGE_NONZERO = 8   /* 0 is refused */
+};
+
+/** Declared range of a setting [its unit] and the message naming it when a value is outside. */
+typedef struct {
+    double min;
+    double max;
+    int flags;           /* IMU_RANGE_* bits */
+    const char *problem; /* "<name> must be ..." */
+} ImuSettingRange;
+
+/* generated:begin setting-ranges (python -m contract.generate, from contract/variables.py; do not edit) */
+/** Declared range of every setting, in ImuSetting order (ImuSettingRange). */
+#define IMU_SETTING_RANGES { \
+    {-3.141592653589793, 3.141592653589793, 0, "declination must be finite and within [-3.141593, 3.141593] rad"}, \
+    {5.0, 1000.0, 0, "field_norm must be finite and within [5, 1000] uT"}, \
+    {0.0, 0.1, 0, "gyro_noise must be finite and within [0, 0.1] rad/s/sqrt(Hz)"}, \
+    {0.0, 1.0, 0, "gyro_bias_residual must be finite and within [0, 1] rad/s"}, \
+    {0.0, 86400.0, 1, "mse_time_constant must be finite and within (0, 86400] s"}, \
+    {0.0, 3.141592653589793, 1, "angle_noise must be finite and within (0, 3.141593] rad"}, \
+    {0.0, 1.0, 4, "enable_thermal must be 0 or 1"}, \
+    {0.0, 1.0, 4, "attitude_mode must be a whole number in 0..1"}, \
+    {-1.5707963267948966, 1.5707963267948966, 0, "field_dip must be finite and within [-1.570796, 1.570796] rad"}, \
+    {0.0, 86400.0, 1, "tau_acc must be finite and within (0, 86400] s"}, \
+    {0.0, 86400.0, 1, "tau_mag must be finite and within (0, 86400] s"}, \
+    {0.0, 1.0, 0, "rest_gyro_threshold must be finite and within [0, 1] rad/s"}, \
+    {0.0, 9.80665, 1, "rest_acc_threshold must be finite and within (0, 9.80665] m/s2"}, \
+    {0.0, 86400.0, 0, "mag_reject_time must be finite and within [0, 86400] s"}, \
+    {0.0, 1.0, 4, "enable_elm must be 0 or 1"}, \
+    {0.0, 1.0, 4, "enable_pf must be 0 or 1"}, \
+    {2.0, 512.0, 4, "pf_particles must be a whole number in 2..512"}, \
+    {0.0, 100.0, 1, "pf_measurement_noise must be finite and within (0, 100] uT"}, \
+    {0.0, 100.0, 0, "pf_process_noise_hard must be finite and within [0, 100] uT"}, \
+    {0.0, 1.0, 0, "pf_process_noise_soft must be finite and within [0, 1]"}, \
+    {0.0, 10000.0, 0, "pf_prior_spread_hard must be finite and within [0, 10000] uT"}, \
+    {0.0, 1.0, 0, "pf_prior_spread_soft must be finite and within [0, 1]"}, \
+    {1.0, 1000.0, 4, "pf_decimation must be a whole number in 1..1000"}, \
+    {0.0, 2147483647.0, 4, "pf_seed must be a whole number in 0..2147483647"}, \
+    {1.0, 100.0, 1, "pf_threshold_high must be finite and within (1, 100]"}, \
+    {0.0, 1.0, 3, "pf_threshold_low must be finite and within (0, 1)"}, \
+    {0.0, 4.0, 4, "pf_sphere_bins must be a whole number in 0..4"}, \
+    {0.0, 1.0, 4, "enable_psobp must be 0 or 1"}, \
+    {0.0, 1.0, 4, "pf_rao_blackwell must be 0 or 1"}, \
+    {0.0, 1.5707963267948966, 0, "pf_min_rotation must be finite and within [0, 1.570796] rad"}, \
+    {0.0, 10000.0, 0, "pf_change_spread_hard must be finite and within [0, 10000] uT"}, \
+    {0.0, 1.0, 4, "pf_hold_prior must be 0 or 1"}, \
+    {0.0, 10000.0, 0, "pf_settle_spread must be finite and within [0, 10000] uT"}, \
+    {-1.0, 1.0, 0, "lag_gyr must be finite and within [-1, 1] s"}, \
+    {-1.0, 1.0, 0, "lag_acc must be finite and within [-1, 1] s"}, \
+    {-1.0, 1.0, 0, "lag_mag must be finite and within [-1, 1] s"}, \
+    {-3.0, 3.0, 12, "mount_x must be a whole number in -3..3 other than 0"}, \
+    {-3.0, 3.0, 12, "mount_y must be a whole number in -3..3 other than 0"}, \
+    {-3.0, 3.0, 12, "mount_z must be a whole number in -3..3 other than 0"} \
+}
+/* generated:end setting-ranges */
+
 #define IMU_THERMAL_MAX_DEGREE 3
 /** One triad block: enabled, t0, ts, degree, A[9], g[3][MAX], b[3][MAX+1], then (layout 4) the
  *  calibrated temperature range: hasRange (0/1), tMin [degC], tMax [degC]. */

@@ -71,6 +71,7 @@ int ImuPipelineSettingsFromArray(ImuPipelineSettings *s, const double *a, size_t
         return -1;
     }
     memset(s, 0, sizeof *s); /* padding too: the struct is part of the FMU state, whose bytes are checksummed */
+    memcpy(s->values, a, sizeof s->values);
     s->declination = a[ImuSetDeclination];
     s->fieldNorm = a[ImuSetFieldNorm];
     s->gyroNoise = a[ImuSetGyroNoise];
@@ -100,55 +101,25 @@ int ImuPipelineSettingsFromArray(ImuPipelineSettings *s, const double *a, size_t
     return 0;
 }
 
-/* Setting limits [setting unit]: the numbers of contract/layout.py SETTING_RANGES, where each is
- * derived (tests/test_value_checks.py pins every bound of every setting to that table). */
-#define IMU_SET_FIELD_NORM_MIN 5.0        /* uT: gauss values are 100x smaller than the 22-67 uT field */
-#define IMU_SET_FIELD_NORM_MAX 1000.0     /* uT: nT values are 1000x larger */
-#define IMU_SET_GYRO_NOISE_MAX 0.1        /* rad/s/sqrt(Hz): ~60x the noisiest MEMS gyro */
-#define IMU_SET_GYRO_RATE_MAX 1.0         /* rad/s: residual bias and rest threshold */
-#define IMU_SET_TIME_MAX 86400.0          /* s: time constants and rejection time, one day */
-#define IMU_SET_GRAVITY 9.80665           /* m/s^2: the rest threshold's upper bound, 1 g */
-
-/** @brief 1 if x [any unit] is within [lo, hi] (lo excluded when lowOpen), 0 otherwise and for NaN. */
-static int ImuPipelineWithin(double x, double lo, double hi, int lowOpen)
+/** @brief 1 if value [the setting's unit] lies in the declared range r (NaN never does), else 0. */
+static int ImuPipelineInRange(double value, const ImuSettingRange *r)
 {
-    return (lowOpen ? x > lo : x >= lo) && x <= hi;
+    const int aboveMin = (r->flags & IMU_RANGE_MIN_OPEN) ? value > r->min : value >= r->min;
+    const int belowMax = (r->flags & IMU_RANGE_MAX_OPEN) ? value < r->max : value <= r->max;
+    return aboveMin && belowMax && (!(r->flags & IMU_RANGE_WHOLE) || value == floor(value))
+           && (!(r->flags & IMU_RANGE_NONZERO) || value != 0.0);
 }
 
-/** @brief Range problem of an attitude setting (static text naming it and its range), or NULL. */
-static const char *ImuPipelineCheckAttitude(const ImuPipelineSettings *s)
+/** @brief The message of the first setting outside its declared range (ImuLayout.h
+ *         IMU_SETTING_RANGES, generated from the variable table), or NULL. */
+static const char *ImuPipelineCheckRanges(const double values[IMU_SETTING_COUNT])
 {
-    if (s->attitudeMode != 0 && s->attitudeMode != 1) {
-        return "attitude_mode must be 0 (Euler) or 1 (quaternion)";
-    } else if (!(fabs(s->fieldDip) <= 0.5 * IMU_PI)) {
-        return "field_dip must be within [-pi/2, pi/2] [rad]";
-    } else if (!ImuPipelineWithin(s->tauAcc, 0.0, IMU_SET_TIME_MAX, 1)) {
-        return "tau_acc must be finite and within (0, 86400] [s]";
-    } else if (!ImuPipelineWithin(s->tauMag, 0.0, IMU_SET_TIME_MAX, 1)) {
-        return "tau_mag must be finite and within (0, 86400] [s]";
-    } else if (!ImuPipelineWithin(s->restGyroThreshold, 0.0, IMU_SET_GYRO_RATE_MAX, 0)) {
-        return "rest_gyro_threshold must be finite and within [0, 1] [rad/s]";
-    } else if (!ImuPipelineWithin(s->restAccThreshold, 0.0, IMU_SET_GRAVITY, 1)) {
-        return "rest_acc_threshold must be finite and within (0, 9.80665] [m/s^2]";
-    } else if (!ImuPipelineWithin(s->magRejectTime, 0.0, IMU_SET_TIME_MAX, 0)) {
-        return "mag_reject_time must be finite and within [0, 86400] [s]";
-    }
-    return NULL;
-}
-
-/** @brief Range problem of a flag or of the seed (static text naming it), or NULL. */
-static const char *ImuPipelineCheckFlags(const ImuPipelineSettings *s)
-{
-    if (s->enableThermal != 0 && s->enableThermal != 1) {
-        return "enable_thermal must be 0 or 1";
-    } else if (s->enableElm != 0 && s->enableElm != 1) {
-        return "enable_elm must be 0 or 1";
-    } else if (s->enablePf != 0 && s->enablePf != 1) {
-        return "enable_pf must be 0 or 1";
-    } else if (s->enablePsoBp != 0 && s->enablePsoBp != 1) {
-        return "enable_psobp must be 0 or 1";
-    } else if (s->pfSeed < 0) {
-        return "pf_seed must be a whole number in [0, 2147483647]";
+    static const ImuSettingRange ranges[IMU_SETTING_COUNT] = IMU_SETTING_RANGES;
+    int i;
+    for (i = 0; i < IMU_SETTING_COUNT; i++) {
+        if (!ImuPipelineInRange(values[i], &ranges[i])) {
+            return ranges[i].problem;
+        }
     }
     return NULL;
 }
@@ -156,30 +127,14 @@ static const char *ImuPipelineCheckFlags(const ImuPipelineSettings *s)
 /** @brief Check settings; -1 with *message naming the setting and its range, else 0. */
 int ImuPipelineSettingsCheck(const ImuPipelineSettings *s, const char **message)
 {
-    const char *problem = NULL;
-    if (!(fabs(s->declination) <= IMU_PI)) {
-        problem = "declination must be finite and within [-pi, pi] [rad]";
-    } else if (!ImuPipelineWithin(s->fieldNorm, IMU_SET_FIELD_NORM_MIN, IMU_SET_FIELD_NORM_MAX, 0)) {
-        problem = "field_norm must be finite and within [5, 1000] [uT]";
-    } else if (!ImuPipelineWithin(s->gyroNoise, 0.0, IMU_SET_GYRO_NOISE_MAX, 0)) {
-        problem = "gyro_noise must be finite and within [0, 0.1] [rad/s/sqrt(Hz)]";
-    } else if (!ImuPipelineWithin(s->gyroBiasResidual, 0.0, IMU_SET_GYRO_RATE_MAX, 0)) {
-        problem = "gyro_bias_residual must be finite and within [0, 1] [rad/s]";
-    } else if (!ImuPipelineWithin(s->mseTimeConstant, 0.0, IMU_SET_TIME_MAX, 1)) {
-        problem = "mse_time_constant must be finite and within (0, 86400] [s]";
-    } else if (!ImuPipelineWithin(s->angleNoise, 0.0, IMU_PI, 1)) {
-        problem = "angle_noise must be finite and within (0, pi] [rad]";
-    } else if ((problem = ImuPipelineCheckFlags(s)) != NULL) {
-        /* problem names the flag or the seed */
+    const char *problem = ImuPipelineCheckRanges(s->values);
+    if (problem != NULL) {
+        /* problem names the setting and its declared range */
     } else if (ImuMagPfSettingsCheck(&s->pf, &problem) != 0) {
-        /* problem names the particle-filter setting and its range */
-    } else if (ImuAlignSettingsCheck(&s->align, &problem) != 0) {
-        /* problem names the lag setting and its range */
+        /* problem names the particle-filter settings that are only valid together */
     } else if (!s->mountValid) {
         problem = "mount_x, mount_y, mount_z must each name a sensor axis with its sign (1 = +x, 2 = +y, "
                   "3 = +z, -1 = -x, -2 = -y, -3 = -z), three different axes that stay right-handed";
-    } else {
-        problem = ImuPipelineCheckAttitude(s);
     }
     if (message != NULL) {
         *message = problem;

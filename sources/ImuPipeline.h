@@ -31,6 +31,7 @@ typedef struct {
 
 /** User settings in user units (the FMU parameters). */
 typedef struct {
+    double values[IMU_SETTING_COUNT]; /* as given (ImuSetting order); checked against their declared ranges */
     double declination;      /* rad */
     double fieldNorm;        /* uT */
     double gyroNoise;        /* rad/s/sqrt(Hz) */

@@ -94,12 +94,12 @@ def test_bad_input_is_held_with_one_warning_per_episode(fmu_path, name, where, v
 
 
 @pytest.mark.parametrize("name, value, expected", [
-    ("field_norm", 0.0, "field_norm must be finite and within [5, 1000] [uT]"),
-    ("field_norm", -5.0, "field_norm must be finite and within [5, 1000] [uT]"),
+    ("field_norm", 0.0, "field_norm must be finite and within [5, 1000] uT"),
+    ("field_norm", -5.0, "field_norm must be finite and within [5, 1000] uT"),
     ("gyro_noise", -1e-4, "gyro_noise must be finite and within [0, 0.1]"),
     ("gyro_bias_residual", np.inf, "gyro_bias_residual must be finite and within [0, 1]"),
-    ("mse_time_constant", 0.0, "mse_time_constant must be finite and within (0, 86400] [s]"),
-    ("angle_noise", np.nan, "angle_noise must be finite and within (0, pi] [rad]"),
+    ("mse_time_constant", 0.0, "mse_time_constant must be finite and within (0, 86400] s"),
+    ("angle_noise", np.nan, "angle_noise must be finite and within (0, 3.141593] rad"),
     ("declination", np.inf, "declination must be finite"),
 ])
 def test_invalid_parameter_is_an_initialisation_error_naming_it(fmu_path, name, value, expected):

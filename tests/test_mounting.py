@@ -3,6 +3,7 @@ permutation (sources/ImuMount.h, training/mounting.py), set by `train` when the 
 from __future__ import annotations
 
 import argparse
+import re
 import itertools
 from dataclasses import replace
 from pathlib import Path
@@ -65,8 +66,8 @@ def test_exactly_the_24_rotations_are_accepted_in_c_and_python():
         try:
             _run(short, codes)
             c_ok = True
-        except Exception as e:  # the C check's message names the three settings
-            assert "mount_x, mount_y, mount_z" in str(e)
+        except Exception as e:  # the C check names a mounting setting
+            assert re.search(r"mount_[xyz]", str(e))
             c_ok = False
         assert c_ok == (mounting_problem(codes) is None), codes
         accepted += [codes] if c_ok else []
