@@ -19,14 +19,9 @@ SOURCE_DIR = Path(__file__).resolve().parent.parent / "sources"
 WRAPPERS = {2: "fmi2Functions.c", 3: "fmi3Functions.c"}
 
 #: Repository sources that are in no FMU: a generated coefficient header left in the tree (the
-#: other version's wrapper is excluded per build). The batch library's files (ImuBatch*.c/.h,
-#: the ctypes entry points of `training`) are excluded by `_is_batch_file`.
+#: other version's wrapper is excluded per build). The batch library's own files live in
+#: sources/batch/, which no FMU takes.
 EXCLUDED = frozenset({"ImuCoefficientsData.h"})
-
-
-def _is_batch_file(path: Path) -> bool:
-    """True for the batch-library-only files (ImuBatch.c, ImuBatchElm.c, ...)."""
-    return path.name.startswith("ImuBatch")
 
 #: Flags added to fmpy's -Wall -Wextra -Wpedantic: the project's C standard, warnings as errors.
 C_FLAGS = "-std=c99 -Werror"
@@ -58,7 +53,7 @@ def fmu_source_files(source_dir: Path = SOURCE_DIR, fmi_version: int = 2) -> lis
     """The .c and .h files of `source_dir` that go into the FMI `fmi_version` FMU, sorted by name."""
     other = {name for version, name in WRAPPERS.items() if version != check_fmi_version(fmi_version)}
     files = [p for p in source_dir.iterdir() if p.suffix in (".c", ".h") and p.name not in EXCLUDED
-             and p.name not in other and not _is_batch_file(p)]
+             and p.name not in other]
     return sorted(files, key=lambda p: p.name)
 
 

@@ -3,7 +3,7 @@
  * @brief The per-sample processing chain: thermal compensation -> time alignment -> correction
  *        terms -> magnetometer stages -> mounting (sensor -> body axes) -> attitude fusion.
  *
- * Knows nothing of FMI. The FMU (model.c) and the batch library (ImuBatch.c) both drive it
+ * Knows nothing of FMI. The FMU (model.c) and the batch library (batch/ImuBatch.c) both drive it
  * through these verbs, so both give bit-identical outputs for the same inputs.
  */
 #ifndef IMU_PIPELINE_H

@@ -64,7 +64,7 @@ static void setStartValues(ModelData *m) {
     memset(m, 0, sizeof *m);
     memcpy(m->inputs, startInputs, sizeof startInputs);
     memcpy(m->settings, IMU_SETTING_DEFAULTS, sizeof m->settings);
-    ImuGuardReset(&m->guard, m->settings[ImuSetDeclination]);
+    ImuGuardReset(&m->runtime.guard, m->settings[ImuSetDeclination]);
     setInitialOutputs(m);
 }
 
@@ -294,21 +294,14 @@ ModelStatus ModelEnterInitialization(ModelInstance *mi, const char *function, do
 
 ModelStatus ModelExitInitialization(ModelInstance *mi, const char *function) {
     ModelData *m;
-    ImuCoefficients coefficients;
-    ImuPipelineSettings settings;
     const char *message = NULL;
     if (!ModelAllowed(mi, function, PhaseInitialization)) {
         return ModelError;
     }
     m = &mi->state.model;
-    if (ImuCoefficientsFromArray(&coefficients, IMU_COEFFICIENT_DATA, IMU_COEFFICIENT_COUNT) != 0) {
-        message = "the compiled-in coefficient data has the wrong size or layout version";
-    } else if (ImuPipelineSettingsFromArray(&settings, m->settings, IMU_SETTING_COUNT) != 0) {
-        message = "the settings array has the wrong size";
-    } else if (ImuPipelineSettingsCheck(&settings, &message) == 0) {
-        ImuPipelineInitialise(&m->pipeline, &settings, &coefficients);
+    if (ImuRuntimeInitialise(&m->runtime, IMU_COEFFICIENT_DATA, IMU_COEFFICIENT_COUNT, m->settings,
+                             IMU_SETTING_COUNT, &message) == ImuRuntimeOk) {
         m->initialised = 1;
-        ImuGuardReset(&m->guard, m->settings[ImuSetDeclination]);
         setInitialOutputs(m);
         mi->state.phase = PhaseStepMode;
         ModelLog(mi, ModelOk, LogEvents, "%s: initialised at t = %g s", function, mi->state.time);
@@ -354,7 +347,7 @@ static void logIssue(const ModelInstance *mi, const char *function, int issue, d
         break;
     case ModelIssueTemp:
         ModelLog(mi, ModelWarning, LogBadInput, "%s: t = %g s: bad temperature %g degC (not finite or outside [%g, %g] degC): the last valid temperature %g degC is used until it recovers",
-                 function, t, x[ImuInTemp], IMU_GUARD_TEMP_MIN, IMU_GUARD_TEMP_MAX, m->guard.lastValidTemp);
+                 function, t, x[ImuInTemp], IMU_GUARD_TEMP_MIN, IMU_GUARD_TEMP_MAX, m->runtime.guard.lastValidTemp);
         break;
     case ModelIssueOrder:
         ModelLog(mi, ModelWarning, LogBadInput, "%s: t = %g s: the time since the previous sample (%g s) is not finite and > 0: the sample is fused without propagating the attitude",
@@ -363,7 +356,7 @@ static void logIssue(const ModelInstance *mi, const char *function, int issue, d
     case ModelIssueGap:
         ModelLog(mi, ModelWarning, LogBadInput, "%s: t = %g s: a gap of %g s since the previous sample (more than %g x the nominal step %g s): "
                  "nothing is integrated across it, the attitude restarts from the accelerometer and magnetometer as at power-on (gyro bias kept)",
-                 function, t, m->stepSize, IMU_GUARD_GAP_STEPS, m->guard.nominalStep);
+                 function, t, m->stepSize, IMU_GUARD_GAP_STEPS, m->runtime.guard.nominalStep);
         break;
     case ModelIssueStep:
         ModelLog(mi, ModelWarning, LogBadInput, "%s: t = %g s: communicationStepSize = %g s must be finite and > 0 (and t and t + h finite): the step is discarded, outputs hold their last values",
@@ -371,7 +364,7 @@ static void logIssue(const ModelInstance *mi, const char *function, int issue, d
         break;
     case ModelIssueCalibration: {
         char ranges[MODEL_LOG_BUFFER_SIZE / 2];
-        ImuPipelineDescribeRanges(&m->pipeline, m->pipeline.rangeIssues, ranges, sizeof ranges);
+        ImuPipelineDescribeRanges(&m->runtime.pipeline, m->runtime.pipeline.rangeIssues, ranges, sizeof ranges);
         ModelLog(mi, ModelWarning, LogBadInput, "%s: t = %g s: temperature %g degC: outside the calibrated range of the %s: "
                  "each model is evaluated with its inputs clamped to that range (no extrapolation) and calibration_valid = 0 until they return",
                  function, t, x[ImuInTemp], ranges);
@@ -412,7 +405,7 @@ static void logPresence(const ModelInstance *mi, const char *function, int first
         "", /* ImuGuardIssueMagZero is no sensor */
         "the gain/bias models are evaluated at their reference temperature t0 (the centre of the range they were fitted on), the PSO-BP network at the centre of its range with rate 0, and correction terms on the temperature are skipped"
     };
-    const int present = mi->state.model.guard.present;
+    const int present = mi->state.model.runtime.guard.present;
     int k;
     for (k = 0; k < 5; k++) {
         const int bit = 1 << k;
@@ -430,7 +423,7 @@ static void logPresence(const ModelInstance *mi, const char *function, int first
 
 ModelStatus ModelDoStep(ModelInstance *mi, const char *function, double t, double h) {
     ModelData *m = &mi->state.model;
-    const int presentBefore = m->guard.present, firstSample = !m->guard.hasSample;
+    const int presentBefore = m->runtime.guard.present, firstSample = !m->runtime.guard.hasSample;
     double out[IMU_OUTPUT_COUNT];
     ModelStatus status;
     int issues;
@@ -440,8 +433,8 @@ ModelStatus ModelDoStep(ModelInstance *mi, const char *function, double t, doubl
     }
     /* The sample consumed now was taken the previous step size after the previous one: the
      * importer's h, never a difference of absolute times (which loses the step beyond ~1e13 s). */
-    issues = ImuGuardStep(&m->guard, &m->pipeline, m->stepSize, m->inputs, out);
-    if (m->pipeline.rangeIssues != 0) {
+    issues = ImuRuntimeStep(&m->runtime, m->stepSize, m->inputs, out);
+    if (m->runtime.pipeline.rangeIssues != 0) {
         issues |= ModelIssueCalibration;
     }
     memcpy(m->outputs, out, sizeof m->outputs);
@@ -514,18 +507,10 @@ static int allFinite(const double *x, int n) {
  *         PSO-BP) by values built from m->settings and the compiled-in coefficient data, so no
  *         restored count, size or index of them is used; NULL, or what is wrong. */
 static const char *rederivePipeline(ModelData *m) {
-    ImuCoefficients coefficients;
-    ImuPipelineSettings settings;
     const char *problem = NULL;
-    if (ImuCoefficientsFromArray(&coefficients, IMU_COEFFICIENT_DATA, IMU_COEFFICIENT_COUNT) != 0) {
-        return "the compiled-in coefficient data has the wrong size or layout version";
-    }
-    if (ImuPipelineSettingsFromArray(&settings, m->settings, IMU_SETTING_COUNT) != 0
-        || ImuPipelineSettingsCheck(&settings, &problem) != 0) {
-        return problem != NULL ? problem : "the settings array has the wrong size";
-    }
-    ImuPipelineConfigure(&m->pipeline, &settings, &coefficients);
-    return NULL;
+    (void)ImuRuntimeConfigure(&m->runtime, IMU_COEFFICIENT_DATA, IMU_COEFFICIENT_COUNT, m->settings,
+                              IMU_SETTING_COUNT, &problem);
+    return problem;
 }
 
 /** @brief Make the restored state s safe to run: check every field that indexes or sizes anything
@@ -545,10 +530,10 @@ static const char *restoredStateProblem(ModelState *s) {
     if ((m->issues & ~((1 << MODEL_ISSUE_COUNT) - 1)) != 0) {
         return "issues has bits that are no ModelIssue";
     }
-    if ((m->guard.hasSample != 0 && m->guard.hasSample != 1) || (m->guard.present & ~IMU_GUARD_SENSORS) != 0) {
+    if ((m->runtime.guard.hasSample != 0 && m->runtime.guard.hasSample != 1) || (m->runtime.guard.present & ~IMU_GUARD_SENSORS) != 0) {
         return "the guard's hasSample or present bits are invalid";
     }
-    if (!isfinite(s->time) || !isfinite(m->stepSize) || !allFinite(m->guard.held, IMU_OUTPUT_COUNT)) {
+    if (!isfinite(s->time) || !isfinite(m->stepSize) || !allFinite(m->runtime.guard.held, IMU_OUTPUT_COUNT)) {
         return "the time, step size [s] or held outputs are not finite";
     }
     if (!m->initialised) {
@@ -558,10 +543,10 @@ static const char *restoredStateProblem(ModelState *s) {
     if (problem != NULL) {
         return problem;
     }
-    if (!ImuAlignStateValid(&m->pipeline.align)) {
+    if (!ImuAlignStateValid(&m->runtime.pipeline.align)) {
         return "the time-alignment buffer's count or head is outside 0..63";
     }
-    if (m->pipeline.settings.enablePf && !ImuMagPfStateValid(&m->pipeline.pf)) {
+    if (m->runtime.pipeline.settings.enablePf && !ImuMagPfStateValid(&m->runtime.pipeline.pf)) {
         return "the particle filter's bin list, bin count or sample counter does not fit its settings";
     }
     return NULL;

@@ -14,9 +14,8 @@
 #include <stddef.h>
 
 #include "ImuCommon.h"
-#include "ImuGuard.h"
 #include "ImuLayout.h"
-#include "ImuPipeline.h"
+#include "ImuRuntime.h"
 #include "config.h"
 
 /** Result of a model call; same numbering as fmi2Status and fmi3Status. */
@@ -75,8 +74,7 @@ typedef struct {
     double stepSize;                    /* s, communicationStepSize of the last doStep: the time from
                                          * the last consumed sample to the next (ImuGuardStep) */
     int initialised;                    /* 1 once settings are applied: parameters are locked */
-    ImuGuard guard;                     /* input/time/output guard, shared with ImuBatch.c */
-    ImuPipeline pipeline;
+    ImuRuntime runtime;                 /* the guarded pipeline (ImuRuntime.h, shared with the batch library) */
 } ModelData;
 
 #define MODEL_GUID_SIZE 48

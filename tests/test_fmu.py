@@ -109,8 +109,7 @@ def test_model_description_follows_table_and_settings(trained_fmu):
     assert {k: float(v == "true") if k in booleans else float(v) for k, v in starts.items()} \
         == {**dict(SETTINGS), **TRAINED_SETTINGS}
     sources = md.buildConfigurations[0].sourceFileSets[0].sourceFiles
-    expected = sorted(p.name for p in SOURCE_DIR.glob("*.c")
-                      if not p.name.startswith("ImuBatch") and p.name != "fmi3Functions.c")
+    expected = sorted(p.name for p in SOURCE_DIR.glob("*.c") if p.name != "fmi3Functions.c")
     assert sorted(sources) == expected
 
 

@@ -230,10 +230,10 @@ def test_resealed_edits_of_indices_are_rejected_with_the_field_named(tmp_path_fa
         stepper = Stepper(fmu)
         _run(stepper, 0, BASE_STEPS)
         base = bytes(fmu.serializeFMUState(fmu.getFMUState()))
-        for name, value, word in [("model.pipeline.align.head", 100000, "head"),
-                                  ("model.pipeline.pf.binCount", 97, "bin"),
-                                  ("model.pipeline.pf.binUsed[5]", 1, "bin"),
-                                  ("model.pipeline.pf.sampleCounter", -5, "sample counter")]:
+        for name, value, word in [("model.runtime.pipeline.align.head", 100000, "head"),
+                                  ("model.runtime.pipeline.pf.binCount", 97, "bin"),
+                                  ("model.runtime.pipeline.pf.binUsed[5]", 1, "bin"),
+                                  ("model.runtime.pipeline.pf.sampleCounter", -5, "sample counter")]:
             offset, _ = layout[name]
             state = bytearray(base)
             state[offset:offset + 4] = struct.pack("<i", value)

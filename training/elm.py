@@ -55,7 +55,7 @@ BLOCK_HEADER = 3 + 4 * 3
 #: Whole block: header, then w (MAX_HIDDEN × 3, row per node), b (MAX_HIDDEN), β (MAX_HIDDEN × 3),
 #: zero beyond L.
 BLOCK_SIZE = BLOCK_HEADER + MAX_HIDDEN * (3 + 1 + 3)
-#: Error codes of ImuBatchElmPredict (sources/ImuBatchElm.c).
+#: Error codes of ImuBatchElmPredict (sources/batch/ImuBatchElm.c).
 BATCH_ERRORS = {-1: "an array pointer is NULL", -2: f"block length is not {BLOCK_SIZE}",
                 -3: "invalid block (enabled/activation code, L out of 1..64, min >= max or a "
                     "non-finite entry)"}

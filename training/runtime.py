@@ -22,10 +22,12 @@ from contract.errors import BuildError
 from contract import layout
 
 SOURCES_DIR = Path(__file__).resolve().parent.parent / "sources"
+#: The batch library's own entry points (never in an FMU).
+BATCH_DIR = SOURCES_DIR / "batch"
 #: Compiler flags of the runtime library (strict: every warning is an error).
 CFLAGS = ("-std=c99", "-O2", "-fPIC", "-shared", "-Wall", "-Wextra", "-Wpedantic", "-Werror")
 LIBS = ("-lm",)
-#: Meaning of the negative return codes of ImuBatchRun (ImuBatch.h, ImuBatchResult).
+#: Meaning of the negative return codes of ImuBatchRun (sources/ImuRuntime.h, ImuRuntimeResult).
 ERROR_CODES = {
     -1: "an array pointer is NULL",
     -2: f"wrong number of coefficients (expected {layout.N_COEFFICIENTS})",
@@ -38,8 +40,9 @@ ERROR_CODES = {
 
 
 def runtime_sources() -> list[Path]:
-    """The C files of the runtime library: every sources/Imu*.c (algorithms and ImuBatch.c)."""
-    return sorted(SOURCES_DIR.glob("Imu*.c"))
+    """The C files of the runtime library: the FMU's runtime (sources/Imu*.c, not the FMI layer) and
+    the batch entry points (sources/batch/*.c)."""
+    return sorted(SOURCES_DIR.glob("Imu*.c")) + sorted(BATCH_DIR.glob("*.c"))
 
 
 def _compiler() -> list[str]:
@@ -57,8 +60,8 @@ def _build_key(sources: list[Path], compiler: list[str]) -> str:
     h = hashlib.sha256()
     for part in (*compiler, *CFLAGS, *LIBS):
         h.update(part.encode() + b"\0")
-    for path in sorted({*sources, *SOURCES_DIR.glob("*.h")}):
-        h.update(path.name.encode() + b"\0" + path.read_bytes() + b"\0")
+    for path in sorted({*sources, *SOURCES_DIR.glob("*.h"), *BATCH_DIR.glob("*.h")}):
+        h.update(path.relative_to(SOURCES_DIR).as_posix().encode() + b"\0" + path.read_bytes() + b"\0")
     return h.hexdigest()[:20]
 
 
@@ -76,7 +79,7 @@ def build_runtime() -> Path:
     cache.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(prefix=target.stem + ".", suffix=".tmp", dir=cache)
     os.close(fd)
-    cmd = [*compiler, *CFLAGS, "-I", str(SOURCES_DIR), *map(str, sources), "-o", tmp, *LIBS]
+    cmd = [*compiler, *CFLAGS, "-I", str(SOURCES_DIR), "-I", str(BATCH_DIR), *map(str, sources), "-o", tmp, *LIBS]
     try:
         proc = subprocess.run(cmd, capture_output=True, text=True)
     except OSError as exc:

@@ -1,47 +1,19 @@
 /**
  * @file ImuBatch.c
- * @brief Batch entry points of the runtime shared library (the pipeline lives on the stack).
+ * @brief Batch entry points of the runtime shared library (the runtime lives on the stack): the
+ *        FMU's runtime entry (ImuRuntime.h) over a whole recording.
  */
 #include "ImuBatch.h"
-#include "ImuGuard.h"
-#include "ImuPipeline.h"
-
-/** @brief Unpack and check coefficients [layout ImuLayout.h]; ImuBatchOk or a negative code. */
-static int ImuBatchCoefficients(ImuCoefficients *c, const double *coefficients, size_t n)
-{
-    if (coefficients == NULL) {
-        return ImuBatchNullPointer;
-    }
-    if (n != IMU_COEFFICIENT_COUNT) {
-        return ImuBatchBadCoefficientCount;
-    }
-    if (coefficients[0] != IMU_LAYOUT_VERSION) {
-        return ImuBatchBadLayoutVersion;
-    }
-    return ImuCoefficientsFromArray(c, coefficients, n) == 0 ? ImuBatchOk : ImuBatchBadCoefficients;
-}
-
-/** @brief Unpack and check settings (user units); ImuBatchOk or a negative code. */
-static int ImuBatchSettings(ImuPipelineSettings *s, const double *settings, size_t n, const char **message)
-{
-    *message = NULL;
-    if (settings == NULL) {
-        return ImuBatchNullPointer;
-    }
-    if (ImuPipelineSettingsFromArray(s, settings, n) != 0) {
-        return ImuBatchBadSettingCount;
-    }
-    return ImuPipelineSettingsCheck(s, message) == 0 ? ImuBatchOk : ImuBatchBadSettings;
-}
+#include "ImuRuntime.h"
 
 /** @brief Check a settings array (user units); *message names a bad setting. */
 int ImuBatchCheckSettings(const double *settings, size_t nSettings, const char **message)
 {
     ImuPipelineSettings s;
     const char *text = NULL;
-    const int result = ImuBatchSettings(&s, settings, nSettings, &text);
+    const int result = ImuRuntimeSettings(&s, settings, nSettings, &text);
     if (message != NULL) {
-        *message = text;
+        *message = result == ImuRuntimeBadSettings ? text : NULL;
     }
     return result;
 }
@@ -55,33 +27,25 @@ int ImuBatchRun(const double *coefficients, size_t nCoefficients, const double *
                 size_t nSettings, size_t nSamples, const double *t, const double *inputs,
                 double *outputs)
 {
-    ImuPipeline pipeline;
-    ImuGuard guard;
-    ImuCoefficients c;
-    ImuPipelineSettings s;
+    ImuRuntime runtime;
     const char *message;
     double last = 0.0; /* s, time of the last sample whose time increased */
     size_t k;
-    int result = ImuBatchCoefficients(&c, coefficients, nCoefficients);
-    if (result == ImuBatchOk) {
-        result = ImuBatchSettings(&s, settings, nSettings, &message);
+    int result = ImuRuntimeInitialise(&runtime, coefficients, nCoefficients, settings, nSettings, &message);
+    if (result == ImuRuntimeOk && nSamples > 0 && (t == NULL || inputs == NULL || outputs == NULL)) {
+        result = ImuRuntimeNullPointer;
     }
-    if (result == ImuBatchOk && nSamples > 0 && (t == NULL || inputs == NULL || outputs == NULL)) {
-        result = ImuBatchNullPointer;
-    }
-    if (result != ImuBatchOk) {
+    if (result != ImuRuntimeOk) {
         return result;
     }
-    ImuPipelineInitialise(&pipeline, &s, &c);
-    ImuGuardReset(&guard, settings[ImuSetDeclination]);
     for (k = 0; k < nSamples; k++) {
         const double step = k > 0 ? t[k] - last : 0.0;
-        (void)ImuGuardStep(&guard, &pipeline, step, inputs + k * IMU_INPUT_COUNT, outputs + k * IMU_OUTPUT_COUNT);
+        (void)ImuRuntimeStep(&runtime, step, inputs + k * IMU_INPUT_COUNT, outputs + k * IMU_OUTPUT_COUNT);
         if (k == 0 || step > 0.0) { /* a time that does not increase is not a sample time to step from */
             last = t[k];
         }
     }
-    return ImuBatchOk;
+    return ImuRuntimeOk;
 }
 
 /** @brief Layout version and the lengths of the coefficient, settings, input and output arrays. */

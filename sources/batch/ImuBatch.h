@@ -2,7 +2,8 @@
  * @file ImuBatch.h
  * @brief Batch entry points of the runtime shared library (called from Python through ctypes).
  *
- * The same pipeline as the FMU, run over a whole recording in one call.
+ * The same runtime entry as the FMU (ImuRuntime.h), run over a whole recording in one call. These
+ * files (sources/batch/) are in the batch library only, never in an FMU.
  */
 #ifndef IMU_BATCH_H
 #define IMU_BATCH_H
@@ -10,31 +11,20 @@
 #include <stddef.h>
 #include "ImuCommon.h"
 
-/** Return codes of ImuBatchRun and ImuBatchCheckSettings. */
-typedef enum {
-    ImuBatchOk = 0,
-    ImuBatchNullPointer = -1,          /* an array pointer is NULL (with nSamples > 0) */
-    ImuBatchBadCoefficientCount = -2,  /* nCoefficients != IMU_COEFFICIENT_COUNT */
-    ImuBatchBadLayoutVersion = -3,     /* coefficients[0] != IMU_LAYOUT_VERSION */
-    ImuBatchBadCoefficients = -4,      /* a triad block is invalid (ImuThermalFromBlock) */
-    ImuBatchBadSettingCount = -5,      /* nSettings != IMU_SETTING_COUNT */
-    ImuBatchBadSettings = -6           /* a setting is out of range (ImuPipelineSettingsCheck) */
-} ImuBatchResult;
-
 /**
  * @brief Run the pipeline over nSamples samples behind the FMU's input/time/output guard
  *        (ImuGuard.h), so the outputs equal the FMU's on any input (finite, except the
  *        corrected outputs of an absent sensor, which are NaN).
  * @param t nSamples times [s]: only their differences are used (the steps); inputs nSamples x IMU_INPUT_COUNT row-major (rad/s, m/s^2, uT,
  *        degC, auxiliary inputs); outputs nSamples x IMU_OUTPUT_COUNT row-major (ImuLayout.h).
- * @return ImuBatchOk, or a negative ImuBatchResult (outputs untouched).
+ * @return ImuRuntimeOk, or a negative ImuRuntimeResult (ImuRuntime.h; outputs untouched).
  */
 IMU_EXPORT int ImuBatchRun(const double *coefficients, size_t nCoefficients, const double *settings,
                            size_t nSettings, size_t nSamples, const double *t, const double *inputs,
                            double *outputs);
 /**
- * @brief Check a settings array; on ImuBatchBadSettings point *message at a static text naming
- *        the setting and its range (else NULL). @return ImuBatchOk or a negative ImuBatchResult.
+ * @brief Check a settings array; on ImuRuntimeBadSettings point *message at a static text naming
+ *        the setting and its range (else NULL). @return ImuRuntimeOk or a negative ImuRuntimeResult.
  */
 IMU_EXPORT int ImuBatchCheckSettings(const double *settings, size_t nSettings, const char **message);
 /**
