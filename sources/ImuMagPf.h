@@ -12,7 +12,8 @@
  * A change test on the innovation of the estimate re-widens the cloud and flushes the buffer; the
  * prior calibration is re-tested after every change and taken back when it explains the data.
  * Compensation h_c = (I + B)(h_m - h_p) with the weighted-mean estimate. All memory is inside
- * ImuMagPf; the network and splitting are in ImuMagPfNet.c.
+ * ImuMagPf. This header is the interface of the facade ImuMagPf.c (its comment lists the mode
+ * files and their dependency order); what the mode files share is in ImuMagPfPrivate.h.
  */
 #ifndef IMU_MAG_PF_H
 #define IMU_MAG_PF_H
@@ -26,12 +27,7 @@
 #define IMU_MAG_PF_STATE_SIZE 9      /* hard iron (3) + soft iron (6) */
 #define IMU_MAG_PF_MAX_HIDDEN 8      /* maximum hidden units of the restoration network */
 #define IMU_MAG_PF_MAX_TRAINING 64   /* high-weight particles used to train the network */
-#define IMU_MAG_PF_RNG_STREAM 54U    /* PCG32 stream selector of the filter */
 #define IMU_MAG_PF_MAX_BIN_SIDE 4    /* largest sphereBins (cells per cube-face side) */
-#define IMU_MAG_PF_OUTLIER_FACTOR 4.0 /* samples beyond 4 x changeThreshold (normalised innovation^2) are glitches */
-#define IMU_MAG_PF_CHANGE_DIRECTIONS 2 /* field directions (minRotation apart) the evidence against a held calibration must cover */
-#define IMU_MAG_PF_RETEST_DIRECTIONS 30 /* field directions (minRotation apart) the prior's agreement must cover */
-#define IMU_MAG_PF_RETEST_MARGIN 1.0   /* the prior may miss by one noise variance per update more than the estimate */
 #define IMU_MAG_PF_MAX_BINS (6 * IMU_MAG_PF_MAX_BIN_SIDE * IMU_MAG_PF_MAX_BIN_SIDE) /* 96 */
 
 /** User settings (units in the comments). */
@@ -108,6 +104,15 @@ typedef struct {
     ImuMagPfNetwork network;
 } ImuMagPfWork;
 
+/** State of the Rao-Blackwellised mode only (ImuMagPfRb.c; particle[i] = [h_p (3) uT, m (6) posterior
+ *  mean of M given h_p]). */
+typedef struct {
+    double moments[IMU_MAG_MOMENT_COUNT];         /* power sums of mag - priorHardIron since the reset or change */
+    double previousMoments[IMU_MAG_MOMENT_COUNT]; /* the sums at the previous filter update */
+    double previousLog[IMU_MAG_PF_MAX_PARTICLES]; /* 1, log target of each particle under previousMoments */
+    ImuMagMarginalPrior prior;                    /* priors since the reset or the last change */
+} ImuMagPfRbState;
+
 /** The filter: settings, coefficients and state in one plain struct (a copy is a saved state). */
 typedef struct {
     ImuMagPfSettings settings;
@@ -141,11 +146,7 @@ typedef struct {
     double retestPriorSum;         /* 1, sum of the prior's clipped normalised innovations over them */
     double retestEstimateSum;      /* 1, sum of the estimate's clipped normalised innovations over them */
     int retesting;                 /* 1 from a declared change until the prior calibration is taken back */
-    /* Rao-Blackwellised mode only (particle[i] = [h_p (3) uT, m (6) posterior mean of M given h_p]) */
-    double moments[IMU_MAG_MOMENT_COUNT];         /* power sums of mag - priorHardIron since the reset or change */
-    double previousMoments[IMU_MAG_MOMENT_COUNT]; /* the sums at the previous filter update */
-    double previousLog[IMU_MAG_PF_MAX_PARTICLES]; /* 1, log target of each particle under previousMoments */
-    ImuMagMarginalPrior prior;                    /* priors since the reset or the last change */
+    ImuMagPfRbState rb;            /* Rao-Blackwellised mode only */
     ImuMagPfWork work;
 } ImuMagPf;
 
@@ -173,74 +174,11 @@ IMU_HIDDEN void ImuMagPfCompensate(const ImuMagPf *pf, const double mag[3], doub
 IMU_HIDDEN void ImuMagPfGetHardIron(const ImuMagPf *pf, double hardIron[3]);
 /** @brief Soft-iron estimate [1] as b11 b12 b13 b22 b23 b33. */
 IMU_HIDDEN void ImuMagPfGetSoftIron(const ImuMagPf *pf, double softIron[6]);
-/** @brief Soft-iron estimate as a row-major symmetric 3x3 matrix B [1]. */
-IMU_HIDDEN void ImuMagPfGetSoftIronMatrix(const ImuMagPf *pf, double matrix[9]);
 /** @brief Effective sample size 1 / sum w^2 after the last update [particles]. */
 IMU_HIDDEN double ImuMagPfGetEffectiveSampleSize(const ImuMagPf *pf);
-/** @brief pf->hardSpread from the particles, their weights and the estimate. */
-IMU_HIDDEN void ImuMagPfHardSpread(ImuMagPf *pf);
 /** @brief 1 while the prior calibration is held or the hard-iron cloud sigma is below settleSpread (or that is 0). */
 IMU_HIDDEN int ImuMagPfSettled(const ImuMagPf *pf);
 /** @brief Number of changes of environment declared since the reset. */
 IMU_HIDDEN int ImuMagPfGetChangeCount(const ImuMagPf *pf);
-/** @brief Observation function h(x) [uT^2] of one state x (hard [uT], soft [1]) at field mag [uT]. */
-IMU_HIDDEN double ImuMagPfObservation(const double x[IMU_MAG_PF_STATE_SIZE], const double mag[3]);
-
-/* Internal, shared by ImuMagPf.c and ImuMagPfNet.c. */
-/** @brief Mean (into *mean) and standard deviation (returned) of n values read with a stride. */
-IMU_HIDDEN double ImuMagPfMoments(const double *values, int n, int stride, double *mean);
-/** @brief Roughening sigma per state component: K N^(-1/9) x (unweighted) cloud standard deviation. */
-IMU_HIDDEN void ImuMagPfCloudSigma(const ImuMagPf *pf, double sigma[IMU_MAG_PF_STATE_SIZE]);
-/** @brief Steps 5-6: splitting with network-based diversity restoration (alpha: tempering exponent). */
-IMU_HIDDEN void ImuMagPfSplit(ImuMagPf *pf, double alpha);
-/** @brief Normalised innovation squared (y - h(x_estimate) - 3 sigma^2)^2 / var of a sample mag [uT]. */
-IMU_HIDDEN double ImuMagPfInnovation(const ImuMagPf *pf, const double mag[3]);
-/** @brief The same for a state x (hard [uT], soft [1]), the averaged residual of the estimate removed. */
-IMU_HIDDEN double ImuMagPfInnovationOf(const ImuMagPf *pf, const double x[IMU_MAG_PF_STATE_SIZE], const double mag[3]);
-/** @brief A normalised innovation clipped at IMU_MAG_PF_CLIP_FACTOR x changeThreshold (as it enters the tests). */
-IMU_HIDDEN double ImuMagPfClip(const ImuMagPf *pf, double z);
-/** @brief 1 if the change test is armed and the sample's normalised innovation exceeds
- *         IMU_MAG_PF_OUTLIER_FACTOR x changeThreshold (a glitch: kept out of the power sums). */
-IMU_HIDDEN int ImuMagPfOutlier(const ImuMagPf *pf, const double mag[3]);
-/** @brief Innovation average (inputs clipped at 2 x changeThreshold) and noise inflation from one sample [uT]. */
-IMU_HIDDEN void ImuMagPfAdapt(ImuMagPf *pf, const double mag[3]);
-/** @brief Count a change of environment and restart the innovation average and the change test. */
-IMU_HIDDEN void ImuMagPfDeclareChange(ImuMagPf *pf);
-/** @brief Restart the evidence of a change and the re-test of the prior (the prior unproven). */
-IMU_HIDDEN void ImuMagPfClearEvidence(ImuMagPf *pf);
-/** @brief The prior calibration as a state x (priorHardIron [uT], priorSoftIron [1]). */
-IMU_HIDDEN void ImuMagPfPriorState(const ImuMagPf *pf, double x[IMU_MAG_PF_STATE_SIZE]);
-/** @brief Re-test of the prior calibration after a declared change, one update with sample mag [uT]:
- *         1 once it explains the data from IMU_MAG_PF_RETEST_DIRECTIONS directions as well as the
- *         estimate (IMU_MAG_PF_RETEST_MARGIN). */
-IMU_HIDDEN int ImuMagPfPriorExplains(ImuMagPf *pf, const double mag[3]);
-/** @brief Centre x of the cloud after a declared change: the prior calibration if its innovation
- *         average is under changeThreshold (it explains the recent data the estimate does not: the
- *         change returned to it, a magnet removed), else the estimate. */
-IMU_HIDDEN void ImuMagPfChangeCentre(const ImuMagPf *pf, double x[IMU_MAG_PF_STATE_SIZE]);
-/** @brief Take the prior calibration back: mode 1 restarts from the prior (held again with holdPrior),
- *         mode 0 re-draws the cloud around it and flushes the buffer; the change test restarts. */
-IMU_HIDDEN void ImuMagPfTakeBackPrior(ImuMagPf *pf);
-/** @brief 1 if minRotation is 0 or the direction of mag [uT] is more than minRotation away from the
- *         last used sample (the first sample always counts). */
-IMU_HIDDEN int ImuMagPfRotated(const ImuMagPf *pf, const double mag[3]);
-/** @brief 1 if minRotation is 0 or the direction of mag [uT] is more than minRotation away from that of
- *         reference [uT] (or reference is zero). */
-IMU_HIDDEN int ImuMagPfTurned(const ImuMagPf *pf, const double reference[3], const double mag[3]);
-/** @brief Change test on the innovation average of the sample mag [uT]: a change is declared once,
- *         while the average is above changeThreshold, the samples whose own innovation exceeded it
- *         cover IMU_MAG_PF_CHANGE_DIRECTIONS directions (a held calibration) or one (adapting);
- *         1 (counters reset, change counted, re-test of the prior started) if declared. */
-IMU_HIDDEN int ImuMagPfChangeDeclared(ImuMagPf *pf, const double mag[3]);
-/** @brief Systematic resampling indices (one uniform, offsets (U + k)/N) into work.parent. */
-IMU_HIDDEN void ImuMagPfSystematicParents(ImuMagPf *pf);
-/** @brief Effective sample size 1 / sum w^2 of the current weights [particles]. */
-IMU_HIDDEN double ImuMagPfEss(const ImuMagPf *pf);
-/** @brief Weights from the log weights in work.logWeight (max-subtracted, normalised). */
-IMU_HIDDEN void ImuMagPfNormaliseLog(ImuMagPf *pf);
-/** @brief Rao-Blackwellised mode: draw the prior particles (ImuMagPfRb.c). */
-IMU_HIDDEN void ImuMagPfRbReset(ImuMagPf *pf);
-/** @brief Rao-Blackwellised mode: one valid sample [uT]; 1 if the particles were updated. */
-IMU_HIDDEN int ImuMagPfRbUpdate(ImuMagPf *pf, const double mag[3]);
 
 #endif

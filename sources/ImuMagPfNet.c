@@ -1,14 +1,31 @@
 /**
  * @file ImuMagPfNet.c
- * @brief Steps 5-6 of the magnetometer particle filter: double-threshold splitting and diversity
- *        restoration by a small back-propagation network (docs/magpf.md).
+ * @brief Mode 0 of the magnetometer particle filter, steps 5-6: double-threshold splitting and
+ *        diversity restoration by a small back-propagation network, and the roughening sigma
+ *        (docs/magpf.md; called by ImuMagPfSplit.c).
  */
 #include <math.h>
-#include "ImuMagPf.h"
+#include "ImuMagPfPrivate.h"
 
 #define IMU_MAG_PF_HILL_FRACTION 0.9 /* Hill number of the m new weights must exceed 0.9 m */
 #define IMU_MAG_PF_NETWORK_INIT 0.5  /* initial network weights ~ U(-0.5, 0.5) */
 #define IMU_MAG_PF_TINY 1e-12        /* scale below which a normalisation uses 1 */
+
+/** @brief Mean and standard deviation (returned) of n values read with a stride. */
+static double ImuMagPfMoments(const double *values, int n, int stride, double *mean)
+{
+    double sum = 0.0, squares = 0.0;
+    int s;
+    for (s = 0; s < n; s++) {
+        sum += values[s * stride];
+    }
+    *mean = sum / n;
+    for (s = 0; s < n; s++) {
+        const double d = values[s * stride] - *mean;
+        squares += d * d;
+    }
+    return sqrt(squares / n);
+}
 
 /** @brief Normalisation gain 1 / sd, or 1 when sd is negligible against the mean. */
 static double ImuMagPfGain(double sd, double mean)
@@ -16,7 +33,6 @@ static double ImuMagPfGain(double sd, double mean)
     return sd > IMU_MAG_PF_TINY * (fabs(mean) + 1.0) ? 1.0 / sd : 1.0;
 }
 
-/** @brief Roughening sigma per state component: K N^(-1/9) x (unweighted) standard deviation of the cloud. */
 /** @brief Hidden activations tanh(W1 xn + b1) of a state x; returns the normalised output. */
 static double ImuMagPfForward(const ImuMagPfNetwork *net, int hiddenUnits, const double x[IMU_MAG_PF_STATE_SIZE],
                               double hidden[IMU_MAG_PF_MAX_HIDDEN])
@@ -178,9 +194,20 @@ static void ImuMagPfAssignSplitWeights(ImuMagPf *pf, int nHigh, int n)
     }
 }
 
+/** @brief Roughening sigma per state component: K N^(-1/9) x (unweighted) standard deviation of the cloud. */
+void ImuMagPfCloudSigma(const ImuMagPf *pf, double sigma[IMU_MAG_PF_STATE_SIZE])
+{
+    const int n = pf->settings.particleCount;
+    double mean;
+    int j;
+    for (j = 0; j < IMU_MAG_PF_STATE_SIZE; j++) {
+        sigma[j] = pf->coefficients.rougheningScale * ImuMagPfMoments(&pf->particle[0][j], n, IMU_MAG_PF_STATE_SIZE, &mean);
+    }
+}
+
 /** @brief Steps 5-6: double-threshold splitting with network-based diversity restoration; alpha is
  *         the tempering exponent of the update. */
-void ImuMagPfSplit(ImuMagPf *pf, double alpha)
+void ImuMagPfNetSplit(ImuMagPf *pf, double alpha)
 {
     ImuMagPfWork *w = &pf->work;
     double sigma[IMU_MAG_PF_STATE_SIZE];

@@ -19,7 +19,7 @@
  */
 #include <math.h>
 #include <string.h>
-#include "ImuMagPf.h"
+#include "ImuMagPfPrivate.h"
 
 #define IMU_MAG_PF_BRIDGE_STEPS 8       /* bridging steps per update, the last with g = 1 */
 #define IMU_MAG_PF_BISECTIONS 40        /* bisection steps of the next bridging exponent */
@@ -35,7 +35,7 @@ static void ImuMagPfRbSetPrior(ImuMagPf *pf, const double centre[3], double spre
                                const double softMean[IMU_MAG_SOFT_COUNT], double softSpread)
 {
     const ImuMagPfCoefficients *c = &pf->coefficients;
-    ImuMagMarginalPrior *prior = &pf->prior;
+    ImuMagMarginalPrior *prior = &pf->rb.prior;
     int j;
     for (j = 0; j < 3; j++) {
         prior->hardCentre[j] = centre[j] - pf->settings.priorHardIron[j];
@@ -56,7 +56,7 @@ static double ImuMagPfRbEvaluate(const ImuMagPf *pf, const double sums[IMU_MAG_M
     const double p[3] = {hard[0] - pf->settings.priorHardIron[0], hard[1] - pf->settings.priorHardIron[1],
                          hard[2] - pf->settings.priorHardIron[2]};
     double logTarget;
-    (void)ImuMagMarginal(sums, p, &pf->prior, &logTarget, soft);
+    (void)ImuMagMarginal(sums, p, &pf->rb.prior, &logTarget, soft);
     return logTarget;
 }
 
@@ -69,7 +69,7 @@ static void ImuMagPfRbDraw(ImuMagPf *pf, const double centre[3], double spread)
         for (j = 0; j < 3; j++) {
             pf->particle[i][j] = centre[j] + spread * ImuRngNormal(&pf->rng);
         }
-        pf->previousLog[i] = ImuMagPfRbEvaluate(pf, pf->previousMoments, pf->particle[i], pf->particle[i] + 3);
+        pf->rb.previousLog[i] = ImuMagPfRbEvaluate(pf, pf->rb.previousMoments, pf->particle[i], pf->particle[i] + 3);
         pf->weight[i] = 1.0 / n;
     }
 }
@@ -98,8 +98,8 @@ void ImuMagPfRbReset(ImuMagPf *pf)
 {
     const ImuMagPfSettings *s = &pf->settings;
     double softMean[IMU_MAG_SOFT_COUNT];
-    memset(pf->moments, 0, sizeof(pf->moments));
-    memset(pf->previousMoments, 0, sizeof(pf->previousMoments));
+    memset(pf->rb.moments, 0, sizeof(pf->rb.moments));
+    memset(pf->rb.previousMoments, 0, sizeof(pf->rb.previousMoments));
     ImuMagQuadraticFromSoft(s->priorSoftIron, softMean);
     ImuMagPfRbSetPrior(pf, s->priorHardIron, s->priorSpreadHard, softMean, 2.0 * s->priorSpreadSoft);
     ImuMagPfRbDraw(pf, s->priorHardIron, s->priorSpreadHard);
@@ -112,6 +112,14 @@ void ImuMagPfRbReset(ImuMagPf *pf)
     }
 }
 
+/** @brief Take the prior calibration back: restart from it (held again with holdPrior), the
+ *         change test restarted. */
+static void ImuMagPfRbTakeBackPrior(ImuMagPf *pf)
+{
+    ImuMagPfRbReset(pf);
+    ImuMagPfPriorTakenBack(pf);
+}
+
 /** @brief New segment after a change: sums restart at the current sample, priors around a state
  *         (hard iron [uT] then soft iron b11..b33: the estimate, or the prior calibration). */
 static void ImuMagPfRbRestart(ImuMagPf *pf, const double mag[3], const double state[IMU_MAG_PF_STATE_SIZE])
@@ -121,9 +129,9 @@ static void ImuMagPfRbRestart(ImuMagPf *pf, const double mag[3], const double st
     double softMean[IMU_MAG_SOFT_COUNT], centre[3];
     memcpy(centre, state, sizeof(centre));
     ImuMagQuadraticFromSoft(state + 3, softMean);
-    memset(pf->moments, 0, sizeof(pf->moments));
-    memset(pf->previousMoments, 0, sizeof(pf->previousMoments));
-    ImuMagMomentsAdd(pf->moments, u);
+    memset(pf->rb.moments, 0, sizeof(pf->rb.moments));
+    memset(pf->rb.previousMoments, 0, sizeof(pf->rb.previousMoments));
+    ImuMagMomentsAdd(pf->rb.moments, u);
     ImuMagPfRbSetPrior(pf, centre, s->changeSpreadHard, softMean, 2.0 * s->changeSpreadSoft);
     ImuMagPfRbDraw(pf, centre, s->changeSpreadHard);
 }
@@ -134,8 +142,8 @@ static int ImuMagPfRbWeighNew(ImuMagPf *pf)
 {
     int i, usable = 0;
     for (i = 0; i < pf->settings.particleCount; i++) {
-        pf->work.logLikelihood[i] = ImuMagPfRbEvaluate(pf, pf->moments, pf->particle[i], pf->particle[i] + 3);
-        usable |= pf->weight[i] > 0.0 && pf->work.logLikelihood[i] > -HUGE_VAL && pf->previousLog[i] > -HUGE_VAL;
+        pf->work.logLikelihood[i] = ImuMagPfRbEvaluate(pf, pf->rb.moments, pf->particle[i], pf->particle[i] + 3);
+        usable |= pf->weight[i] > 0.0 && pf->work.logLikelihood[i] > -HUGE_VAL && pf->rb.previousLog[i] > -HUGE_VAL;
     }
     return usable;
 }
@@ -143,7 +151,7 @@ static int ImuMagPfRbWeighNew(ImuMagPf *pf)
 /** @brief Log weight of particle i after raising the bridging exponent by step (-inf if inadmissible). */
 static double ImuMagPfRbLogWeight(const ImuMagPf *pf, int i, double step)
 {
-    const double now = pf->work.logLikelihood[i], before = pf->previousLog[i];
+    const double now = pf->work.logLikelihood[i], before = pf->rb.previousLog[i];
     if (!(pf->weight[i] > 0.0 && now > -HUGE_VAL && before > -HUGE_VAL)) {
         return -HUGE_VAL;
     }
@@ -234,11 +242,11 @@ static void ImuMagPfRbResample(ImuMagPf *pf)
     for (k = 0; k < n; k++) {
         memcpy(pf->work.copy[k], pf->particle[pf->work.parent[k]], sizeof(pf->particle[0]));
         pf->work.logWeight[k] = pf->work.logLikelihood[pf->work.parent[k]];
-        pf->work.logSpare[k] = pf->previousLog[pf->work.parent[k]];
+        pf->work.logSpare[k] = pf->rb.previousLog[pf->work.parent[k]];
     }
     memcpy(pf->particle, pf->work.copy, (size_t)n * sizeof(pf->particle[0]));
     memcpy(pf->work.logLikelihood, pf->work.logWeight, (size_t)n * sizeof(double));
-    memcpy(pf->previousLog, pf->work.logSpare, (size_t)n * sizeof(double));
+    memcpy(pf->rb.previousLog, pf->work.logSpare, (size_t)n * sizeof(double));
     for (k = 0; k < n; k++) {
         pf->weight[k] = 1.0 / n;
     }
@@ -258,18 +266,18 @@ static void ImuMagPfRbMove(ImuMagPf *pf, double g, double factor[3][3])
             for (j = 0; j < 3; j++) {
                 proposal[j] = pf->particle[k][j] + factor[j][0] * z[0] + factor[j][1] * z[1] + factor[j][2] * z[2];
             }
-            now = ImuMagPfRbEvaluate(pf, pf->moments, proposal, soft);
-            before = g < 1.0 ? ImuMagPfRbEvaluate(pf, pf->previousMoments, proposal, softBefore) : now; /* pi_1 = pi_new */
+            now = ImuMagPfRbEvaluate(pf, pf->rb.moments, proposal, soft);
+            before = g < 1.0 ? ImuMagPfRbEvaluate(pf, pf->rb.previousMoments, proposal, softBefore) : now; /* pi_1 = pi_new */
             u = ImuRngUniform(&pf->rng);
             if (!(before > -HUGE_VAL && now > -HUGE_VAL)) {
                 continue;
             }
             accept = (before + g * (now - before)) -
-                     (pf->previousLog[k] + g * (pf->work.logLikelihood[k] - pf->previousLog[k]));
+                     (pf->rb.previousLog[k] + g * (pf->work.logLikelihood[k] - pf->rb.previousLog[k]));
             if (accept >= 0.0 || u < exp(accept)) {
                 memcpy(pf->particle[k], proposal, sizeof(proposal));
                 memcpy(pf->particle[k] + 3, soft, sizeof(soft));
-                pf->previousLog[k] = before;
+                pf->rb.previousLog[k] = before;
                 pf->work.logLikelihood[k] = now;
             }
         }
@@ -308,7 +316,7 @@ int ImuMagPfRbUpdate(ImuMagPf *pf, const double mag[3])
     int i;
     if (!pf->frozen && ImuMagPfRotated(pf, mag) && !ImuMagPfOutlier(pf, mag)) { /* sums: turned by minRotation, no glitch */
         memcpy(pf->lastUsed, mag, sizeof(pf->lastUsed));
-        ImuMagMomentsAdd(pf->moments, u);
+        ImuMagMomentsAdd(pf->rb.moments, u);
     }
     if (++pf->sampleCounter < s->decimation) { /* the change test sees every valid sample's updates */
         return 0;
@@ -323,7 +331,7 @@ int ImuMagPfRbUpdate(ImuMagPf *pf, const double mag[3])
     } else if (pf->frozen) {
         return 0;
     } else if (ImuMagPfPriorExplains(pf, mag)) {
-        ImuMagPfTakeBackPrior(pf);
+        ImuMagPfRbTakeBackPrior(pf);
         return 0;
     }
     if (!ImuMagPfRbWeighNew(pf)) { /* no admissible particle left: a change the test did not see */
@@ -339,9 +347,9 @@ int ImuMagPfRbUpdate(ImuMagPf *pf, const double mag[3])
         }
     }
     ImuMagPfRbBridge(pf);
-    memcpy(pf->previousMoments, pf->moments, sizeof(pf->moments));
+    memcpy(pf->rb.previousMoments, pf->rb.moments, sizeof(pf->rb.moments));
     for (i = 0; i < s->particleCount; i++) {
-        pf->previousLog[i] = pf->work.logLikelihood[i];
+        pf->rb.previousLog[i] = pf->work.logLikelihood[i];
     }
     ImuMagPfRbEstimate(pf);
     return 1;

@@ -40,10 +40,6 @@ const char *ModelGuid(void) {
     return IMU_MODEL_GUID;
 }
 
-const char *ModelLogCategoryName(ModelLogCategory c) {
-    return logCategoryNames[c];
-}
-
 /* ---- values ---------------------------------------------------------------------------------- */
 
 /** @brief Outputs before the first sample: level, north-facing, zero signals, heading = declination [rad]. */

@@ -110,8 +110,6 @@ typedef struct {
 
 /** @brief The GUID (FMI 3: instantiation token) of the modelDescription.xml this binary was built for. */
 IMU_HIDDEN const char *ModelGuid(void);
-/** @brief Name of log category c as declared in modelDescription.xml. */
-IMU_HIDDEN const char *ModelLogCategoryName(ModelLogCategory c);
 /** @brief Set up mi right after instantiation: start values, phase Instantiated, time 0 s. */
 IMU_HIDDEN void ModelInstanceInitialise(ModelInstance *mi, ModelLogCallback log, void *environment, int loggingOn);
 /** @brief Log a printf-style message: problems (status >= Warning) always, others when their category is on. */
