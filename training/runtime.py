@@ -18,8 +18,8 @@ from pathlib import Path
 
 import numpy as np
 
-from contract.errors import BuildError
 from contract import layout
+from contract.errors import BuildError
 
 SOURCES_DIR = Path(__file__).resolve().parent.parent / "sources"
 #: Compiler flags of the runtime library (strict: every warning is an error).
