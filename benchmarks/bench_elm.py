@@ -1,4 +1,4 @@
-"""Benchmark of the compass ELM (training/elm.py): prints the tables of docs/elm.md.
+"""Benchmark of the compass ELM (training/models/elm.py): prints the tables of docs/elm.md.
 
 1. Simulated compass (scenarios/variants/compass_elm.toml: all yaws, pitch and roll within ±60°, hard and
    soft iron plus a cubic cross-axis distortion): heading error RMS on the held-out 10 % for the
@@ -22,8 +22,8 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from training import elm
-from training.ellipsoid import fit_ellipsoid
+from training.models import elm
+from training.models.ellipsoid import fit_ellipsoid
 from training.simulator import load_scenario, simulate
 
 ROOT = Path(__file__).resolve().parent.parent

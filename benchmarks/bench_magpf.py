@@ -13,13 +13,13 @@
    holds a trained calibration (the truth) until it declares the change.
 3. BROAD trials (Laidig et al., Data 6(7) 2021, CC-BY-4.0): spread 100·std/mean of |h_c| over
    eval_mask, raw and filtered (‖h_0‖ from the sidecar), and the heading RMSE of the whole
-   runtime (training.bench.run_imufusion, BROAD attitude set) without the filter, with it
+   runtime (training.bench.bench.run_imufusion, BROAD attitude set) without the filter, with it
    (holding the calibration until a change) and with it adapting from the start.
 4. Settings derived from the calibration (train): the chain applies the calibration that
    training on BROAD 01 + 02 gives (stand-in for the self-calibration: batch ellipsoid fit of the
    raw field of 01 + 02 to their sample-weighted sidecar norm, `train_calibration`), attitude_mode 1,
    rest_gyro_threshold 0.035, field norm/dip from each trial's sidecar; the filter is switched on with
-   `enable_pf = 1` and the settings `training.pf_settings.pf_settings_from_calibration` derives from
+   `enable_pf = 1` and the settings `training.models.pf_settings.pf_settings_from_calibration` derives from
    the calibrated 01 + 02 field — nothing else. Norm spread, heading RMSE and declared changes per
    trial without the filter, with the derived settings and, for comparison, with the hand-set
    BROAD_PF on the same chain. `--sensitivity` adds the table of each rule constant varied ±50 %.
@@ -39,10 +39,12 @@ from pathlib import Path
 import numpy as np
 
 from contract import layout
-from training import bench, magpf, pf_settings, runtime
-from training.ellipsoid import apply_ellipsoid, fit_ellipsoid
-from training.io import read_imu_csv
-from training.thermal import ThermalModel
+from training import runtime
+from training.bench import bench
+from training.data.io import read_imu_csv
+from training.models import magpf, pf_settings
+from training.models.ellipsoid import apply_ellipsoid, fit_ellipsoid
+from training.models.thermal import ThermalModel
 
 BROAD = Path(__file__).resolve().parents[2] / "shared" / "data" / "broad"
 TAIL_S = 10.0
@@ -134,7 +136,7 @@ def simulated(seeds: int) -> None:
 BROAD_PF = {"enable_pf": 1.0, "pf_measurement_noise": 0.8, "pf_prior_spread_hard": 0.5,
             "pf_prior_spread_soft": 0.005, "pf_min_rotation": float(np.deg2rad(6.0)),
             "pf_decimation": 4.0, "pf_change_spread_hard": 15.0}
-#: The same in the filter's own names (training.magpf), for the change count.
+#: The same in the filter's own names (training.models.magpf), for the change count.
 BROAD_MAGPF = {"measurement_noise_ut": 0.8, "prior_spread_hard_ut": 0.5, "prior_spread_soft": 0.005,
                "min_rotation_deg": 6.0, "decimation": 4, "change_spread_hard_ut": 15.0}
 FIELD = [layout.OUTPUTS.index(n) for n in ("field_x", "field_y", "field_z")]
@@ -184,7 +186,7 @@ TRAIN_TRIALS = ("01", "02")
 #: Attitude settings of the derived-settings table (becoming the FMU defaults).
 TRAIN_ATTITUDE = {"attitude_mode": 1.0, "rest_gyro_threshold": 0.035}
 UNDISTURBED_TRIALS = ("01", "02", "04", "05", "06", "08", "09", "10", "11", "14", "15", "18")
-#: Rule constants of training.pf_settings varied by ±50 % in the sensitivity table.
+#: Rule constants of training.models.pf_settings varied by ±50 % in the sensitivity table.
 SENSITIVITY = (("update_interval_s", pf_settings.UPDATE_INTERVAL_S, "decimation: update interval T_u [s]"),
                ("gate_sigmas", pf_settings.GATE_SIGMAS, "rotation gate k [σ]"),
                ("change_margin", pf_settings.CHANGE_MARGIN, "change spread κ"),
@@ -259,7 +261,7 @@ def broad_train(sensitivity_table: bool = False) -> None:
               flush=True)
     if not sensitivity_table:
         return
-    print("\n### Sensitivity: each rule constant of training.pf_settings at 0.5× and 1.5× (others as derived)\n")
+    print("\n### Sensitivity: each rule constant of training.models.pf_settings at 0.5× and 1.5× (others as derived)\n")
     print("Cells: magnet trials spread [%] / heading [°] with the filter (without: "
           + ", ".join(f"{n} {off_figures[n][1]:.2f}°" for n in MAGNET_TRIALS)
           + "); last column: largest heading change on the undisturbed trials [°] (trial).\n")

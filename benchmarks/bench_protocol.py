@@ -10,7 +10,7 @@ sensor down as well as the lab calibration set (scenarios/calibration.toml)? Pri
    direction cells (cube faces, edges, corners) by the true body-frame field during the tumbles.
 2. For each seed s: simulate protocol.toml and calibration.toml with seed s, train each WITH its
    reference columns (training.train.train, as the main job does), simulate eval_handheld and
-   eval_figure8 with seeds s+1 and s+2 (as training.pipeline does), run the batch runtime with
+   eval_figure8 with seeds s+1 and s+2 (as training.main_job does), run the batch runtime with
    the settings train wrote ("as trained") and the method's Euler fusion set by hand,
    and compute training.evaluate.compute_metrics. Table: mean over seeds (worst in brackets when
    more than one seed), acceptance bounds of the main job and the uncompensated sensors below.
@@ -28,8 +28,8 @@ import numpy as np
 
 from contract import layout
 from training.artefact import coefficients_array, settings_dict
-from training.evaluate import compute_metrics, raw_sensor_metrics
-from training.pipeline import ACCEPTANCE, recording_parameters, settings_with
+from training.evaluate import ACCEPTANCE, compute_metrics, raw_sensor_metrics
+from training.main_job import recording_parameters, settings_with
 from training.runtime import run_batch
 from training.simulator import load_scenario, simulate
 

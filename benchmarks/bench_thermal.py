@@ -1,4 +1,4 @@
-"""Benchmark of the gyro temperature models (training/compare_thermal.py): the tables of
+"""Benchmark of the gyro temperature models (training/bench/compare_thermal.py): the tables of
 docs/thermal_models.md.
 
 Recordings (one report folder each under OUT):
@@ -18,8 +18,8 @@ from pathlib import Path
 
 import torch
 
-from training.compare_thermal import compare_thermal
-from training.io import write_imu_csv
+from training.bench.compare_thermal import compare_thermal
+from training.data.io import write_imu_csv
 from training.simulator import load_scenario, simulate
 
 ROOT = Path(__file__).resolve().parent.parent

@@ -27,10 +27,10 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from contract import layout  # noqa: E402
-from training.bench import run_xio_fusion  # noqa: E402
-from training.evaluate import quaternion_multiply  # noqa: E402
-from training.io import read_imu_csv  # noqa: E402
-from training.thermal import apply_thermal  # noqa: E402
+from training.bench.bench import run_xio_fusion  # noqa: E402
+from training.data.io import read_imu_csv  # noqa: E402
+from training.frames import euler_from_quat, quat_multiply  # noqa: E402
+from training.models.thermal import apply_thermal  # noqa: E402
 
 DATA = ROOT.parent / "shared" / "data" / "xio_handheld" / "xio_handheld.csv.gz"
 #: A field whose calibrated norm leaves ±10 % of its median at rest is disturbed: the band the
@@ -58,14 +58,13 @@ def up_in_body(q: np.ndarray) -> np.ndarray:
 
 def heading(q: np.ndarray) -> np.ndarray:
     """(N,) yaw [rad] of body -> NED quaternions (ZYX)."""
-    w, x, y, z = q.T
-    return np.arctan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))
+    return euler_from_quat(q)[:, 0]
 
 
 def heading_difference_deg(qa: np.ndarray, qb: np.ndarray) -> np.ndarray:
     """(N,) signed heading difference [°] of two body -> NED attitudes, defined at every attitude:
     the rotation about the vertical of q_err = qa ⊗ qb⁻¹ (BROAD's split), 2·atan2(z, w)."""
-    err = quaternion_multiply(qa, qb * np.array([1.0, -1.0, -1.0, -1.0]))
+    err = quat_multiply(qa, qb * np.array([1.0, -1.0, -1.0, -1.0]))
     return wrap_deg(np.degrees(2.0 * np.arctan2(err[:, 3], err[:, 0])))
 
 
@@ -110,10 +109,10 @@ def _gyro_heading_change(rate: np.ndarray, q: np.ndarray, t: np.ndarray, a: int,
 
 def main() -> None:
     from fmu.cosim import run_fmu
-    from training.fmu_build import build_fmu
     from training.artefact import coefficients_array, settings_dict
-    from training.calibration_report import summary_text, write_calibration_report
-    from training.pipeline import recording_parameters
+    from training.fmu_build import build_fmu
+    from training.main_job import recording_parameters
+    from training.reports.calibration_report import summary_text, write_calibration_report
     from training.selfcal.rest import detect_rest
     from training.train import train
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])

@@ -6,16 +6,16 @@
 BROAD data: D. Laidig, M. Caruso, A. Cereatti, T. Seel, "BROAD — A Benchmark for Robust Inertial
 Orientation Estimation", Data 6(7), 2021, doi:10.3390/data6070072 (CC-BY-4.0).
 
-1. Per undisturbed trial (training.bench.GROUPS["undisturbed"]): the rate reference ref_gyr from
-   ref_q (training.reference.derive_references, Savitzky-Golay derivative) and the IMU gyro passed
-   through the same filter (training.reference.matched_raw, as `train` fits it);
+1. Per undisturbed trial (training.bench.bench.GROUPS["undisturbed"]): the rate reference ref_gyr from
+   ref_q (training.data.reference.derive_references, Savitzky-Golay derivative) and the IMU gyro passed
+   through the same filter (training.data.reference.matched_raw, as `train` fits it);
    δ = argmin_s RMS(gyro(t) − ref_gyr(t − s) − b(s)) on the moving samples
-   (training.time_offset.estimate_offset: ±MAX_SHIFT whole samples, parabolic refinement, bias b
+   (training.data.time_offset.estimate_offset: ±MAX_SHIFT whole samples, parabolic refinement, bias b
    fitted per shift, bootstrap over segments and split-half, seeded). δ > 0: the IMU lags.
-2. The model a user gets from `train` on BROAD with the optical reference (training.bench_trained:
+2. The model a user gets from `train` on BROAD with the optical reference (training.bench.bench_trained:
    trials TRAIN_TRIALS, seed 0, attitude reference kept), run through the batch runtime
    (training.runtime.run_batch, the FMU's C code) at the artefact's settings plus the sidecar
-   parameters `imufmu run` sets; BROAD's metric (training.bench.broad_errors) (a) as is, (b) with the
+   parameters `imufmu run` sets; BROAD's metric (training.bench.bench.broad_errors) (a) as is, (b) with the
    reference resampled at t − δ (the median δ over trials; the per-trial δ as a secondary column),
    (c) the runtime with lag_gyr = lag_acc = lag_mag = δ when contract.layout.SETTINGS has them.
 3. Writes OUT/README.md, OUT/results.json, OUT/offsets.csv, OUT/*.png and prints the tables.
@@ -37,13 +37,13 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from contract import layout  # noqa: E402
-from training.bench import BROAD_CITATION, GROUPS, broad_errors, trial_number, trial_paths  # noqa: E402
-from training.bench_trained import TRAIN_TRIALS  # noqa: E402
-from training.dataset import ImuData  # noqa: E402
-from training.io import read_imu_csv  # noqa: E402
-from training.reference import RATE_WINDOW_S, derive_references, matched_raw  # noqa: E402
-from training.simulator.quaternion import make_continuous  # noqa: E402
-from training.time_offset import estimate_offset, refine_minimum, shift_series  # noqa: E402
+from training.bench.bench import BROAD_CITATION, GROUPS, broad_errors, trial_number, trial_paths  # noqa: E402
+from training.bench.bench_trained import TRAIN_TRIALS  # noqa: E402
+from training.data.dataset import ImuData  # noqa: E402
+from training.data.io import read_imu_csv  # noqa: E402
+from training.data.reference import RATE_WINDOW_S, derive_references, matched_raw  # noqa: E402
+from training.data.time_offset import estimate_offset, refine_minimum, shift_series  # noqa: E402
+from training.frames import make_continuous  # noqa: E402
 
 #: Whole-sample search range of δ: ±30 samples = ±105 ms at 285.7 Hz, far beyond any plausible
 #: residual synchronisation error, so a minimum on the edge would mean a broken recording.
@@ -68,7 +68,7 @@ COMMAND = ".venv/bin/python benchmarks/broad_time_offset.py --data ../shared/dat
 # ------------------------------------------------------------------------------------------ offsets
 def offsets_of(data: ImuData, ref_gyr: np.ndarray) -> dict:
     """δ [samples] of one trial against ref_gyr, on one mask of moving samples: primary, the gyro
-    through the reference's filter (training.reference.matched_raw); check 'raw', the unfiltered gyro
+    through the reference's filter (training.data.reference.matched_raw); check 'raw', the unfiltered gyro
     against the filtered reference (a zero-phase filter on one side only does not move the minimum
     in expectation, so it is an independent check)."""
     primary = matched_raw(data, "gyr")
@@ -85,7 +85,7 @@ def offsets_of(data: ImuData, ref_gyr: np.ndarray) -> dict:
 # ----------------------------------------------------------------------------------------- attitude
 def trained_artefact(out: Path, model: Path | None, data_dir: Path, seed: int = 0):
     """The artefact of `train` on TRAIN_TRIALS with the optical reference kept (as
-    training.bench_trained's 'attitude reference' model), or the one at `model`; saved to out/model.json."""
+    training.bench.bench_trained's 'attitude reference' model), or the one at `model`; saved to out/model.json."""
     from training.artefact import load_artefact
     from training.train import train
     if model is not None:
@@ -102,9 +102,9 @@ def trained_artefact(out: Path, model: Path | None, data_dir: Path, seed: int = 
 
 def run_trained(artefact, data: ImuData, extra: dict | None = None) -> np.ndarray:
     """(N, 4) body -> magnetic NED quaternion of the batch runtime at the artefact's settings plus
-    the sidecar parameters `imufmu run` sets (training.pipeline.recording_parameters) plus extra."""
+    the sidecar parameters `imufmu run` sets (training.main_job.recording_parameters) plus extra."""
     from training.artefact import coefficients_array, settings_dict
-    from training.pipeline import recording_parameters
+    from training.main_job import recording_parameters
     from training.runtime import run_batch
     settings = layout.settings_array({**settings_dict(artefact), **recording_parameters(data), **(extra or {})})
     return run_batch(coefficients_array(artefact), settings, data.t - data.t[0], data.inputs())[:, _Q]
@@ -325,10 +325,10 @@ def _markdown(rows: list[dict], s: dict, fs: float, how: str, elapsed: float, ve
         "## Method",
         "",
         f"Sample grid: BROAD's uniform Δt = {1e3 / fs:.2f} ms ({fs:.1f} Hz). Rate reference: `ref_gyr` from "
-        "`training.reference.derive_references` (the project's code path), ω_ref = 2·vec(q* ⊗ q̇) with q̇ a centred "
+        "`training.data.reference.derive_references` (the project's code path), ω_ref = 2·vec(q* ⊗ q̇) with q̇ a centred "
         f"Savitzky-Golay derivative over {RATE_WINDOW_S} s (order 2). Gyro: the raw gyro integrated to an angle "
-        "(trapezoidal rule) and differentiated by the same Savitzky-Golay filter (`training.reference.matched_raw`, "
-        "what `train` fits the gyro with), so both sides carry the same low-pass and the same (zero) phase. Offset (`training.time_offset.estimate_offset`):",
+        "(trapezoidal rule) and differentiated by the same Savitzky-Golay filter (`training.data.reference.matched_raw`, "
+        "what `train` fits the gyro with), so both sides carry the same low-pass and the same (zero) phase. Offset (`training.data.time_offset.estimate_offset`):",
         "",
         "    r_k(s) = ω_gyr,k − ω_ref,k−s − b(s),   b(s) = mean_k(ω_gyr,k − ω_ref,k−s)  (per axis)",
         "    J(s)   = Σ_axes mean_k r_k(s)²,         s ∈ {−30 … 30} samples",
@@ -354,11 +354,11 @@ def _markdown(rows: list[dict], s: dict, fs: float, how: str, elapsed: float, ve
         "that ends at t_k and read −0.500 samples there. Check: the unfiltered gyro against the filtered "
         "reference (a zero-phase filter on one side does not move the minimum in expectation).",
         "",
-        "Attitude error: the model is `training.bench_trained`'s 'attitude reference' model — " + how + ". "
+        "Attitude error: the model is `training.bench.bench_trained`'s 'attitude reference' model — " + how + ". "
         "Every trial runs through the batch runtime `training.runtime.run_batch` (the FMU's C code compiled "
         "as a library) at the artefact's settings plus the sidecar parameters `imufmu run` sets "
-        "(`training.pipeline.recording_parameters`: declination, field norm). Metric: BROAD's "
-        "(`training.bench.broad_errors`): q_err = q_est ⊗ q_ref⁻¹, total 2·acos|w|, heading 2·atan|z/w|, "
+        "(`training.main_job.recording_parameters`: declination, field norm). Metric: BROAD's "
+        "(`training.bench.bench.broad_errors`): q_err = q_est ⊗ q_ref⁻¹, total 2·acos|w|, heading 2·atan|z/w|, "
         "inclination 2·acos√(w²+z²), RMSE in degrees over `eval_mask` samples with a finite reference, no "
         "heading alignment. Variants: (a) before: reference as recorded; (b) after: the reference resampled "
         f"at t − δ with the common δ = median over trials ({s['common_delta_samples']:.3f} samples), a "

@@ -5,7 +5,7 @@
 Trains the diag_base sensor on scenarios/variants/diag_calibration_clean.toml, simulates the
 held-out handheld recording scenarios/variants/diag_effects.toml once, injects every effect of the
 tests' generator (tests/effects.py) and diagnoses each at the defaults. For each: the effect
-selected, its physical reading, the held-out error before/after (training.diagnose's metric) and
+selected, its physical reading, the held-out error before/after (training.diagnosis.diagnose's metric) and
 the same held-out error through the FMU (fmpy, FMI 2) built from the base and the diagnosed
 artefacts. The noise floor is the sensor's white noise per sample (benchmarks/effect_sizes.py).
 """
@@ -23,8 +23,8 @@ sys.path.insert(0, str(ROOT / "tests"))
 
 from effects import EFFECTS  # noqa: E402
 from test_diagnose_effects import _build, _fmu_error  # noqa: E402
-from training.diagnose import diagnose  # noqa: E402
-from training.io import write_imu_csv  # noqa: E402
+from training.data.io import write_imu_csv  # noqa: E402
+from training.diagnosis.diagnose import diagnose  # noqa: E402
 from training.simulator import load_scenario, simulate  # noqa: E402
 from training.train import train  # noqa: E402
 

@@ -4,7 +4,7 @@
 
 BROAD (Laidig et al., Data 6(7), 2021, doi:10.3390/data6070072, CC-BY-4.0): the model is trained
 on the undisturbed trials TRAIN_BROAD with references derived from ref_q and the optical marker
-position (training.reference), decimated to ~57 Hz; the diagnosis runs on the OTHER undisturbed
+position (training.data.reference), decimated to ~57 Hz; the diagnosis runs on the OTHER undisturbed
 trials DIAGNOSE_BROAD at full rate. pan_thermal (PAN cubesat, MIT): the identity model (a gain/bias
 fit against ref_gyr = 0 of a static unit is degenerate); the diagnosis fits on the first 70 % of the
 log and scores the last 30 %. Each writes OUT/<name>/trained/model.json (the model
@@ -18,12 +18,12 @@ from pathlib import Path
 
 import numpy as np
 
-from training.artefact import ModelArtefact
-from training.diagnose import diagnose
-from training.io import read_imu_csv
 from contract.layout import TRIAD_ORDER, settings_defaults
-from training.reference import derive_references
-from training.thermal import ThermalModel
+from training.artefact import ModelArtefact
+from training.data.io import read_imu_csv
+from training.data.reference import derive_references
+from training.diagnosis.diagnose import diagnose
+from training.models.thermal import ThermalModel
 from training.train import train
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -61,12 +61,12 @@ def _transfer(data_dir: Path, out: Path) -> Path:
     whether the terms added on trials 02 and 11 (mounting B) carry over to the other trials and to
     mounting A."""
     from training.artefact import load_artefact
-    from training.diagnose import load_recordings, residuals, targets_of
+    from training.diagnosis.diagnose import load_recordings, residuals, targets_of
     models = {k: load_artefact(out / "broad" / p) for k, p in (("trained", "trained/model.json"),
                                                                 ("diagnosed", "model.json"))}
     lines = ["# BROAD: do the diagnosed terms carry over to other trials?", "",
              "Regenerate: `python benchmarks/diagnose_measured.py --only broad`. RMS over all rows of each "
-             "undisturbed trial against the references derived from the optical system (training.reference); "
+             "undisturbed trial against the references derived from the optical system (training.data.reference); "
              "diagnosed on 02 and 11 (mounting B).", "",
              "| trial | specific force, trained → diagnosed [m/s²] | field, trained → diagnosed [µT] |", "|---|---|---|"]
     for path in sorted((data_dir / "broad").glob("*_undisturbed_*.csv.gz")):

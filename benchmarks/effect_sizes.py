@@ -32,11 +32,11 @@ sys.path.insert(0, str(ROOT / "tests"))
 
 from effects import EFFECTS, truth_as_raw  # noqa: E402
 
-from training.dataset import ImuData  # noqa: E402
+from training.data.dataset import ImuData  # noqa: E402
 from training.simulator import load_scenario, simulate  # noqa: E402
 
 SCENARIO = ROOT / "scenarios" / "variants" / "diag_effects.toml"
-#: Held-out share at the end of the recording (training.diagnose.HOLDOUT_FRACTION).
+#: Held-out share at the end of the recording (training.diagnosis.diagnose.HOLDOUT_FRACTION).
 HOLDOUT_FRACTION = 0.3
 #: Required ideal held-out reduction [1].
 MIN_IDEAL = 0.85

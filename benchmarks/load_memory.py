@@ -1,4 +1,4 @@
-"""Peak memory and time of training.io.read_imu_csv on a large recording (issue 15, item 9).
+"""Peak memory and time of training.data.io.read_imu_csv on a large recording (issue 15, item 9).
 
 Writes a plausible imu-csv/1 file of ROWS rows (11 columns, 100 Hz, seeded) unless it exists, then
 reads it in a child process and prints the child's peak RSS (resource.getrusage ru_maxrss) and
@@ -22,7 +22,7 @@ SEED = 0
 
 CHILD = """
 import resource, sys, time
-from training.io import read_imu_csv
+from training.data.io import read_imu_csv
 t0 = time.perf_counter()
 data = read_imu_csv(sys.argv[1])
 print(len(data), time.perf_counter() - t0, resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024)

@@ -20,9 +20,9 @@ sys.path[:0] = [str(ROOT)]
 
 from fmpy.fmi3 import FMU3Slave  # noqa: E402
 
+from contract.layout import identity_coefficients  # noqa: E402
 from fmu.cosim import initialised_fmu  # noqa: E402
 from training.fmu_build import build_fmu  # noqa: E402
-from contract.layout import identity_coefficients  # noqa: E402
 
 #: Calls per timed batch and batches per figure.
 CALLS = 2000

@@ -1,7 +1,7 @@
 """The mounting acceptance figure of issue 16: x-io's example log (its board's z axis points up, no
 reference) trained with `imufmu train` at the defaults, built with `imufmu build-fmu`, run through
 the FMU with fmpy, and compared with x-io Fusion (package imufusion, its README settings:
-training.bench.run_xio_fusion) on the same log. x-io Fusion's attitude is in the sensor's axes; it
+training.bench.bench.run_xio_fusion) on the same log. x-io Fusion's attitude is in the sensor's axes; it
 is compared in two ways: the tilt from level of each (x-io Fusion's by its own convention, z up
 = level), and BROAD's inclination error of q_FMU ⊗ q_Fusion⁻¹ with Fusion's attitude turned into the
 FMU's body axes (training.mounting.body_attitude). The second row runs the same FMU with the
@@ -21,14 +21,14 @@ import numpy as np
 ROOT = Path(__file__).resolve().parent.parent
 sys.path[:0] = [str(ROOT)]
 
-from fmu.cosim import run_fmu  # noqa: E402
-from training.artefact import load_artefact, settings_dict  # noqa: E402
-from training.bench import run_xio_fusion  # noqa: E402
-from training.cli import main  # noqa: E402
-from training.evaluate import tilt_from_level, tilt_heading_between  # noqa: E402
-from training.io import read_imu_csv  # noqa: E402
 from contract.layout import OUTPUTS  # noqa: E402
 from contract.mounting import IDENTITY, MOUNT_SETTINGS, Z_UP  # noqa: E402
+from fmu.cosim import run_fmu  # noqa: E402
+from training.artefact import load_artefact, settings_dict  # noqa: E402
+from training.bench.bench import run_xio_fusion  # noqa: E402
+from training.cli import main  # noqa: E402
+from training.data.io import read_imu_csv  # noqa: E402
+from training.evaluate import tilt_from_level, tilt_heading_between  # noqa: E402
 from training.mounting import body_attitude  # noqa: E402
 
 XIO = ROOT.parent / "shared" / "data" / "xio_handheld" / "xio_handheld.csv.gz"

@@ -1,6 +1,6 @@
 """A generator of undeclared sensor effects for the tests of `imufmu diagnose` (issue 14).
 
-Each injector takes a recording with its truth (training.dataset.ImuData with ref_gyr, ref_acc,
+Each injector takes a recording with its truth (training.data.dataset.ImuData with ref_gyr, ref_acc,
 ref_mag; normally scenarios/variants/diag_effects.toml, sensor diag_base, whose declared errors
 a model trained on diag_calibration_clean.toml covers) and returns a NEW ImuData whose RAW
 columns carry one effect the sensor model does not declare. The input is never modified: the
@@ -34,7 +34,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from training.dataset import ImuData
+from training.data.dataset import ImuData
 
 #: rad/s per °/s.
 DEG = np.pi / 180.0
@@ -333,7 +333,7 @@ EFFECTS: dict[str, Effect] = dict([
             "field-dependent soft iron mag_i += k·m_i·m_j, |k| ≤ 1.5e-3 /µT [µT]"),
     # On a monotonic temperature ramp, time and temperature are both readings of a slow drift; the
     # diagnosis prefers the physical driver (time since power-on does not carry over to the next
-    # power cycle) unless time explains clearly more (training.diagnose.TIME_TIE).
+    # power cycle) unless time explains clearly more (training.diagnosis.diagnose.TIME_TIE).
     _effect("mag_long_delay", mag_long_delay, "mag", {"dc_mag"},
             "magnetometer 20 samples (200 ms) late, far beyond a linear time-shift fit [µT]"),
     _effect("gyro_lead", gyro_lead, "gyr", {"dc_gyr"},

@@ -1,7 +1,7 @@
 """The golden record of the main job (issue 17: the redesign changes no number).
 
 Recorded once, before the first move of the redesign, by `python tests/golden.py` from the main
-job at seed 0 (training.pipeline.run_pipeline): the trained artefact's coefficients and settings,
+job at seed 0 (training.main_job.run_main_job): the trained artefact's coefficients and settings,
 and the FMU's outputs on the three evaluation scenarios and on the first 20 s of BROAD trial 01
 (the same FMU, the trial's sidecar parameters). tests/test_pipeline.py compares the main job of
 every test run with it. Re-record only for a change meant to move the numbers, and say so in the
@@ -34,8 +34,8 @@ _ANGLES = ("roll", "pitch", "yaw", "heading")
 def broad_outputs(fmu_path: Path) -> np.ndarray | None:
     """The FMU's outputs on the first BROAD_SAMPLES samples of BROAD trial 01 (None without the data)."""
     from fmu.cosim import run_fmu
-    from training.io import read_imu_csv
-    from training.pipeline import recording_parameters
+    from training.data.io import read_imu_csv
+    from training.main_job import recording_parameters
     if not BROAD_TRIAL.is_file():
         return None
     data = read_imu_csv(BROAD_TRIAL).slice(slice(0, BROAD_SAMPLES))
@@ -43,9 +43,9 @@ def broad_outputs(fmu_path: Path) -> np.ndarray | None:
 
 
 def arrays(summary) -> dict[str, np.ndarray]:
-    """The golden arrays of a main-job summary (training.pipeline.PipelineSummary)."""
-    from training.artefact import coefficients_array, load_artefact, settings_dict
+    """The golden arrays of a main-job summary (training.main_job.MainJobSummary)."""
     from contract.layout import SETTINGS
+    from training.artefact import coefficients_array, load_artefact, settings_dict
     artefact = load_artefact(summary.model_path)
     settings = settings_dict(artefact)
     out = {"coefficients": np.asarray(coefficients_array(artefact), dtype=float),
@@ -86,9 +86,9 @@ def differences(summary) -> dict[str, str]:
 def record() -> None:
     """Run the main job at seed 0 and write GOLDEN."""
     import tempfile
-    from training.pipeline import run_pipeline
+    from training.main_job import run_main_job
     with tempfile.TemporaryDirectory(prefix="imufusion-golden-") as tmp:
-        golden = arrays(run_pipeline(Path(tmp), seed=0))
+        golden = arrays(run_main_job(Path(tmp), seed=0))
     GOLDEN.parent.mkdir(exist_ok=True)
     np.savez_compressed(GOLDEN, **golden)
     print(f"wrote {GOLDEN} ({GOLDEN.stat().st_size / 1024:.0f} KiB): {', '.join(sorted(golden))}")

@@ -13,16 +13,17 @@ import fmpy
 import numpy as np
 import pytest
 
+from contract import layout
 from fmu.cosim import OK, WARNING, initialised_fmu, step_samples, step_sizes
 from fmu.packer import reference_recording
-from training.fmu_build import build_fmu
-from contract import layout
 from training import runtime
-from training.evaluate import reference_euler_magnetic, wrap_angle
-from training.pipeline import PipelineSummary, evaluate_recording
-from training.report import write_report
+from training.data.reference import reference_euler_magnetic
+from training.fmu_build import build_fmu
+from training.frames import wrap_angle
+from training.main_job import MainJobSummary, evaluate_recording
+from training.models.thermal import ThermalModel, apply_thermal
+from training.reports.report import write_report
 from training.simulator import load_scenario, simulate
-from training.thermal import ThermalModel, apply_thermal
 
 SCENARIO = layout.__file__.rsplit("/contract/", 1)[0] + "/scenarios/eval_handheld.toml"
 DURATION_S = 60.0
@@ -30,7 +31,7 @@ DURATION_S = 60.0
 #: gyro white noise 0.03 °/s per sample and bias 0.01 °/s, acc 0.02 m/s², field 0.5 µT.
 GYR_NOISE, GYR_BIAS = np.radians(0.03), np.radians(0.01)
 ACC_ERROR, MAG_ERROR = 0.02, 0.5
-#: °/s: corrected-rate error RMS against truth (the product's acceptance figure, training/pipeline.py;
+#: °/s: corrected-rate error RMS against truth (the product's acceptance figure, training/main_job.py;
 #: the noise and bias above give 0.035 °/s).
 RATE_BOUND_DPS = 0.05
 #: m/s²: corrected specific-force error RMS (noise and bias of 0.02 m/s² give about 0.03).
@@ -39,7 +40,7 @@ ACCEL_BOUND_MS2 = 0.05
 #: 1.20 / 0.99 ° in quaternion mode (the default), 0.48 / 0.44 ° in Euler mode; an absent
 #: magnetometer or temperature changes them by less than 1e-9 ° (roll and pitch need neither).
 TILT_BOUND_DEG = 1.5
-#: °: yaw error RMS against truth with the magnetometer (acceptance figure, training/pipeline.py;
+#: °: yaw error RMS against truth with the magnetometer (acceptance figure, training/main_job.py;
 #: measured 1.36 ° quaternion, 1.71 ° Euler).
 YAW_BOUND_DEG = 2.0
 #: °: without a magnetometer yaw comes from the gyro alone, relative to the first sample: its
@@ -189,7 +190,7 @@ def test_evaluation_and_report_leave_absent_outputs_out_and_say_so(fmu_path, rec
     assert all(np.isnan(metrics[k]) for k in ("field_err_ut", "yaw_err_deg", "heading_err_deg"))
     assert all(np.isfinite(metrics[k]) for k in ("rate_err_dps", "accel_err_ms2", "roll_err_deg",
                                                  "pitch_err_deg", "tilt_err_deg"))
-    report = write_report(PipelineSummary(str(tmp_path), "model.json", str(fmu_path), [], [result]), tmp_path)
+    report = write_report(MainJobSummary(str(tmp_path), "model.json", str(fmu_path), [], [result]), tmp_path)
     text = report.read_text()
     assert "## Absent sensors" in text
     assert "field_* NaN in 1000 of 1000 samples (magnetometer absent)" in text
@@ -217,7 +218,7 @@ def test_fmpy_simulate_fmu_passes_the_nan_outputs_through(fmu_path):
 def test_imufmu_run_names_the_absent_sensor_in_its_printed_summary(fmu_path, recording, tmp_path, capsys):
     # the FMU's absence line is an OK message (logEvents), so `imufmu run` says it itself
     from training.cli import main
-    from training.io import write_imu_csv
+    from training.data.io import write_imu_csv
     d = recording.slice(slice(0, 300))
     d.mag = np.full_like(d.mag, np.nan)
     data = write_imu_csv(d, tmp_path / "no_mag.csv")

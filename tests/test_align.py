@@ -6,14 +6,14 @@ import numpy as np
 import pytest
 from fmpy import read_model_description
 
+from contract import layout
 from fmu.cosim import run_fmu
 from fmu.packer import fmu_aux_columns
-from training.fmu_build import build_fmu
-from contract import layout
 from training import runtime
 from training.cli import main
-from training.dataset import ImuData
-from training.io import read_imu_csv, write_imu_csv
+from training.data.dataset import ImuData
+from training.data.io import read_imu_csv, write_imu_csv
+from training.fmu_build import build_fmu
 
 DT = 0.01                 # s, sample interval
 G = 9.80665               # m/s²

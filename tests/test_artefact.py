@@ -4,13 +4,12 @@ import json
 import numpy as np
 import pytest
 
-from training.artefact import (FORMAT_VERSION, ModelArtefact, coefficients_array, load_artefact,
-                               settings_dict)
-from training.dataset import ImuData
 from contract.errors import ModelError
-from contract.layout import (LAYOUT_VERSION, N_COEFFICIENTS, OFFSET_TERMS, SETTINGS, TERM_SIGNALS, TERMS_BLOCK,
-                             identity_coefficients, settings_defaults)
-from training.thermal import ThermalModel, apply_thermal
+from contract.layout import (LAYOUT_VERSION, N_COEFFICIENTS, OFFSET_TERMS, SETTINGS, TERM_SIGNALS,
+                             TERMS_BLOCK, identity_coefficients, settings_defaults)
+from training.artefact import FORMAT_VERSION, ModelArtefact, coefficients_array, load_artefact, settings_dict
+from training.data.dataset import ImuData
+from training.models.thermal import ThermalModel, apply_thermal
 from training.recommend import GYRO_BIAS_RESIDUAL_FLOOR
 from training.train import train
 
@@ -103,7 +102,7 @@ def test_train_recovers_acc_and_records_data(artefact):
 
 def test_train_fits_mag_from_the_set_with_reference(artefact, datasets):
     stats = artefact.fit_stats["mag"]
-    # only the recording that carries ref_mag is used (training.reference_source): nothing dropped
+    # only the recording that carries ref_mag is used (training.data.reference_source): nothing dropped
     assert stats["rows_used"] == N_PER_SET and stats["rows_dropped"] == 0
     assert stats["reference"] == "columns"
     mag = artefact.thermal["mag"]
@@ -167,7 +166,7 @@ def test_save_load_is_exact(tmp_path, artefact):
 
 
 def test_save_load_keeps_awkward_floats_bit_exact(tmp_path):
-    # awkward but physical (training/model_checks.py bounds a bias by the triad's full scale)
+    # awkward but physical (training/models/model_checks.py bounds a bias by the triad's full scale)
     b = np.array([[0.1 + 0.2, 1e-300, -np.pi], [np.nextafter(1.0, 2.0), 5e-324, -1e-310],
                   [-0.0, 2.0 ** -1074, 12.3456789123456789]])
     model = ThermalModel(True, 21.3, 17.7, 2, np.eye(3) * (1 / 3), np.full((3, 2), 1 / 7), b)

@@ -23,7 +23,8 @@ import pytest
 
 from contract import layout
 from training import runtime
-from training.evaluate import quaternion_multiply, reference_quaternion_magnetic
+from training.data.reference import reference_quaternion_magnetic
+from training.frames import quat_multiply
 from training.simulator import load_scenario, simulate
 
 SCENARIOS = layout.__file__.rsplit("/contract/", 1)[0] + "/scenarios"
@@ -98,7 +99,7 @@ def total_error_deg(d, mode: str, case: str):
     out = runtime.run_batch(np.array(layout.identity_coefficients()), settings, t, x)
     cols = [layout.OUTPUTS.index(c) for c in ("q_w", "q_x", "q_y", "q_z")]
     q_ref_inv = reference_quaternion_magnetic(d)[keep] * np.array([1.0, -1.0, -1.0, -1.0])
-    w = np.abs(quaternion_multiply(out[:, cols], q_ref_inv)[:, 0])
+    w = np.abs(quat_multiply(out[:, cols], q_ref_inv)[:, 0])
     return t_traj, np.degrees(2.0 * np.arccos(np.clip(w, 0.0, 1.0)))
 
 
@@ -134,8 +135,8 @@ BROAD_EULER_BOUND_DEG = 3.0
 
 @pytest.mark.skipif(not BROAD_FAST_TRANSLATION.is_file(), reason=f"BROAD trial 18 not found at {BROAD_FAST_TRANSLATION}")
 def test_the_glitch_bound_ignores_smooth_fast_motion_on_measured_data():
-    from training import bench
-    from training.io import read_imu_csv
+    from training.bench import bench
+    from training.data.io import read_imu_csv
     data = read_imu_csv(BROAD_FAST_TRANSLATION)
     q = bench.run_imufusion(data, bench.ABLATION["Euler adaptive gains + rest bias"])
     assert bench.broad_errors(q, data)["total"] < BROAD_EULER_BOUND_DEG

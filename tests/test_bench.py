@@ -10,9 +10,9 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from contract import layout
-from training import bench
-from training.dataset import ImuData
-from training.io import write_imu_csv
+from training.bench import bench
+from training.data.dataset import ImuData
+from training.data.io import write_imu_csv
 from training.runtime import run_batch
 
 FS = 100.0                        # Hz

@@ -21,11 +21,11 @@ from fmu.cosim import run_fmu
 from training.fmu_build import build_fmu
 from test_psobp import random_model
 from test_thermal_degree import static_recording
-from training import elm
-from training.artefact import coefficients_array, load_artefact, settings_dict
 from contract.layout import (OUTPUTS, TRIAD_BLOCK, TRIAD_ORDER, identity_block, identity_coefficients,
                              pack_coefficients, settings_array, terms_block)
-from training.psobp import MODE_RESIDUAL, evaluate_psobp_c
+from training.artefact import coefficients_array, load_artefact, settings_dict
+from training.models import elm
+from training.models.psobp import MODE_RESIDUAL, evaluate_psobp_c
 from training.runtime import run_batch
 from training.simulator import load_scenario, simulate
 from training.train import train
@@ -201,7 +201,7 @@ def test_identity_model_is_always_valid():
 
 def test_imufmu_run_counts_the_samples_outside_the_calibrated_range():
     from contract.layout import OUTPUTS
-    from training.run_summary import range_note
+    from training.reports.run_summary import range_note
     out = np.zeros((200, len(OUTPUTS)))
     out[:, OUTPUTS.index("calibration_valid")] = 1.0
     assert range_note(out) is None

@@ -8,7 +8,6 @@ from contract import layout
 from training import runtime
 from training.evaluate import compute_metrics
 from training.simulator import load_scenario, simulate
-from training.thermal import ThermalModel
 
 SCENARIOS = layout.__file__.rsplit("/contract/", 1)[0] + "/scenarios"
 #: The particle filter must at least halve the field error that an unmodelled 15 µT hard-iron
@@ -75,7 +74,7 @@ def test_invalid_stage_settings_name_the_parameter(name, value, word):
 
 def test_elm_stage_switch_uses_the_trained_block():
     """enable_elm applies the ELM block to the field, and 0 leaves the field untouched."""
-    from training import elm
+    from training.models import elm
     rng = np.random.default_rng(0)
     x = rng.normal([20.0, 0.0, 40.0], 10.0, (400, 3))
     model = elm.ElmFitter(max_hidden=6, tune_steps=5).fit(x, 1.01 * x, seed=1)

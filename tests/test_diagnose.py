@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 from training.artefact import coefficients_array, load_artefact
-from training.diagnose import diagnose
-from training.io import write_imu_csv
+from training.data.io import write_imu_csv
+from training.diagnosis.diagnose import diagnose
 from training.simulator import load_scenario, simulate
 from training.train import train
 

@@ -17,13 +17,13 @@ import numpy as np
 import pytest
 
 from effects import EFFECTS, regressor_family
-from fmu.cosim import run_fmu
-from training.fmu_build import build_fmu
-from training.artefact import coefficients_array, load_artefact, settings_dict
-from training.diagnose import diagnose, holdout_rows
-from training.io import write_imu_csv
 from contract.layout import INPUTS, OUTPUTS
-from training.pipeline import recording_parameters
+from fmu.cosim import run_fmu
+from training.artefact import coefficients_array, load_artefact, settings_dict
+from training.data.io import write_imu_csv
+from training.diagnosis.diagnose import diagnose, holdout_rows
+from training.fmu_build import build_fmu
+from training.main_job import recording_parameters
 from training.simulator import load_scenario, simulate
 from training.train import train
 

@@ -6,8 +6,8 @@ from pathlib import Path
 
 import pytest
 
-from training.calibration_report import triad_summary
-from training.io import read_imu_csv
+from training.data.io import read_imu_csv
+from training.reports.calibration_report import triad_summary
 from training.train import train
 
 XIO = Path(__file__).resolve().parents[2] / "shared" / "data" / "xio_handheld" / "xio_handheld.csv.gz"

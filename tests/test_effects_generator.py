@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from effects import DEG, EFFECTS, G_SENS_DPS_PER_G, Effect, delay, regressor_family, truth_as_raw
-from training.dataset import ImuData
+from training.data.dataset import ImuData
 from training.simulator import load_scenario, simulate
 
 SCENARIO = Path(__file__).resolve().parents[1] / "scenarios" / "variants" / "diag_effects.toml"

@@ -1,14 +1,14 @@
-"""ELM with self back-tuning for the compass's nonlinear error (training/elm.py, sources/ImuElm.c)."""
+"""ELM with self back-tuning for the compass's nonlinear error (training/models/elm.py, sources/ImuElm.c)."""
 from __future__ import annotations
 
 import numpy as np
 import pytest
 import torch
 
-from training import elm
-from training.dataset import ImuData
+from training.data.dataset import ImuData
+from training.frames import quat_from_euler, quat_to_matrix
+from training.models import elm
 from training.simulator import MagDistortion
-from training.simulator.quaternion import quat_from_euler, quat_to_matrix
 
 torch.set_num_threads(1)
 

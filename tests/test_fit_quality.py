@@ -1,6 +1,6 @@
 """Issue 15, item 3: a fit outside what the sensor class allows is a warning in the printed summary.
 
-Bounds come from training/fit_quality.py (datasheet tolerances with a margin). The end-to-end case
+Bounds come from training/models/fit_quality.py (datasheet tolerances with a margin). The end-to-end case
 trains on the two-soak recording with the accelerometer's sensitivity 15 % high — three times the
 5 % class tolerance — so its fitted gain A_ii ≈ 1/1.15 = 0.870 must be flagged, and the same
 recording at the true sensitivity must not be.
@@ -13,13 +13,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from training.artefact import ModelArtefact
-from training.calibration_report import summary_text
-from training.fit_quality import (CROSS_AXIS_LIMIT_DEG, GYRO_NOISE_CLASS, SCALE_TOLERANCE, fit_warnings,
-                                  noise_warnings)
 from contract.layout import TRIAD_ORDER, settings_defaults
+from training.artefact import ModelArtefact
+from training.models.fit_quality import (CROSS_AXIS_LIMIT_DEG, GYRO_NOISE_CLASS, SCALE_TOLERANCE,
+                                         fit_warnings, noise_warnings)
+from training.models.thermal import ThermalModel
+from training.reports.calibration_report import summary_text
 from training.simulator import load_scenario, simulate
-from training.thermal import ThermalModel
 from training.train import train
 
 SCENARIO = Path(__file__).resolve().parents[1] / "scenarios" / "variants" / "two_soaks.toml"

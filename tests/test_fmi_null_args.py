@@ -14,10 +14,10 @@ from ctypes import POINTER, byref, c_char_p, c_double, c_int, c_size_t, c_uint, 
 import numpy as np
 import pytest
 
+from contract.layout import identity_coefficients
+from contract.variables import by_name
 from fmu.cosim import initialised_fmu
 from training.fmu_build import build_fmu
-from contract.variables import by_name
-from contract.layout import identity_coefficients
 
 ERROR = 3                   # fmi2Error / fmi3Error
 CHILD_TIMEOUT_S = 60        # generous: one case takes about 0.1 s

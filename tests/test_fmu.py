@@ -14,16 +14,16 @@ from fmpy.fmi2 import FMU2Slave, fmi2CallbackFunctions, fmi2CallbackLoggerTYPE
 from fmpy.logging import addLoggerProxy
 from fmpy.validation import validate_fmu as fmpy_validate_fmu
 
+from contract.errors import BuildError, ModelError
+from contract.layout import (AUX_INPUTS, INPUTS, MAX_DEGREE, N_COEFFICIENTS, OUTPUTS, SETTINGS, TRIAD_BLOCK,
+                             identity_coefficients, settings_array)
+from contract.variables import VARIABLES, by_name
 from fmu.compiler import SOURCE_DIR, compile_binary
 from fmu.cosim import FmuError, initialised_fmu, run_fmu, step_samples, step_sizes
 from fmu.header import coefficient_header, read_header_arrays
 from fmu.model_description import LOG_CATEGORIES, model_description_xml
-from training.fmu_build import build_fmu
 from fmu.validator import FMI2_CS_FUNCTIONS, exported_symbols, fmutool_problems, validate_fmu
-from contract.variables import VARIABLES, by_name
-from contract.errors import BuildError, ModelError
-from contract.layout import (AUX_INPUTS, INPUTS, MAX_DEGREE, N_COEFFICIENTS, OUTPUTS, SETTINGS, TRIAD_BLOCK,
-                             identity_coefficients, settings_array)
+from training.fmu_build import build_fmu
 from training.runtime import run_batch
 
 #: FMU (compiled with fmpy's CMake, -O3) and batch library (-O2) run the same C code; only the
@@ -289,8 +289,8 @@ import gc, sys
 import numpy as np
 from fmpy import extract, read_model_description
 from fmpy.fmi2 import FMU2Slave
-from fmu.cosim import run_fmu
 from contract.layout import INPUTS
+from fmu.cosim import run_fmu
 path, unzipped = sys.argv[1], sys.argv[2]
 for _ in range(3):
     run_fmu(path, np.arange(3) * 0.01, np.zeros((3, len(INPUTS))))

@@ -12,13 +12,13 @@ from fmpy import read_model_description
 from fmpy.model_description import read_build_description
 from fmpy.validation import validate_fmu as fmpy_validate_fmu
 
+from contract.variables import VARIABLES
 from fmu.build_description import BUILD_DESCRIPTION
 from fmu.compiler import fmu_source_files
 from fmu.cosim import FmuError, Stepper, initialised_fmu, run_fmu, step_samples, step_sizes
 from fmu.model_description import FMI3_TYPES, LOG_CATEGORIES, TIME_VALUE_REFERENCE
-from training.fmu_build import build_fmu
 from fmu.validator import FMI3_FUNCTIONS, exported_symbols, validate_fmu
-from contract.variables import VARIABLES
+from training.fmu_build import build_fmu
 from test_fmu import GOLDEN_TOLERANCE, TRAINED_SETTINGS, synthetic_recording, trained_coefficients
 from contract.layout import settings_array
 from training.runtime import run_batch

@@ -15,8 +15,8 @@ from pathlib import Path
 import pytest
 
 from fmu.description_check import CONFIG_MEMBER, behaviour_problems, description_problems
-from training.fmu_build import build_fmu
 from fmu.validator import reference_problems, validate_fmu
+from training.fmu_build import build_fmu
 from test_fmu import TRAINED_SETTINGS, trained_coefficients
 from training.cli import main
 

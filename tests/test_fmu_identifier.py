@@ -18,11 +18,11 @@ import pytest
 from debian_tools import debian_tool
 
 from cli_errors import fails
+from contract.layout import INPUTS
 from fmu.archive import FmuArchiveError, extracted_binary, read_description
 from fmu.compiler import binary_path
 from fmu.cosim import initialised_fmu, run_fmu
 from fmu.model_description import MODEL_NAME, model_description_xml
-from contract.layout import INPUTS
 
 GUID = "{00000000-0000-0000-0000-000000000016}"
 EVIL_C = """#include <stdio.h>

@@ -16,12 +16,12 @@ import numpy as np
 import pytest
 
 from debian_tools import debian_tool
+from contract.layout import INPUTS, identity_coefficients
 from fmu.compiler import FMPY_C_CODE as FMI_HEADERS, SOURCE_DIR, binary_path, fmu_source_files
 from fmu.cosim import DISCARD, OK, WARNING, FmuError, Stepper, initialised_fmu, run_fmu
 from fmu.header import HEADER_NAME, coefficient_header
 from fmu.packer import reference_recording
 from training.fmu_build import build_fmu
-from contract.layout import INPUTS, identity_coefficients
 
 C_TESTS = Path(__file__).parent / "c"
 STRICT = ["-std=c99", "-Wall", "-Wextra", "-Wpedantic", "-Werror"]

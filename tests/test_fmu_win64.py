@@ -17,15 +17,16 @@ from fmpy.validation import validate_fmu as fmpy_validate_fmu
 
 import fmu.packer
 from debian_tools import debian_tool
+from contract.layout import INPUTS, OUTPUTS, identity_coefficients
 from fmu.archive import extract_archive, read_description
 from fmu.compiler import C_FLAGS, FMPY_C_CODE, WIN64_COMPILER, WIN64_PACKAGE, WIN64_PLATFORMS
 from fmu.cosim import description_step_sizes
 from fmu.packer import REFERENCE_INPUT, REFERENCE_OUTPUT, read_reference_csv
-from training.fmu_build import build_fmu
 from fmu.pe import MACHINE_AMD64, read_pe
-from fmu.validator import (EXPORTED_FUNCTIONS, REFERENCE_TOLERANCE, binary_member, binary_members, exported_symbols,
-                           fmutool_problems, is_windows_system_dll, validate_fmu, windows_image)
-from contract.layout import INPUTS, OUTPUTS, identity_coefficients
+from fmu.validator import (EXPORTED_FUNCTIONS, REFERENCE_TOLERANCE, binary_member, binary_members,
+                           exported_symbols, fmutool_problems, is_windows_system_dll, validate_fmu,
+                           windows_image)
+from training.fmu_build import build_fmu
 
 #: mingw-w64's objdump, installed with the cross compiler (package WIN64_PACKAGE's dependency).
 WIN64_OBJDUMP = "x86_64-w64-mingw32-objdump"

@@ -28,8 +28,8 @@ _ECOSPY_SCRIPT = """
 import sys
 import numpy as np
 from ecospy import EcosLib, EcosSimulation, EcosSimulationStructure
-from fmu.packer import reference_recording
 from contract.layout import INPUTS, OUTPUTS
+from fmu.packer import reference_recording
 fmu_path, out_path = sys.argv[1:]
 EcosLib.set_log_level("warn")
 t, raw = reference_recording()

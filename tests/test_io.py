@@ -9,10 +9,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from training.dataset import ImuData
 from contract.errors import DataError
-from training.io import (find_recordings, load_many, read_imu_csv, recording_stem,
-                         require_sensors, write_imu_csv)
+from training.data.dataset import ImuData
+from training.data.io import (find_recordings, load_many, read_imu_csv, recording_stem, require_sensors,
+                              write_imu_csv)
 
 SHARED_DATA = Path(__file__).resolve().parents[2] / "shared" / "data"
 N_ROWS = 60
@@ -380,9 +380,9 @@ C_GUARD = Path(__file__).resolve().parents[1] / "sources" / "ImuGuard.h"
 
 
 def test_input_limits_are_the_c_guards():
-    """training.input_limits mirrors sources/ImuGuard.h: one range for the loader and the runtime."""
+    """training.data.input_limits mirrors sources/ImuGuard.h: one range for the loader and the runtime."""
     import re
-    from training import input_limits
+    from training.data import input_limits
     text = C_GUARD.read_text()
     for py_name, c_name in input_limits.C_NAMES.items():
         match = re.search(rf"#define {c_name} \(?(-?[0-9.e+]+)\)?", text)
@@ -425,7 +425,7 @@ def test_another_delimiter_is_named(tmp_path, sep, name):
 
 
 def test_a_line_longer_than_the_cap_is_refused_at_its_row(tmp_path):
-    from training.io import MAX_LINE_CHARS
+    from training.data.io import MAX_LINE_CHARS
     path = write_imu_csv(make_data(), tmp_path / "long.csv")
     lines = path.read_text().splitlines()
     path.write_text("\n".join(lines[:4] + ["1" * (MAX_LINE_CHARS + 1)]) + "\n")
@@ -438,7 +438,7 @@ def test_gzip_bomb_is_refused_at_its_bad_row(tmp_path):
     than it inflates to (bound: a quarter of it; the loader reads 4 Mi characters at a time and
     reserves one 1 Mi-row storage segment)."""
     import tracemalloc
-    from training.io import REQUIRED_COLUMNS
+    from training.data.io import REQUIRED_COLUMNS
     path = tmp_path / "bomb.csv.gz"
     head = gzip.compress((",".join(REQUIRED_COLUMNS) + "\n0,0,0,0,0,0,-9.8,20,0,40,25\nx\n").encode(), mtime=0)
     path.write_bytes(head + gzip.compress(b"1" * 2**24, mtime=0) * 64)
@@ -465,7 +465,7 @@ def test_messages_show_plain_numbers(tmp_path):
 def test_streaming_across_blocks_and_segments_is_exact(tmp_path, monkeypatch):
     """Tiny blocks and segments: rows spanning many of each read back exactly, and a bad row deep
     in the file is named by its editor line."""
-    import training.io as imu_io
+    import training.data.io as imu_io
     monkeypatch.setattr(imu_io, "BLOCK_CHARS", 700)
     monkeypatch.setattr(imu_io, "SEGMENT_ROWS", 7)
     data = make_data(n=200)

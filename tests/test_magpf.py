@@ -6,10 +6,9 @@ from datetime import datetime
 import numpy as np
 import pytest
 
-from training import magmoments as mm
-from training import magpf
-from training.ellipsoid import apply_ellipsoid, fit_ellipsoid
-from training.rng import Pcg32
+from training.models import magmoments as mm, magpf
+from training.models.ellipsoid import apply_ellipsoid, fit_ellipsoid
+from training.models.rng import Pcg32
 
 # pcg32-demo (pcg-random.org, "Using the Full C Implementation"): seed 42, stream 54.
 PCG32_REFERENCE = [0xA15C02B7, 0x7B47F409, 0xBA1D3330, 0x83D2F293, 0xBFA4784B, 0xCBED606E]
@@ -384,7 +383,7 @@ def test_ellipsoid_fit_recovers_hard_and_soft_iron():
 
 def test_geomag_matches_published_igrf_value():
     pytest.importorskip("ppigrf")
-    from training.geomag import earth_field
+    from training.data.geomag import earth_field
     # NOAA IGRF calculator, Berlin (52.5 N, 13.3 E), 2020-06-01: F ≈ 49.8 µT, I ≈ 67.9°,
     # D ≈ 4.3° E; 0.3 µT / 0.3° allow for altitude and model-revision differences.
     f = earth_field(52.5, 13.3, 0.05, datetime(2020, 6, 1))

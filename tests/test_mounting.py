@@ -12,11 +12,11 @@ import numpy as np
 import pytest
 
 from contract import layout
-from training.bench import run_xio_fusion
-from training.cli import _param
-from training.evaluate import compute_metrics, tilt_from_level, tilt_heading_between
-from training.io import read_imu_csv
 from contract.mounting import IDENTITY, MOUNT_SETTINGS, Z_UP, mount_matrix, mounting_problem
+from training.bench.bench import run_xio_fusion
+from training.cli import _param
+from training.data.io import read_imu_csv
+from training.evaluate import compute_metrics, tilt_from_level, tilt_heading_between
 from training.mounting import body_attitude, body_references, recommended_mounting
 from training.runtime import run_batch
 from training.simulator import load_scenario, simulate
@@ -25,7 +25,7 @@ from training.train import train
 XIO = Path(__file__).resolve().parents[2] / "shared" / "data" / "xio_handheld" / "xio_handheld.csv.gz"
 SCENARIO = Path(__file__).resolve().parents[1] / "scenarios" / "eval_handheld.toml"
 #: The acceptance bound of issue 16: with the mounting set, the inclination agrees with x-io
-#: Fusion's (its README settings, training.bench.run_xio_fusion) within 1° median on its own log.
+#: Fusion's (its README settings, training.bench.bench.run_xio_fusion) within 1° median on its own log.
 XIO_INCLINATION_MEDIAN_DEG = 1.0
 _Q = slice(layout.OUTPUTS.index("q_w"), layout.OUTPUTS.index("q_w") + 4)
 _ROLL = layout.OUTPUTS.index("roll")
@@ -141,8 +141,8 @@ def test_an_fmu_with_a_mounting_validates_and_runs_as_the_batch_runtime(handheld
     """A mounting that swaps axes (body x = sensor y): every validate check passes (the binary's
     triad check follows the declared mounting) and the FMU gives the batch runtime's outputs."""
     from fmu.cosim import run_fmu
-    from training.fmu_build import build_fmu
     from fmu.validator import validate_fmu
+    from training.fmu_build import build_fmu
     codes = (2, 1, -3)
     path = build_fmu(np.asarray(layout.identity_coefficients()), _mounted(codes), tmp_path / "ImuFusion.fmu")
     assert validate_fmu(path) == []

@@ -21,8 +21,10 @@ import numpy as np
 import pytest
 
 from contract import layout
-from training import pf_settings, runtime
-from training.evaluate import quaternion_multiply, reference_quaternion_magnetic
+from training import runtime
+from training.data.reference import reference_quaternion_magnetic
+from training.frames import quat_multiply
+from training.models import pf_settings
 from training.simulator import load_scenario, simulate
 
 SCENARIOS = layout.__file__.rsplit("/contract/", 1)[0] + "/scenarios"
@@ -143,7 +145,7 @@ def run(d, pf: dict, mag: np.ndarray, filter_mode: str, attitude_mode: str):
                                       **ATTITUDE_MODES[attitude_mode], **pf})
     out = runtime.run_batch(np.array(layout.identity_coefficients()), np.array(settings), d.t, x)
     q = out[:, [layout.OUTPUTS.index(c) for c in ("q_w", "q_x", "q_y", "q_z")]]
-    w = np.abs(quaternion_multiply(q, reference_quaternion_magnetic(d) * np.array([1.0, -1.0, -1.0, -1.0]))[:, 0])
+    w = np.abs(quat_multiply(q, reference_quaternion_magnetic(d) * np.array([1.0, -1.0, -1.0, -1.0]))[:, 0])
     hard = out[:, [layout.OUTPUTS.index(f"hard_iron_{a}") for a in "xyz"]]
     return np.degrees(2.0 * np.arccos(np.clip(w, 0.0, 1.0))), hard
 

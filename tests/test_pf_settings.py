@@ -1,12 +1,12 @@
-"""Particle-filter settings derived from the calibration data (training/pf_settings.py)."""
+"""Particle-filter settings derived from the calibration data (training/models/pf_settings.py)."""
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
 from contract import layout
-from training import magpf, runtime
-from training import pf_settings as ps
+from training import runtime
+from training.models import magpf, pf_settings as ps
 
 RATE_HZ = 100.0
 FIELD_NORM_UT = 60.0

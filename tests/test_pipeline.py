@@ -1,7 +1,7 @@
 """The main job end to end: simulated calibration -> trained model -> FMU -> fmpy co-simulation.
 
 Asserts against simulator truth on evaluation scenarios that were not used for training, with the
-acceptance bounds of issue 2 (training.pipeline.ACCEPTANCE, justified there).
+acceptance bounds of issue 2 (training.evaluate.ACCEPTANCE, justified there).
 """
 from __future__ import annotations
 
@@ -10,7 +10,8 @@ import json
 import numpy as np
 import pytest
 
-from training.pipeline import ACCEPTANCE, DEFAULT_EVALUATIONS, run_pipeline
+from training.evaluate import ACCEPTANCE
+from training.main_job import DEFAULT_EVALUATIONS, run_main_job
 
 #: FMU through fmpy and the batch library run the same C code on the same doubles; the only
 #: admissible difference is none at all, 1e-12 leaves room for nothing but printing round-off.
@@ -19,7 +20,7 @@ FMU_BATCH_TOLERANCE = 1e-12
 
 @pytest.fixture(scope="module")
 def summary(tmp_path_factory):
-    return run_pipeline(tmp_path_factory.mktemp("pipeline"), seed=0)
+    return run_main_job(tmp_path_factory.mktemp("pipeline"), seed=0)
 
 
 def test_fmu_validates(summary):

@@ -15,8 +15,10 @@ import pytest
 
 from contract import layout
 from training.artefact import coefficients_array, settings_dict
-from training.evaluate import compute_metrics, quaternion_multiply, reference_quaternion_magnetic
-from training.pipeline import recording_parameters, settings_with
+from training.data.reference import reference_quaternion_magnetic
+from training.evaluate import compute_metrics
+from training.frames import quat_multiply
+from training.main_job import recording_parameters, settings_with
 from training.runtime import run_batch
 from training.simulator import load_scenario, simulate
 from training.train import train
@@ -53,7 +55,7 @@ def _strip(data):
 def total_error_deg(out: np.ndarray, data) -> float:
     """RMS [°] of the attitude total error 2·acos|w| of q_est ⊗ q_ref⁻¹ (magnetic north)."""
     q_ref_inv = reference_quaternion_magnetic(data) * np.array([1.0, -1.0, -1.0, -1.0])
-    w = np.abs(quaternion_multiply(out[:, _Q], q_ref_inv)[:, 0])
+    w = np.abs(quat_multiply(out[:, _Q], q_ref_inv)[:, 0])
     return float(np.degrees(np.sqrt(np.mean((2.0 * np.arccos(np.clip(w[np.isfinite(w)], 0.0, 1.0))) ** 2))))
 
 

@@ -12,14 +12,14 @@ from pathlib import Path
 import pytest
 from fmpy import read_model_description
 
+from contract import __version__
+from contract.layout import STAGE_BLOCKS
+from contract.version import DISTRIBUTION, package_version
 from fmu.provenance import PROVENANCE_FILE, build_time
 from fmu.validator import VALIDATION_CHECKS
-from contract import __version__
 from training.artefact import ModelArtefact, load_artefact
 from training.cli import EXAMPLES, build_parser, main
-from contract.layout import STAGE_BLOCKS
-from training.thermal import ThermalModel
-from contract.version import DISTRIBUTION, package_version
+from training.models.thermal import ThermalModel
 
 PYPROJECT = tomllib.loads((Path(__file__).parents[1] / "pyproject.toml").read_text())["project"]
 

@@ -10,16 +10,16 @@ import numpy as np
 import pytest
 import torch
 
-from training.compare_thermal import (MODELS, bias_stability, compare_thermal,
-                                      fit_bias_polynomial, polynomial_bias)
-from training.psobp import (BLOCK_SIZE, MAX_HIDDEN, MODE_FULL, MODE_OFF, MODE_RESIDUAL,
-                            PsoBpFitter, PsoBpModel, apply_psobp, correct_gyro_psobp,
-                            correct_gyro_psobp_c, evaluate_psobp, evaluate_psobp_c,
-                            bias_targets, fit_gyro_residual_psobp, inertia_weight,
-                            predict_psobp_c, pso_minimise, pso_step, residual_psobp_wins,
-                            shrink_output, swarm_predict, temperature_rate, variance_fitness)
-from training.thermal import apply_thermal
-from training.io import write_imu_csv
+from training.bench.compare_thermal import (MODELS, bias_stability, compare_thermal, fit_bias_polynomial,
+                                            polynomial_bias)
+from training.data.io import write_imu_csv
+from training.models.psobp import (BLOCK_SIZE, MAX_HIDDEN, MODE_FULL, MODE_OFF, MODE_RESIDUAL, PsoBpFitter,
+                                   PsoBpModel, apply_psobp, correct_gyro_psobp, correct_gyro_psobp_c,
+                                   evaluate_psobp, evaluate_psobp_c, bias_targets, fit_gyro_residual_psobp,
+                                   inertia_weight, predict_psobp_c, pso_minimise, pso_step,
+                                   residual_psobp_wins, shrink_output, swarm_predict, temperature_rate,
+                                   variance_fitness)
+from training.models.thermal import apply_thermal
 from training.runtime import load_runtime
 from training.simulator import load_scenario, simulate
 

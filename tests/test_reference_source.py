@@ -1,4 +1,4 @@
-"""Which reference calibrates each triad (training.reference_source) and what train does with it."""
+"""Which reference calibrates each triad (training.data.reference_source) and what train does with it."""
 from __future__ import annotations
 
 import json
@@ -9,10 +9,10 @@ import numpy as np
 import pytest
 
 from training.cli import main
-from training.dataset import ImuData
-from training.io import write_imu_csv
-from training.reference_source import choose_reference
-from training.simulator.quaternion import quat_from_euler
+from training.data.dataset import ImuData
+from training.data.io import write_imu_csv
+from training.data.reference_source import choose_reference
+from training.frames import quat_from_euler
 from training.recommend import gyro_rest_settings
 from training.train import gate_outliers
 
@@ -117,7 +117,7 @@ def test_sidecar_site_gives_the_field_through_igrf():
     from datetime import datetime
 
     from contract.errors import ModelError
-    from training.geomag import earth_field
+    from training.data.geomag import earth_field
     from training.recommend import sidecar_values
     site = {"latitude_deg": 47.8, "longitude_deg": 9.2, "altitude_km": 0.4, "date": "2020-06-01"}
     data = replace(_recording(), meta={"format": "imu-csv/1", "rate_hz": RATE_HZ, "site": site})
@@ -142,10 +142,10 @@ NO_HARM_DEG = 0.05
 @pytest.mark.skipif(not BROAD_09.is_file(), reason=f"BROAD trial not found at {BROAD_09}")
 def test_self_calibration_of_a_real_log_does_no_harm():
     from contract import layout
-    from training import bench
     from training.artefact import coefficients_array, settings_dict
-    from training.io import read_imu_csv
-    from training.pipeline import recording_parameters, settings_with
+    from training.bench import bench
+    from training.data.io import read_imu_csv
+    from training.main_job import recording_parameters, settings_with
     from training.runtime import run_batch
     from training.train import train
     data = read_imu_csv(BROAD_09)

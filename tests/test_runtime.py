@@ -1,15 +1,14 @@
 """The C runtime through its ctypes bridge: layout, thermal model, attitude fusion, errors, build."""
 from __future__ import annotations
 
-import ctypes
 import subprocess
 
 import numpy as np
 import pytest
 
 from contract import layout
-from training import runtime
 from contract.errors import BuildError
+from training import runtime
 
 G = 9.80665                      # m/s², gravity the runtime assumes
 FIELD_NORM = 50.0                # µT

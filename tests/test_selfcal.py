@@ -10,13 +10,13 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from training.dataset import ImuData
+from training.data.dataset import ImuData
+from training.models.thermal import apply_thermal
 from training.selfcal import SelfCalResult, self_calibrate
 from training.selfcal.accel import fit_accelerometer
 from training.selfcal.magnet import fit_alignment, fit_magnetometer
 from training.selfcal.rest import RestWindow, detect_rest, group_poses
 from training.simulator import load_scenario, simulate
-from training.thermal import apply_thermal
 
 ROOT = Path(__file__).resolve().parents[1]
 SHARED_DATA = Path(__file__).resolve().parents[2] / "shared" / "data"
@@ -439,7 +439,7 @@ XIO_DIP_RANGE_DEG = (67.5, 70.5)
 
 @pytest.mark.skipif(not XIO.is_file(), reason=f"x-io handheld log not found at {XIO}")
 def test_real_handheld_log_improves_invariants():
-    from training.io import read_imu_csv
+    from training.data.io import read_imu_csv
     data = read_imu_csv(XIO)
     result = self_calibrate([data], field_norm=None, progress=False)
     report = result.report

@@ -8,11 +8,11 @@ import numpy as np
 import pytest
 
 from contract.errors import ScenarioError
-from training.io import read_imu_csv, write_imu_csv
-from training.simulator import (GRAVITY_NED, STANDARD_GRAVITY, load_scenario, simulate,
-                                simulate_to_dir)
-from training.simulator.quaternion import (quat_conjugate, quat_from_rotvec, quat_multiply,
-                                           quat_to_matrix, quat_to_rotvec, rotate_to_body)
+from training.data.earth import GRAVITY_NED, STANDARD_GRAVITY
+from training.data.io import read_imu_csv, write_imu_csv
+from training.frames import (quat_conjugate, quat_from_rotvec, quat_multiply, quat_to_matrix, quat_to_rotvec,
+                             rotate_to_body)
+from training.simulator import load_scenario, simulate, simulate_to_dir
 
 SCENARIO_DIR = Path(__file__).resolve().parents[1] / "scenarios"
 SCENARIO_FILES = sorted(SCENARIO_DIR.glob("*.toml"))

@@ -22,11 +22,11 @@ import pytest
 from debian_tools import debian_tool
 from fmpy.fmi1 import FMICallException
 
+from contract.layout import INPUTS, identity_coefficients
 from fmu.compiler import FMPY_C_CODE as FMI_HEADERS, SOURCE_DIR, fmu_source_files
 from fmu.cosim import Stepper, initialised_fmu
 from fmu.header import HEADER_NAME, coefficient_header
 from training.fmu_build import build_fmu
-from contract.layout import INPUTS, identity_coefficients
 
 C_HARNESS = Path(__file__).parent / "c" / "state_fuzz.c"
 #: The particle filter on with 2 x 2 cells per cube face: its bin list and counters are in the state.

@@ -14,13 +14,13 @@ import re
 import numpy as np
 import pytest
 
+from contract import layout
+from contract.ranges import STANDARD_GRAVITY
 from fmu.compiler import SOURCE_DIR
 from fmu.cosim import OK, WARNING, Stepper, initialised_fmu
 from fmu.packer import reference_recording
-from training.fmu_build import build_fmu
-from contract import layout
-from contract.ranges import STANDARD_GRAVITY
 from training import runtime
+from training.fmu_build import build_fmu
 
 #: s, the communication step of the importer, and the far clock of the issue.
 STEP_S, FAR_START_S = 0.01, 1e14

@@ -3,7 +3,7 @@ import numpy as np
 import pytest
 
 from contract.layout import MAX_DEGREE, TRIAD_BLOCK, identity_block
-from training.thermal import GainBiasFitter, ThermalModel, apply_thermal
+from training.models.thermal import GainBiasFitter, ThermalModel, apply_thermal
 
 #: Horner (apply_thermal) vs explicit power sums (direct_evaluation) differ only by rounding:
 #: a few ulp of values O(1..100), so 1e-13 relative is ~500 ulp of headroom.

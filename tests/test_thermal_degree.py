@@ -13,14 +13,15 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from training.artefact import ModelArtefact, coefficients_array, settings_dict
-from training.dataset import ImuData
-from training.degree import AUTO_MAX_DEGREE, choose_degree, parse_degree
 from contract.layout import settings_array
-from training.pipeline import recording_parameters
+from training.artefact import ModelArtefact, coefficients_array, settings_dict
+from training.data.dataset import ImuData
+from training.data.earth import GRAVITY_NED
+from training.frames import quat_from_euler, rotate_to_body
+from training.main_job import recording_parameters
+from training.models.degree import AUTO_MAX_DEGREE, choose_degree, parse_degree
 from training.runtime import run_batch
-from training.simulator import GRAVITY_NED, load_scenario, simulate
-from training.simulator.quaternion import quat_from_euler, rotate_to_body
+from training.simulator import load_scenario, simulate
 from training.train import train
 
 SCENARIO = Path(__file__).resolve().parents[1] / "scenarios" / "variants" / "two_soaks.toml"

@@ -8,11 +8,11 @@ import numpy as np
 import pytest
 
 from cli_errors import fails
-from training.cli import main
-from training.dataset import ImuData
 from contract.errors import DataError
-from training.io import (GAP_STEP_FACTOR, MIN_MEDIAN_STEP_S, RATE_TOLERANCE, read_imu_csv,
-                         report_load_notes, time_gaps, write_imu_csv)
+from training.cli import main
+from training.data.dataset import ImuData
+from training.data.io import (GAP_STEP_FACTOR, MIN_MEDIAN_STEP_S, RATE_TOLERANCE, read_imu_csv,
+                              report_load_notes, time_gaps, write_imu_csv)
 
 RATE_HZ = 100.0
 N = 400

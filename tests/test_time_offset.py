@@ -1,4 +1,4 @@
-"""training.time_offset: the lag estimator against known offsets (issue 14; used by
+"""training.data.time_offset: the lag estimator against known offsets (issue 14; used by
 benchmarks/broad_time_offset.py on BROAD).
 
 Synthetic, seeded: a 3-axis rate of band-limited motion (sinusoids of 0.1-5 Hz, BROAD's range) at
@@ -10,9 +10,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from training.dataset import ImuData
-from training.reference import matched_raw
-from training.time_offset import estimate_offset, refine_minimum, shift_series
+from training.data.dataset import ImuData
+from training.data.reference import matched_raw
+from training.data.time_offset import estimate_offset, refine_minimum, shift_series
 
 FS = 1.0 / 0.0035          # Hz, BROAD's rate
 SECONDS = 60.0
@@ -96,7 +96,7 @@ def test_shift_series_is_a_delay():
 
 
 def test_matched_raw_puts_the_gyro_at_its_sample_times():
-    """training.reference.matched_raw (the gyro through the rate reference's filter, used by `train`
+    """training.data.reference.matched_raw (the gyro through the rate reference's filter, used by `train`
     and by benchmarks/broad_time_offset.py) must not move the gyro in time: on an exact synthetic rate
     its offset against the truth is 0. The trapezoidal integration gives that; the rectangle rule
     Σ ω_k·Δt_k it replaced credits ω_k to the interval ending at t_k and read −0.500 samples here.

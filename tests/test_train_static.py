@@ -3,8 +3,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from training.dataset import ImuData
-from training.thermal import apply_thermal
+from training.data.dataset import ImuData
+from training.models.thermal import apply_thermal
 from training.train import MIN_EXCITATION, train
 
 #: White noise σ of the synthetic gyro [rad/s]; the fitted bias may miss the true one by a few

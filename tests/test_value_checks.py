@@ -3,7 +3,7 @@
 One source, contract/layout.py SETTING_RANGES: the CLI's --param, the model.json loader, the
 modelDescription.xml min/max and the C runtime's ImuPipelineSettingsCheck (pinned here bound by
 bound); the artefact's temperature models and terms against the physical bounds of
-training/model_checks.py; the sidecar fields against training/sidecar.py.
+training/models/model_checks.py; the sidecar fields against training/data/sidecar.py.
 """
 from __future__ import annotations
 
@@ -19,18 +19,19 @@ import numpy as np
 import pytest
 
 from cli_errors import fails
-from fmu.model_description import model_description_xml
+from contract.errors import DataError, ModelError
 from contract.generate import ranges_markdown
-from training import io, model_checks, sidecar
+from contract.layout import SETTING_RANGES, SETTINGS, settings_array
+from contract.mounting import MOUNT_SETTINGS, mounting_problem
+from contract.ranges import FIELD_NORM_MAX_UT, FIELD_NORM_MIN_UT, RAO_BLACKWELL_POSITIVE
+from contract.schema import setting_problem
+from fmu.model_description import model_description_xml
 from training.artefact import ModelArtefact, load_artefact
 from training.cli import _param, main
-from contract.errors import DataError, ModelError
-from contract.layout import SETTING_RANGES, SETTINGS, settings_array
-from contract.ranges import FIELD_NORM_MAX_UT, FIELD_NORM_MIN_UT, RAO_BLACKWELL_POSITIVE
+from training.data import io, sidecar
+from training.models import model_checks
+from training.models.thermal import ThermalModel
 from training.runtime import load_runtime
-from contract.mounting import MOUNT_SETTINGS, mounting_problem
-from contract.schema import setting_problem
-from training.thermal import ThermalModel
 
 SOURCES = Path(__file__).resolve().parent.parent / "sources"
 

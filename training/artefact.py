@@ -16,13 +16,12 @@ from pathlib import Path
 import numpy as np
 
 from contract.errors import ModelError
-from contract.mounting import mounting_problem, settings_codes
-from contract.schema import setting_problem
 from contract.layout import (AUX_INPUTS, MAX_DEGREE, STAGE_BLOCKS, TERM_SIGNALS, TERM_TARGETS, TERMS_MAX,
                              TRIAD_ORDER, pack_coefficients, settings_defaults, terms_block)
-
-from .model_checks import flag_problem, term_problem, thermal_problem
-from .thermal import ThermalModel
+from contract.mounting import mounting_problem, settings_codes
+from contract.schema import setting_problem
+from training.models.model_checks import flag_problem, term_problem, thermal_problem
+from training.models.thermal import ThermalModel
 
 FORMAT = "imufusion-model"
 FORMAT_VERSION = 1

@@ -43,8 +43,8 @@ def _param(text: str) -> tuple[str, float]:
 
 
 def _degree(text: str):
-    """--degree: 'auto' or an integer 0..3 (training.degree.parse_degree)."""
-    from .degree import parse_degree
+    """--degree: 'auto' or an integer 0..3 (training.models.degree.parse_degree)."""
+    from training.models.degree import parse_degree
     try:
         return parse_degree(text)
     except ValueError as e:
@@ -53,36 +53,27 @@ def _degree(text: str):
 
 def cmd_simulate(args) -> None:
     """imufmu simulate SCENARIO.toml --out DIR [--seed N]."""
-    from .simulator import simulate_to_dir
+    from training.simulator import simulate_to_dir
     path = simulate_to_dir(args.scenario, args.out, seed=args.seed)
     print(f"wrote {path}")
 
 
 def cmd_train(args) -> None:
     """imufmu train DATA... --out DIR [--seed N] [--degree auto|P] [--allow-identity]."""
-    from .calibration_report import summary_text, write_calibration_report
-    from .io import read_imu_csv
-    from .train import train
-    datasets = [read_imu_csv(_existing_file(p, "data file")) for p in args.data]
-    artefact = train(datasets, seed=args.seed, degree=args.degree, allow_identity=args.allow_identity)
-    out = Path(args.out) / "model.json"
-    artefact.save(out)
-    report = write_calibration_report(artefact, datasets, args.out)
-    for note in artefact.notes:
+    from training.train import train_to_folder
+    done = train_to_folder([_existing_file(p, "data file") for p in args.data], args.out, seed=args.seed,
+                           degree=args.degree, allow_identity=args.allow_identity)
+    for note in done.notes:
         print(f"note: {note}")
     print()
-    print(summary_text(artefact, datasets))
-    print(f"wrote {out} and {report}")
+    print(done.summary)
+    print(f"wrote {done.model} and {done.report}")
 
 
 def cmd_build_fmu(args) -> None:
     """imufmu build-fmu --model DIR/model.json --out FILE.fmu."""
-    from .fmu_build import build_fmu
-    from .artefact import coefficients_array, load_artefact, settings_dict
-    artefact = load_artefact(_existing_file(args.model, "model artefact"))
-    path = build_fmu(coefficients_array(artefact), settings_dict(artefact), args.out,
-                     provenance=f"model {args.model}", fmi_version=args.fmi, aux_inputs=artefact.aux_inputs,
-                     training_data=artefact.training_data, notes=artefact.notes)
+    from training.fmu_build import build_fmu_from_model
+    path = build_fmu_from_model(_existing_file(args.model, "model artefact"), args.out, fmi_version=args.fmi)
     print(f"wrote {path} (FMI {args.fmi}.0 co-simulation)")
 
 
@@ -105,34 +96,20 @@ def cmd_validate(args) -> None:
 
 
 def cmd_run(args) -> None:
-    """imufmu run FILE.fmu DATA --out OUT.csv [--param NAME=VALUE ...]: the recording's aux_*
-    columns go into the auxiliary inputs the FMU's model maps them to."""
-    from fmu.archive import read_description
-    from fmu.cosim import run_fmu
-    from fmu.packer import fmu_aux_columns
-    from .io import read_imu_csv
-    from .pipeline import recording_parameters, write_outputs_csv
-    from .run_summary import run_notes
-    fmu_path = _existing_file(args.fmu, "FMU")
-    data = read_imu_csv(_existing_file(args.data, "data file"))
-    read_description(fmu_path)  # the archive checks (fmu.archive) before any member is read
-    params = recording_parameters(data) | dict(args.param or [])
-    try:
-        inputs = data.inputs(aux_columns=fmu_aux_columns(fmu_path))
-    except ValueError as e:
-        raise ImuFusionError(str(e)) from e
-    log: list[str] = []
-    out = run_fmu(fmu_path, data.t, inputs, parameters=params, progress=True, log=log)
-    for message in log:
+    """imufmu run FILE.fmu DATA --out OUT.csv [--param NAME=VALUE ...]."""
+    from training.main_job import run_recording
+    done = run_recording(_existing_file(args.fmu, "FMU"), _existing_file(args.data, "data file"), args.out,
+                         dict(args.param or []))
+    for message in done.log:
         print(f"FMU: {message}")
-    for note in run_notes(out):
+    for note in done.notes:
         print(f"note: {note}")
-    print(f"wrote {write_outputs_csv(args.out, data.t, out)} ({len(data)} samples)")
+    print(f"wrote {done.path} ({done.samples} samples)")
 
 
 def cmd_compare_thermal(args) -> None:
     """imufmu compare-thermal DATA... --out DIR [--runs N] [--seed N]."""
-    from .compare_thermal import compare_thermal
+    from training.bench.compare_thermal import compare_thermal
     paths = [_existing_file(p, "data file") for p in args.data]
     compare_thermal(paths, Path(args.out), runs=args.runs, seed=args.seed,
                     train_fraction=args.train_fraction)
@@ -141,7 +118,7 @@ def cmd_compare_thermal(args) -> None:
 
 def cmd_diagnose(args) -> None:
     """imufmu diagnose DATA... --model DIR/model.json --out REPORT_DIR."""
-    from .diagnose import diagnose
+    from training.diagnosis.diagnose import diagnose
     paths = [_existing_file(p, "data file") for p in args.data]
     result = diagnose(paths, _existing_file(args.model, "model artefact"), Path(args.out), seed=args.seed)
     selected = result.get("selected")
@@ -160,8 +137,8 @@ def cmd_diagnose(args) -> None:
 
 def cmd_bench(args) -> None:
     """imufmu bench broad|broad-trained [--trials ...] --out DIR | imufmu bench speed --out DIR."""
-    from .bench import bench_broad, bench_speed
-    from .bench_trained import bench_broad_trained
+    from training.bench.bench import bench_broad, bench_speed
+    from training.bench.bench_trained import bench_broad_trained
     if args.what == "broad":
         bench_broad(args.trials, Path(args.out))
     elif args.what == "broad-trained":
@@ -173,9 +150,9 @@ def cmd_bench(args) -> None:
 
 def cmd_pipeline(args) -> None:
     """imufmu pipeline [--out DIR] [--seed N]: the main job on the bundled defaults."""
-    from .pipeline import check_summary, run_pipeline
-    from .report import summary_table
-    summary = run_pipeline(Path(args.out), seed=args.seed)
+    from training.main_job import check_summary, run_main_job
+    from training.reports.report import summary_table
+    summary = run_main_job(Path(args.out), seed=args.seed)
     print()
     print(summary_table(summary))
     print(f"\nFMU: {summary.fmu_path}  (validation problems: {len(summary.validation_problems)})")
@@ -275,7 +252,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the `imufmu` console script; returns the exit status."""
-    from .io import report_load_notes
+    from training.data.io import report_load_notes
     args = build_parser().parse_args(argv)
     try:
         with report_load_notes(lambda note: print(note, flush=True)):

@@ -10,8 +10,8 @@ import numpy as np
 from contract.errors import ModelError
 from contract.layout import settings_array
 from fmu.packer import pack_fmu, reference_recording
-
-from .runtime import run_batch
+from training.artefact import coefficients_array, load_artefact, settings_dict
+from training.runtime import run_batch
 
 
 def reference_outputs(coefficients: np.ndarray, settings: dict[str, float]) -> np.ndarray:
@@ -34,3 +34,13 @@ def build_fmu(coefficients: np.ndarray, settings: dict, out_path: str | Path, **
     provenance, aux_inputs, training_data, notes)."""
     coefficients = np.asarray(coefficients, dtype=float)
     return pack_fmu(coefficients, settings, out_path, reference_outputs(coefficients, settings), **packing)
+
+
+def build_fmu_from_model(model_path: str | Path, out_path: str | Path, fmi_version: int = 2) -> Path:
+    """`imufmu build-fmu`: the FMU of the trained artefact at `model_path` (its coefficients,
+    settings, auxiliary inputs, training data and notes) at `out_path`; returns its path."""
+    artefact = load_artefact(model_path)
+    return build_fmu(coefficients_array(artefact), settings_dict(artefact), out_path,
+                     provenance=f"model {model_path}", fmi_version=fmi_version,
+                     aux_inputs=artefact.aux_inputs, training_data=artefact.training_data,
+                     notes=artefact.notes)

@@ -17,8 +17,8 @@ from dataclasses import replace
 import numpy as np
 
 from contract.mounting import IDENTITY, MOUNT_SETTINGS, Z_UP, mount_matrix
-
-from .dataset import ImuData
+from training.data.dataset import ImuData
+from training.frames import quat_from_matrix, quat_multiply
 
 #: Standard gravity [m/s²].
 GRAVITY = 9.80665
@@ -33,22 +33,6 @@ MIN_STATIC_SAMPLES = 100
 #: The median quasi-static gravity direction must be within this angle of a sensor axis [deg]
 #: for train to act on it: 30° is a board visibly tilted, not mounted another way.
 AXIS_TOLERANCE_DEG = 30.0
-
-
-def _matrix_quaternion(m: np.ndarray) -> np.ndarray:
-    """[w, x, y, z] of the rotation matrix m (proper, 3×3): the largest-component formula (Shepperd)."""
-    t = np.trace(m)
-    k = int(np.argmax([t, m[0, 0], m[1, 1], m[2, 2]]))
-    if k == 0:
-        s = 2.0 * np.sqrt(1.0 + t)
-        q = [0.25 * s, (m[2, 1] - m[1, 2]) / s, (m[0, 2] - m[2, 0]) / s, (m[1, 0] - m[0, 1]) / s]
-    else:
-        i, j, l = k - 1, k % 3, (k + 1) % 3
-        s = 2.0 * np.sqrt(1.0 + m[i, i] - m[j, j] - m[l, l])
-        q = np.zeros(4)
-        q[0], q[1 + i] = (m[l, j] - m[j, l]) / s, 0.25 * s
-        q[1 + j], q[1 + l] = (m[j, i] + m[i, j]) / s, (m[l, i] + m[i, l]) / s
-    return np.asarray(q) / np.linalg.norm(q)
 
 
 def body_references(data: ImuData, codes) -> ImuData:
@@ -69,9 +53,8 @@ def body_references(data: ImuData, codes) -> ImuData:
 def body_attitude(q_sensor: np.ndarray, codes) -> np.ndarray:
     """(N, 4) sensor -> nav quaternions as body -> nav of the mounting `codes`:
     q ⊗ q(Mᵀ) (body -> nav = sensor -> nav · body -> sensor)."""
-    from .evaluate import quaternion_multiply
-    q_body_to_sensor = _matrix_quaternion(mount_matrix(codes).T)
-    return quaternion_multiply(q_sensor, np.tile(q_body_to_sensor, (len(q_sensor), 1)))
+    q_body_to_sensor = quat_from_matrix(mount_matrix(codes).T)
+    return quat_multiply(q_sensor, np.tile(q_body_to_sensor, (len(q_sensor), 1)))
 
 
 def _static_directions(data: ImuData) -> np.ndarray:

@@ -2,7 +2,7 @@
 
 The sidecars (or the IGRF field at their site) give the earth field; the calibrated gyro at rest
 gives its noise density, the bias the calibration leaves and the rest-detection threshold; the
-calibrated field gives the particle filter's noise and thresholds (training.pf_settings); the
+calibrated field gives the particle filter's noise and thresholds (training.models.pf_settings); the
 self-calibration's field norm and dip stand in when the sidecars say nothing; the direction of
 gravity at rest gives the mounting (training.mounting).
 """
@@ -12,12 +12,11 @@ import numpy as np
 
 from contract.errors import ModelError
 from contract.layout import settings_defaults
-
-from .dataset import ImuData
-from .mounting import recommended_mounting
-from .reference import true_runs
-from .reference_source import TriadReference
-from .thermal import ThermalModel, apply_thermal
+from training.data.dataset import ImuData
+from training.data.reference import true_runs
+from training.data.reference_source import TriadReference
+from training.models.thermal import ThermalModel, apply_thermal
+from training.mounting import recommended_mounting
 
 #: A sample counts as static for the gyro bias residual when the true rate is below this
 #: [rad/s] (0.3 °/s: far above the reference noise of a rate table, far below any motion).
@@ -43,8 +42,8 @@ FIELD_NORM_SPREAD = 1.0
 
 def sidecar_values(datasets: list[ImuData], key: str) -> list[float]:
     """earth_field[key] (norm_ut, dip_deg, declination_deg) of every dataset whose sidecar gives it,
-    else of the IGRF field at the sidecar's site (training.geomag.site_field) when it gives one."""
-    from .geomag import site_field
+    else of the IGRF field at the sidecar's site (training.data.geomag.site_field) when it gives one."""
+    from training.data.geomag import site_field
     values = []
     for d in datasets:
         value = (d.meta.get("earth_field") or {}).get(key)
@@ -142,9 +141,9 @@ def _field_settings(datasets: list[ImuData], selfcal, notes: list[str]) -> dict[
 
 def _pf_settings(datasets: list[ImuData], model: ThermalModel, field_norm: float,
                  notes: list[str]) -> dict[str, float]:
-    """Particle-filter settings from the calibrated field of the recordings (training.pf_settings):
+    """Particle-filter settings from the calibrated field of the recordings (training.models.pf_settings):
     what the filter will see at run time, so that switching it on declares no change that is noise."""
-    from .pf_settings import pf_settings_from_calibration
+    from training.models.pf_settings import pf_settings_from_calibration
     usable = [d for d in datasets if d.has("mag")]
     if not usable:
         notes.append("pf_*: no magnetometer recorded; particle-filter defaults kept")

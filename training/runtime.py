@@ -18,8 +18,8 @@ from pathlib import Path
 
 import numpy as np
 
-from contract.errors import BuildError
 from contract import layout
+from contract.errors import BuildError
 
 SOURCES_DIR = Path(__file__).resolve().parent.parent / "sources"
 #: The batch library's own entry points (never in an FMU).

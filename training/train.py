@@ -2,7 +2,8 @@
 from __future__ import annotations
 
 from contextlib import contextmanager
-from dataclasses import replace
+from dataclasses import dataclass, replace
+from pathlib import Path
 
 import numpy as np
 import torch
@@ -10,19 +11,17 @@ from tqdm import tqdm
 
 from contract.errors import ModelError
 from contract.layout import TRIAD_ORDER
-
-from .artefact import ModelArtefact
-from .calibrated_range import range_notes
-from .dataset import ImuData
-from .degree import AUTO, ceiling, choose_degree, parse_degree
-from .fit_quality import fit_warnings
-from .recommend import recommended_settings, sidecar_values
-from .reference import matched_raw
-from .reference_source import TriadReference, choose_reference
-from .selfcal import SelfCalResult, self_calibrate
-from .thermal import (GainBiasFitter, ThermalFit, ThermalModel, apply_thermal, normalised_temperature,
-                      temperature_clusters,
-                      temperature_normalisation)
+from training.artefact import ModelArtefact
+from training.data.dataset import ImuData
+from training.data.reference import matched_raw
+from training.data.reference_source import TriadReference, choose_reference
+from training.models.calibrated_range import range_notes
+from training.models.degree import AUTO, ceiling, choose_degree, parse_degree
+from training.models.fit_quality import fit_warnings
+from training.models.thermal import (GainBiasFitter, ThermalFit, ThermalModel, apply_thermal,
+                                     normalised_temperature, temperature_clusters, temperature_normalisation)
+from training.recommend import recommended_settings, sidecar_values
+from training.selfcal import SelfCalResult, self_calibrate
 
 #: The ELM stage is switched on only when it lowers the held-out field error RMS of the
 #: calibration data by at least this fraction: a smaller gain is within what a different random
@@ -168,7 +167,7 @@ def _elm_stage(datasets: list[ImuData], thermal: dict[str, ThermalModel], seed: 
     error RMS of the held-out data (`_elm_holdout`) by ELM_MIN_GAIN; the block is fitted on all
     the data and kept but off otherwise.
     """
-    from . import elm
+    from training.models import elm
     usable = [d for d in datasets if d.ref_mag is not None and d.ref_q is not None and d.has("mag")]
     if not usable or not thermal["mag"].enabled:
         notes.append("elm: no magnetometer reference (ref_mag, ref_q) or no fitted magnetometer; "
@@ -203,7 +202,7 @@ def _psobp_stage(datasets: list[ImuData], thermal: dict[str, ThermalModel], seed
     Returns ({'psobp': block} or {}, enabled, stats); enabled by psobp.residual_psobp_wins, which
     fits on the first two thirds and switches the network on only for a held-out gain.
     """
-    from . import psobp
+    from training.models import psobp
     usable = [d for d in datasets if d.ref_gyr is not None and d.has("gyr") and np.isfinite(d.temp).any()]
     if not usable or not thermal["gyr"].enabled:
         notes.append("psobp: no gyro reference with temperature or no fitted gyro; PSO-BP stage off")
@@ -244,7 +243,7 @@ def _fit_with_reference(ref: TriadReference, degree, seed: int) -> tuple[Thermal
     """Fit one triad against the reference its recordings carry (columns, derived or static):
     the full gain/bias model when the reference moves along every axis, else the bias B(T) only.
     degree: 'auto' or the largest degree; the degree fitted is chosen from the data
-    (training.degree.choose_degree) and reported in the stats ('degree_choice') and the notes."""
+    (training.models.degree.choose_degree) and reported in the stats ('degree_choice') and the notes."""
     triad, datasets = ref.triad, list(ref.datasets)
     temp = np.concatenate([d.temp for d in datasets]).astype(np.float64)
     raw, target = _stack(datasets, triad), _stack(datasets, f"ref_{triad}")
@@ -309,10 +308,10 @@ def _prepared_datasets(datasets: list[ImuData], refs: dict[str, TriadReference])
 
 def _held_out(datasets: list[ImuData], refs: dict[str, TriadReference], degree, seed: int,
               selfcal, notes: list[str]) -> dict[str, dict]:
-    """Held-out error per triad (training.holdout): the same procedure refitted without the last
+    """Held-out error per triad (training.models.holdout): the same procedure refitted without the last
     quarter of every recording, scored on it; {} with a note when the recordings are too short."""
-    from .holdout import held_out
-    from .simulator.earth import STANDARD_GRAVITY
+    from training.data.earth import STANDARD_GRAVITY
+    from training.models.holdout import held_out
     norms = sidecar_values(datasets, "norm_ut")
     norm = float(np.mean(norms)) if norms else (selfcal.report.get("mag", {}).get("field_norm_ut") if selfcal else None)
 
@@ -383,10 +382,10 @@ def train(datasets: list[ImuData], seed: int = 0, degree: int | str = AUTO,
     """Fit the gain/bias temperature model of every triad and return the model artefact.
 
     datasets: calibration recordings. Per triad the best reference any recording offers is used
-    (training.reference_source: reference columns, an attitude reference, a static log); a triad
+    (training.data.reference_source: reference columns, an attitude reference, a static log); a triad
     without any is self-calibrated from invariants (training.selfcal). degree: 'auto' (default) or
     the largest polynomial degree (0..MAX_DEGREE) of G(T) and B(T); the degree fitted per triad is
-    chosen from the data (training.degree: no more than the distinct temperatures pin down, the
+    chosen from the data (training.models.degree: no more than the distinct temperatures pin down, the
     simplest that holds on held-out data; self-calibrated triads cap it by their rest temperatures).
     Deterministic given `seed`. Raises ModelError when `datasets` is empty,
     and when no triad can be calibrated unless allow_identity (then an identity model is returned).
@@ -432,3 +431,27 @@ def train(datasets: list[ImuData], seed: int = 0, degree: int | str = AUTO,
     return ModelArtefact(seed=seed, thermal=thermal, settings=settings, fit_stats=stats,
                          training_data=[{"name": d.name, "samples": len(d)} for d in datasets],
                          notes=notes, blocks=blocks)
+
+
+@dataclass
+class TrainedFolder:
+    """What `train_to_folder` wrote and what `imufmu train` prints."""
+
+    model: Path            # OUT/model.json
+    report: Path           # OUT/calibration.md
+    notes: list[str]       # the artefact's notes
+    summary: str           # the calibration summary (plain text)
+
+
+def train_to_folder(paths: list[Path], out_dir: str | Path, seed: int = 0, degree: int | str = AUTO,
+                    allow_identity: bool = False) -> TrainedFolder:
+    """`imufmu train`: read the recordings at `paths`, `train` on them, write OUT/model.json and the
+    calibration report OUT/calibration.md."""
+    from training.data.io import read_imu_csv
+    from training.reports.calibration_report import summary_text, write_calibration_report
+    datasets = [read_imu_csv(p) for p in paths]
+    artefact = train(datasets, seed=seed, degree=degree, allow_identity=allow_identity)
+    model = Path(out_dir) / "model.json"
+    artefact.save(model)
+    report = write_calibration_report(artefact, datasets, out_dir)
+    return TrainedFolder(model, report, list(artefact.notes), summary_text(artefact, datasets))

@@ -24,12 +24,12 @@ from dataclasses import dataclass
 import numpy as np
 from tqdm import tqdm
 
-from ..dataset import ImuData
-from ..simulator.earth import STANDARD_GRAVITY
-from ..thermal import ThermalModel, apply_thermal
-from . import accel, gyro, magnet
-from .rest import RestWindow, count_poses, detect_rest, group_poses
-from .temperature import count_clusters, normalisation, temperature_span
+from training.data.dataset import ImuData
+from training.data.earth import STANDARD_GRAVITY
+from training.models.thermal import ThermalModel, apply_thermal
+from training.selfcal import accel, gyro, magnet
+from training.selfcal.rest import RestWindow, count_poses, detect_rest, group_poses
+from training.selfcal.temperature import count_clusters, normalisation, temperature_span
 
 __all__ = ["RestWindow", "SelfCalResult", "self_calibrate"]
 

@@ -24,8 +24,8 @@ from dataclasses import dataclass, field
 import casadi as ca
 import numpy as np
 
-from .rest import RestWindow, count_poses
-from .temperature import choose_degree, cluster_labels, powers
+from training.selfcal.rest import RestWindow, count_poses
+from training.selfcal.temperature import choose_degree, cluster_labels, powers
 
 #: Local gravity differs from standard gravity by up to ±0.3 % (9.780 m/s² at the equator,
 #: 9.832 m/s² at the poles, less with altitude); the fitted gains scale with the g passed in.

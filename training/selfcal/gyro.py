@@ -28,12 +28,11 @@ import numpy as np
 import torch
 
 from contract.layout import MAX_DEGREE
-
-from ..dataset import ImuData
-from ..thermal import normalised_temperature
-from .accel import MAX_CONDITION, ModelCheck, gain_summary, judge
-from .rest import RestWindow
-from .temperature import choose_degree, count_clusters, powers
+from training.data.dataset import ImuData
+from training.models.thermal import normalised_temperature
+from training.selfcal.accel import MAX_CONDITION, ModelCheck, gain_summary, judge
+from training.selfcal.rest import RestWindow
+from training.selfcal.temperature import choose_degree, count_clusters, powers
 
 #: Earth rotation rate [rad/s] (WGS-84): its projection on the axes at rest is absorbed in B.
 EARTH_RATE = 7.292115e-5

@@ -4,7 +4,7 @@ accelerometer from the dip-angle invariant.
 1. Field norm: without disturbance the earth field has the same magnitude F in every pose, so
    h_c = M (h - o) must satisfy ‖h_c‖ = F for every sample of the recording: an ellipsoid fit
    (M symmetric, o the hard iron; Vasconcelos et al., "Geometric approach to strapdown
-   magnetometer calibration in sensor frame", IEEE TAES 2011; training/ellipsoid.py). It needs
+   magnetometer calibration in sensor frame", IEEE TAES 2011; training/models/ellipsoid.py). It needs
    field directions over much of the sphere; with fewer only the hard iron o (a sphere,
    M = F/r I) is identifiable, with a flat turn nothing. Samples disturbed by a local field
    (their calibrated norm off by more than OUTLIER_SIGMAS robust σ) are dropped and the fit repeated.
@@ -27,11 +27,12 @@ import numpy as np
 from scipy.optimize import least_squares
 from scipy.spatial.transform import Rotation
 
-from ..ellipsoid import MAX_SAMPLES, EllipsoidFit, apply_ellipsoid, fit_ellipsoid
-from ..thermal import ThermalModel, apply_thermal
-from .accel import MAX_CONDITION, ModelCheck, fit_norm_model, gain_summary, judge, pack, unpack
-from .rest import direction_groups
-from .temperature import choose_degree, cluster_labels, powers
+from training.models.ellipsoid import MAX_SAMPLES, EllipsoidFit, apply_ellipsoid, fit_ellipsoid
+from training.models.thermal import ThermalModel, apply_thermal
+from training.selfcal.accel import (MAX_CONDITION, ModelCheck, fit_norm_model, gain_summary, judge, pack,
+                                    unpack)
+from training.selfcal.rest import direction_groups
+from training.selfcal.temperature import choose_degree, cluster_labels, powers
 
 #: Equal-area cells of the coverage check: 6 bands of equal height in z (equal area on a sphere,
 #: Archimedes) x 12 sectors of azimuth = 72 cells of ~30° x 30°.
@@ -289,7 +290,7 @@ def _candidate_fit(mag: np.ndarray, field_norm: float | None, temp: np.ndarray |
     (t0, ts: the runtime's normalisation).
 
     field_norm: the local earth-field magnitude F [µT] the calibrated field is scaled to. Pass the
-    sidecar's earth_field.norm_ut, or a geomagnetic-model value (training.geomag) for the place
+    sidecar's earth_field.norm_ut, or a geomagnetic-model value (training.data.geomag) for the place
     and date of the recording, or the recording's own median raw norm; None uses the median norm
     about the hard-iron centre (sphere fit): the calibrated field is then in the sensor's own
     (uncalibrated) scale, and field_norm_source says so."""

@@ -25,8 +25,8 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from ..dataset import TRIADS, ImuData
-from ..reference import true_runs
+from training.data.dataset import TRIADS, ImuData
+from training.data.reference import true_runs
 
 #: Length of the sliding window [s]: long enough that its std estimates the noise to ~15 %
 #: (25 samples at 100 Hz, 12 at 50 Hz), short against a held pose of a few seconds.

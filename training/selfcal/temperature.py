@@ -1,7 +1,7 @@
 """Temperature side of the self-calibration: which distinct temperatures the rest windows pin
 down, the polynomial degree of B(T) they allow, and the matrix of powers of normalised temperature.
 
-The bias model is the runtime's (training/thermal.py): B_i(T) = sum_k b[i][k] Tn^k with
+The bias model is the runtime's (training/models/thermal.py): B_i(T) = sum_k b[i][k] Tn^k with
 Tn = (T - t0) / ts. A polynomial of degree P has P + 1 coefficients per axis, so it needs at
 least P + 1 distinct temperatures; windows closer than CLUSTER_WIDTH_C count as one.
 """
@@ -10,9 +10,8 @@ from __future__ import annotations
 import numpy as np
 
 from contract.layout import MAX_DEGREE
-
-from ..thermal import (CLUSTER_WIDTH_C, DEFAULT_T0, DEFAULT_TS, normalised_temperature,
-                       temperature_normalisation)
+from training.models.thermal import (CLUSTER_WIDTH_C, DEFAULT_T0, DEFAULT_TS, normalised_temperature,
+                                     temperature_normalisation)
 
 
 def cluster_labels(temp: np.ndarray) -> np.ndarray:
@@ -70,7 +69,7 @@ def _span_text(temp: np.ndarray) -> str:
 
 def normalisation(temps: list[np.ndarray]) -> tuple[float, float]:
     """(t0, ts) [°C] of the runtime's Tn over all recordings' temperatures (N_i,) each:
-    centre and half-range (training.thermal.temperature_normalisation), identity when none."""
+    centre and half-range (training.models.thermal.temperature_normalisation), identity when none."""
     joined = np.concatenate([np.asarray(t, dtype=np.float64) for t in temps]) if temps else np.array([])
     norm = temperature_normalisation(joined)
     return norm if norm is not None else (DEFAULT_T0, DEFAULT_TS)

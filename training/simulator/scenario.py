@@ -20,12 +20,11 @@ from pathlib import Path
 import numpy as np
 
 from contract.errors import ScenarioError
-
-from .earth import EarthField
-from .segments import AXIS_VECTORS, Figure8, Handheld, Hold, Positions, Rotations, Segment
-from .sensors import MagDistortion, SensorModel, TriadErrors
-from .temperature import TemperatureProfile
-from .toml_table import TomlTable
+from training.data.earth import EarthField
+from training.simulator.segments import AXIS_VECTORS, Figure8, Handheld, Hold, Positions, Rotations, Segment
+from training.simulator.sensors import MagDistortion, SensorModel, TriadErrors
+from training.simulator.temperature import TemperatureProfile
+from training.simulator.toml_table import TomlTable
 
 #: Triad -> (unit suffix used in TOML key names, factor from that unit to SI).
 TRIAD_UNITS = {"gyr": ("dps", np.pi / 180.0), "acc": ("ms2", 1.0), "mag": ("ut", 1.0)}

@@ -13,10 +13,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from contract.errors import ScenarioError
-
-from .quaternion import euler_from_quat, quat_conjugate, quat_from_euler, quat_multiply, quat_to_rotvec
-from .trajectory import (Chain, EulerMotion, Figure8Path, GatedClock, HeadingAngles, Motion,
-                         RandomAngles, RandomPath, SineSum, Slew, Still)
+from training.frames import euler_from_quat, quat_conjugate, quat_from_euler, quat_multiply, quat_to_rotvec
+from training.simulator.trajectory import (Chain, EulerMotion, Figure8Path, GatedClock, HeadingAngles, Motion,
+                                           RandomAngles, RandomPath, SineSum, Slew, Still)
 
 #: Body axis names accepted by rotation segments.
 AXIS_VECTORS = {"x": np.array([1.0, 0.0, 0.0]), "y": np.array([0.0, 1.0, 0.0]),

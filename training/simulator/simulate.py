@@ -5,12 +5,12 @@ from pathlib import Path
 
 import numpy as np
 
-from ..dataset import ImuData
-from ..io import write_imu_csv
-from .earth import GRAVITY_NED
-from .quaternion import make_continuous, quat_from_euler, rotate_to_body
-from .scenario import Scenario, load_scenario
-from .trajectory import Chain, Motion
+from training.data.dataset import ImuData
+from training.data.earth import GRAVITY_NED
+from training.data.io import write_imu_csv
+from training.frames import make_continuous, quat_from_euler, rotate_to_body
+from training.simulator.scenario import Scenario, load_scenario
+from training.simulator.trajectory import Chain, Motion
 
 #: Tolerance when counting samples in the scenario duration (duration · rate is usually an
 #: integer that floating point may miss by a few ulps).

@@ -18,7 +18,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .quaternion import body_rate_from_euler, quat_from_euler, quat_from_rotvec, quat_multiply
+from training.frames import body_rate_from_euler, quat_from_euler, quat_from_rotvec, quat_multiply
 
 
 # ----------------------------------------------------------------------------- smooth steps

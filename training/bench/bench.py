@@ -1,0 +1,367 @@
+"""Benchmarks that print tables: attitude accuracy on BROAD against open filters, and speed.
+
+BROAD data: D. Laidig, M. Caruso, A. Cereatti, T. Seel, "BROAD — A Benchmark for Robust Inertial
+Orientation Estimation", Data 6(7), 2021, doi:10.3390/data6070072 (CC-BY-4.0).
+
+Every filter runs causally on the raw recording of one trial; none sees the reference. Their
+quaternions are converted to body -> magnetic NED and scored with BROAD's error metric
+(q_err = q_est ⊗ q_ref⁻¹: total 2·acos|w|, heading 2·atan|z/w|, inclination 2·acos√(w²+z²);
+RMSE in degrees over eval_mask samples with a finite reference, no heading-offset alignment).
+"""
+from __future__ import annotations
+
+import csv
+import ctypes
+import time
+from pathlib import Path
+
+import numpy as np
+
+from contract import layout
+from training.data.dataset import ImuData
+from training.data.io import read_imu_csv
+from training.data.reference import reference_quaternion_magnetic
+from training.evaluate import tilt_heading_errors
+from training.frames import quat_multiply
+
+BROAD_CITATION = ("D. Laidig, M. Caruso, A. Cereatti, T. Seel, BROAD — A Benchmark for Robust Inertial "
+                  "Orientation Estimation, Data 6(7), 2021, doi:10.3390/data6070072, CC-BY-4.0")
+#: Trial-number ranges of BROAD's groups (inclusive).
+GROUPS = {"undisturbed": (1, 21), "disturbed": (24, 35), "all": (1, 39)}
+#: Settings of ImuFusion on BROAD: one set for every trial; field_norm/field_dip come from the sidecar.
+BROAD_SETTINGS = {"attitude_mode": 1.0, "rest_gyro_threshold": 0.035}
+#: Madgwick gain β [rad/s] prescribed for the comparison.
+MADGWICK_BETA = 0.12
+#: Trials also run through the FMU with fmpy to show that it equals the batch library.
+FMU_TRIALS = 1
+_Q_COLS = [layout.OUTPUTS.index(n) for n in ("q_w", "q_x", "q_y", "q_z")]
+#: body -> ENU to body -> NED: 180° about (x + y)/√2 (x_ned = y_enu, y_ned = x_enu, z_ned = -z_enu).
+_ENU_TO_NED = np.array([0.0, np.sqrt(0.5), np.sqrt(0.5), 0.0])
+
+
+def broad_dir(data_dir: str | Path | None = None) -> Path:
+    """Folder of the BROAD trials: data_dir, or <repo parent>/shared/data/broad."""
+    if data_dir is not None:
+        return Path(data_dir)
+    return Path(__file__).resolve().parent.parent.parent / "shared" / "data" / "broad"
+
+
+def trial_paths(trials: list[str] | None, data_dir: str | Path | None = None) -> list[Path]:
+    """Recordings of the trials whose name starts with one of `trials` (all when None)."""
+    folder = broad_dir(data_dir)
+    paths = sorted(folder.glob("*.csv.gz"))
+    if not paths:
+        raise FileNotFoundError(f"no BROAD trials (*.csv.gz) in {folder}")
+    if trials:
+        paths = [p for p in paths if any(p.name.startswith(t) for t in trials)]
+        if not paths:
+            raise FileNotFoundError(f"no BROAD trial in {folder} matches {trials}")
+    return paths
+
+
+def trial_number(data: ImuData) -> int:
+    """BROAD trial number from the recording name ('28_disturbed_...' -> 28)."""
+    return int(data.name.split("_", 1)[0])
+
+
+def imufusion_settings(data: ImuData, overrides: dict | None = None) -> list[float]:
+    """Flat settings array for one trial: BROAD_SETTINGS, the sidecar's field norm and dip, overrides."""
+    ef = data.meta.get("earth_field") or {}
+    values = {"field_norm": float(ef["norm_ut"]), "field_dip": float(np.deg2rad(ef["dip_deg"])),
+              **BROAD_SETTINGS, **(overrides or {})}
+    return layout.settings_array(values)
+
+
+def _inputs(data: ImuData) -> np.ndarray:
+    """(N, len(INPUTS)) runtime inputs of a BROAD trial: its triads and temperature, no auxiliary
+    signals (benchmarks/bench_magpf.py runs the chain on the same inputs)."""
+    return data.inputs()
+
+
+def run_imufusion(data: ImuData, overrides: dict | None = None) -> np.ndarray:
+    """(N, 4) body -> magnetic NED quaternion of the ImuFusion batch runtime (identity coefficients)."""
+    from training.runtime import run_batch
+    out = run_batch(layout.identity_coefficients(), imufusion_settings(data, overrides), data.t - data.t[0],
+                    _inputs(data))
+    return out[:, _Q_COLS]
+
+
+def _nwu_to_ned(q: np.ndarray) -> np.ndarray:
+    """(N, 4) body -> NWU quaternions to body -> NED: 180° about x (y_ned = -y_nwu, z_ned = -z_nwu)."""
+    return quat_multiply(np.tile([0.0, 1.0, 0.0, 0.0], (len(q), 1)), q)
+
+
+def run_vqf(data: ImuData) -> np.ndarray:
+    """(N, 4) body -> NED quaternion of VQF 9D, default parameters, causal (offline=False)."""
+    from vqf import VQF
+    ts = float(np.median(np.diff(data.t)))
+    filt = VQF(ts)
+    out = filt.updateBatch(np.ascontiguousarray(data.gyr), np.ascontiguousarray(data.acc),
+                           np.ascontiguousarray(data.mag))
+    return quat_multiply(np.tile(_ENU_TO_NED, (len(data), 1)), out["quat9D"])
+
+
+def run_xio_fusion(data: ImuData) -> np.ndarray:
+    """(N, 4) body -> NED quaternion of x-io Fusion (package imufusion), README-recommended settings:
+    gain 0.5, gyroscope range 2000 °/s, acceleration and magnetic rejection 10°, recovery 5 s,
+    gyroscope bias compensation (Bias, default settings)."""
+    import imufusion
+    rate = float(data.meta.get("rate_hz") or 1.0 / np.median(np.diff(data.t)))
+    bias = imufusion.Bias()
+    bias.set_settings(imufusion.BiasSettings(rate))
+    ahrs = imufusion.Ahrs()
+    ahrs.set_settings(imufusion.AhrsSettings(rate, imufusion.CONVENTION_NWU, 0.5, 2000.0, 10.0, 10.0, 5.0))
+    gyr = np.rad2deg(data.gyr)
+    acc = data.acc / 9.80665
+    q = np.empty((len(data), 4))
+    for k in range(len(data)):
+        ahrs.update(bias.update(gyr[k]), acc[k], data.mag[k])
+        q[k] = ahrs.get_quaternion()
+    return _nwu_to_ned(q)
+
+
+def run_madgwick(data: ImuData) -> np.ndarray:
+    """(N, 4) body -> NED quaternion of Madgwick's MARG filter (package ahrs), β = MADGWICK_BETA."""
+    from ahrs.filters import Madgwick
+    rate = float(data.meta.get("rate_hz") or 1.0 / np.median(np.diff(data.t)))
+    q = Madgwick(gyr=data.gyr, acc=data.acc, mag=data.mag, frequency=rate, gain=MADGWICK_BETA).Q
+    return _nwu_to_ned(q)
+
+
+#: Filters of the comparison: name -> function (ImuData -> (N, 4) body -> NED quaternion).
+FILTERS = {"ImuFusion": run_imufusion, "VQF 9D": run_vqf, "x-io Fusion": run_xio_fusion,
+           "Madgwick": run_madgwick}
+
+
+def broad_errors(q_est: np.ndarray, data: ImuData) -> dict[str, float]:
+    """BROAD RMSE [°] of total, heading and inclination error over eval_mask samples with a finite reference."""
+    out = np.zeros((len(data), len(layout.OUTPUTS)))
+    out[:, _Q_COLS] = q_est
+    tilt, heading = tilt_heading_errors(out, data).T
+    q_ref_inv = reference_quaternion_magnetic(data) * np.array([1.0, -1.0, -1.0, -1.0])
+    total = 2.0 * np.arccos(np.clip(np.abs(quat_multiply(q_est, q_ref_inv)[:, 0]), 0.0, 1.0))
+    mask = np.isfinite(data.ref_q).all(axis=1)
+    if data.eval_mask is not None:
+        mask &= data.eval_mask.astype(bool)
+
+    def rmse(e):
+        return float(np.rad2deg(np.sqrt(np.mean(e[mask] ** 2))))
+    return {"total": rmse(total), "heading": rmse(heading), "inclination": rmse(tilt)}
+
+
+#: Ablation of the attitude chain on BROAD: name -> settings overrides of BROAD_SETTINGS.
+ABLATION = {
+    "Euler adaptive gains (method, attitude_mode 0), no bias": {"attitude_mode": 0.0, "rest_gyro_threshold": 0.0},
+    "Euler adaptive gains + rest bias": {"attitude_mode": 0.0, "rest_gyro_threshold": 0.035},
+    "quaternion, no rest bias, no rejection": {"rest_gyro_threshold": 0.0, "mag_reject_time": 0.0},
+    "quaternion + rest bias, no rejection": {"mag_reject_time": 0.0},
+    "quaternion + rest bias + field rejection (BROAD set)": {},
+    "  same, tau_acc 1.5 s": {"tau_acc": 1.5},
+    "  same, tau_mag 20 s": {"tau_mag": 20.0},
+}
+
+
+def _group_of(number: int) -> list[str]:
+    """Groups a BROAD trial number belongs to."""
+    return [g for g, (lo, hi) in GROUPS.items() if lo <= number <= hi]
+
+
+def _group_means(rows: list[dict], key: str) -> dict[str, dict[str, float]]:
+    """Mean over trials of each metric, per (key value, group): {name: {group: {metric: mean}}}."""
+    out: dict = {}
+    for name in dict.fromkeys(r[key] for r in rows):
+        out[name] = {}
+        for group in GROUPS:
+            sel = [r for r in rows if r[key] == name and group in _group_of(r["trial"])]
+            if sel:
+                out[name][group] = {m: float(np.mean([r[m] for r in sel])) for m in ("total", "heading", "inclination")}
+                out[name][group]["n_trials"] = len(sel)
+    return out
+
+
+def _fmu_identity(datas: list[ImuData], work: Path) -> dict:
+    """Run the first FMU_TRIALS trials through the FMU (fmpy) and compare with the batch library."""
+    from fmu.cosim import run_fmu
+    from training.fmu_build import build_fmu
+    fmu_path = build_fmu(np.array(layout.identity_coefficients()), {}, work / "ImuFusion.fmu")
+    result = {}
+    for data in datas[:FMU_TRIALS]:
+        params = dict(zip((n for n, _ in layout.SETTINGS), imufusion_settings(data)))
+        params["enable_thermal"] = bool(params["enable_thermal"])
+        out = run_fmu(fmu_path, data.t - data.t[0], _inputs(data), params)
+        diff = np.abs(out[:, _Q_COLS] - run_imufusion(data))
+        result[data.name] = {"samples": len(data), "max_abs_q_difference": float(np.nanmax(diff))}
+    return result
+
+
+def _markdown(groups: dict, rows: list[dict], ablation: dict, fmu: dict) -> str:
+    """The Markdown report of bench_broad."""
+    lines = [f"BROAD data: {BROAD_CITATION}.", "",
+             "Mean over trials of the per-trial RMSE [°] (total / heading / inclination):", "",
+             "| filter | " + " | ".join(GROUPS) + " |", "|---|" + "---|" * len(GROUPS)]
+    for name, g in groups.items():
+        cells = [f"{g[k]['total']:.2f} / {g[k]['heading']:.2f} / {g[k]['inclination']:.2f} (n={g[k]['n_trials']})"
+                 if k in g else "–" for k in GROUPS]
+        lines.append(f"| {name} | " + " | ".join(cells) + " |")
+    lines += ["", "Total RMSE [°] per trial:", "", "| trial | " + " | ".join(FILTERS) + " |",
+              "|---|" + "---|" * len(FILTERS)]
+    for trial in dict.fromkeys(r["name"] for r in rows):
+        vals = {r["filter"]: r["total"] for r in rows if r["name"] == trial}
+        lines.append(f"| {trial} | " + " | ".join(f"{vals[f]:.2f}" for f in FILTERS) + " |")
+    lines += ["", "Ablation of the ImuFusion attitude chain (mean total RMSE [°]):", "",
+              "| variant | " + " | ".join(GROUPS) + " |", "|---|" + "---|" * len(GROUPS)]
+    for name, g in ablation.items():
+        lines.append(f"| {name} | " + " | ".join(f"{g[k]['total']:.2f}" if k in g else "–" for k in GROUPS) + " |")
+    lines += ["", "FMU (fmpy) against the batch library, max |Δq|:", ""]
+    lines += [f"- {name}: {v['max_abs_q_difference']:.3g} over {v['samples']} samples" for name, v in fmu.items()]
+    return "\n".join(lines) + "\n"
+
+
+def _plot(rows: list[dict], out_dir: Path) -> Path:
+    """Bar chart of the total RMSE per trial and filter -> broad_total_rmse.png."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    trials = list(dict.fromkeys(r["name"] for r in rows))
+    fig, ax = plt.subplots(figsize=(12, 4.5))
+    width = 0.8 / len(FILTERS)
+    for i, name in enumerate(FILTERS):
+        vals = [next(r["total"] for r in rows if r["name"] == t and r["filter"] == name) for t in trials]
+        ax.bar(np.arange(len(trials)) + (i - (len(FILTERS) - 1) / 2) * width, vals, width, label=name)
+    ax.set_xticks(np.arange(len(trials)), [t.split("_", 1)[0] for t in trials])
+    ax.set_xlabel("BROAD trial")
+    ax.set_ylabel("total RMSE [°]")
+    ax.set_yscale("log")
+    ax.legend()
+    ax.set_title("Attitude error on BROAD (Laidig et al. 2021, CC-BY-4.0)")
+    fig.tight_layout()
+    path = out_dir / "broad_total_rmse.png"
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
+def bench_broad(trials: list[str] | None, out_dir: str | Path, data_dir: str | Path | None = None) -> dict:
+    """Run ImuFusion (batch runtime, BROAD_SETTINGS), VQF 9D, x-io Fusion and Madgwick on BROAD trials.
+
+    trials: name prefixes ('01', '28_disturbed', ...) or None for every trial in the folder;
+    data_dir: folder of the imu-csv/1 trials (default <repo parent>/shared/data/broad). Writes
+    broad.md, broad.csv and broad_total_rmse.png to out_dir and prints the Markdown table.
+    Returns {"trials": [per-trial rows], "groups": {filter: {group: {total, heading, inclination,
+    n_trials}}}, "ablation": {variant: {group: ...}}, "fmu": {trial: max |Δq|}, "files": [...]}.
+    """
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    datas = [read_imu_csv(p) for p in trial_paths(trials, data_dir)]
+    rows, ablation_rows = [], []
+    for data in datas:
+        for name, run in FILTERS.items():
+            rows.append({"name": data.name, "trial": trial_number(data), "filter": name,
+                         **broad_errors(run(data), data)})
+        for name, overrides in ABLATION.items():
+            ablation_rows.append({"name": data.name, "trial": trial_number(data), "variant": name,
+                                  **broad_errors(run_imufusion(data, overrides), data)})
+    groups = _group_means(rows, "filter")
+    ablation = _group_means(ablation_rows, "variant")
+    fmu = _fmu_identity(datas, out_dir)
+    (out_dir / "ImuFusion.fmu").unlink(missing_ok=True)
+    text = _markdown(groups, rows, ablation, fmu)
+    (out_dir / "broad.md").write_text(text)
+    with open(out_dir / "broad.csv", "w", newline="") as f:
+        writer = csv.DictWriter(f, fieldnames=["name", "trial", "filter", "total", "heading", "inclination"])
+        writer.writeheader()
+        writer.writerows(rows)
+    plot = _plot(rows, out_dir)
+    print(text)
+    return {"trials": rows, "groups": groups, "ablation": ablation, "fmu": fmu,
+            "files": [str(out_dir / "broad.md"), str(out_dir / "broad.csv"), str(plot)]}
+
+
+def _best_time(fn, repeats: int = 3) -> float:
+    """Shortest wall time [s] of `repeats` calls of fn()."""
+    best = float("inf")
+    for _ in range(repeats):
+        start = time.perf_counter()
+        fn()
+        best = min(best, time.perf_counter() - start)
+    return best
+
+
+def _stage_switches() -> dict[str, dict[str, float]]:
+    """Settings that switch one stage of the default chain off: every enable_* setting."""
+    return {n: {n: 0.0} for n, _ in layout.SETTINGS if n.startswith("enable_")}
+
+
+def runtime_sizes() -> dict[str, int]:
+    """sizeof [bytes] of ImuAttitude, ImuPipeline and ModelInstance, from the compiled runtime library."""
+    from training.runtime import load_runtime
+    lib = load_runtime()
+    lib.ImuBatchSizes.argtypes = [ctypes.POINTER(ctypes.c_size_t)] * 3
+    lib.ImuBatchSizes.restype = None
+    sizes = [ctypes.c_size_t() for _ in range(3)]
+    lib.ImuBatchSizes(*(ctypes.byref(s) for s in sizes))
+    return dict(zip(("attitude", "pipeline", "model_instance"), (s.value for s in sizes)))
+
+
+def bench_speed(out_dir: str | Path) -> dict:
+    """Per-sample cost of the runtime (whole chain at default settings, each stage off, quaternion
+    mode), VQF's batch cost in the same run and the ratio; FMU doStep cost through fmpy; memory of
+    the runtime structs; training time on the simulated calibration set. Writes speed.md to out_dir,
+    prints it and returns the numbers (µs per sample, bytes, s)."""
+    from vqf import VQF
+    from fmu.cosim import run_fmu
+    from training.fmu_build import build_fmu
+    from training.main_job import DEFAULT_CALIBRATION, SCENARIO_DIR
+    from training.runtime import run_batch
+    from training.simulator import load_scenario, simulate
+    from training.train import train
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    data = simulate(load_scenario(SCENARIO_DIR / "eval_handheld.toml"), seed=1)
+    t, x, n = data.t - data.t[0], _inputs(data), len(data)
+    coefficients = layout.identity_coefficients()
+
+    def runtime_us(overrides: dict) -> float:
+        settings = layout.settings_array(overrides)
+        return 1e6 * _best_time(lambda: run_batch(coefficients, settings, t, x)) / n
+    runtime = {"whole chain (defaults)": runtime_us({})}
+    runtime.update({f"{name} off": runtime_us(o) for name, o in _stage_switches().items()})
+    runtime["attitude_mode 1 (quaternion, BROAD set)"] = runtime_us(BROAD_SETTINGS)
+    runtime["BROAD set, rest bias off"] = runtime_us({**BROAD_SETTINGS, "rest_gyro_threshold": 0.0})
+    runtime["BROAD set, field rejection off"] = runtime_us({**BROAD_SETTINGS, "mag_reject_time": 0.0})
+    gyr, acc, mag = (np.ascontiguousarray(a) for a in (data.gyr, data.acc, data.mag))
+    ts = float(np.median(np.diff(data.t)))
+    vqf_us = 1e6 * _best_time(lambda: VQF(ts).updateBatch(gyr, acc, mag)) / n
+    fmu_path = build_fmu(np.array(coefficients), {}, out_dir / "ImuFusion.fmu")
+    m = min(n, 20000)
+    fmu_us = 1e6 * _best_time(lambda: run_fmu(fmu_path, t[:m], x[:m]), repeats=1) / m
+    fmu_path.unlink()
+    calibration = simulate(load_scenario(SCENARIO_DIR / DEFAULT_CALIBRATION), seed=0)
+    start = time.perf_counter()
+    train([calibration], seed=0, progress=False)
+    train_s = time.perf_counter() - start
+    result = {"samples": n, "runtime_us": runtime, "vqf_batch_us": vqf_us,
+              "ratio_default_to_vqf": runtime["whole chain (defaults)"] / vqf_us,
+              "ratio_quaternion_to_vqf": runtime["attitude_mode 1 (quaternion, BROAD set)"] / vqf_us,
+              "fmu_step_us": fmu_us, "sizes_bytes": runtime_sizes(),
+              "train_s": train_s, "train_samples": len(calibration)}
+    text = _speed_markdown(result)
+    (out_dir / "speed.md").write_text(text)
+    print(text)
+    return result
+
+
+def _speed_markdown(r: dict) -> str:
+    """The Markdown report of bench_speed."""
+    lines = [f"Per-sample cost on the simulated handheld scenario ({r['samples']} samples, best of 3):", "",
+             "| what | µs/sample | × VQF batch |", "|---|---|---|"]
+    for name, us in r["runtime_us"].items():
+        lines.append(f"| ImuFusion runtime (batch), {name} | {us:.3f} | {us / r['vqf_batch_us']:.2f} |")
+    lines += [f"| VQF 9D (vqf.VQF.updateBatch) | {r['vqf_batch_us']:.3f} | 1.00 |",
+              f"| ImuFusion FMU doStep through fmpy (set inputs, doStep, get outputs) | {r['fmu_step_us']:.1f} | "
+              f"{r['fmu_step_us'] / r['vqf_batch_us']:.0f} |", "",
+              "Memory (sizeof, from ImuBatchSizes() in the runtime library):", ""]
+    lines += [f"- {k}: {v} bytes" for k, v in r["sizes_bytes"].items()]
+    lines += ["", f"Training (training.train.train on the simulated {r['train_samples']}-sample calibration set, "
+                  f"seed 0): {r['train_s']:.1f} s"]
+    return "\n".join(lines) + "\n"

@@ -1,0 +1,397 @@
+"""`imufmu diagnose`: find the effect a trained model lacks, add it to the model, report before/after.
+
+1. Run the model through the batch runtime (the FMU's C code) and form residuals of the
+   compensated triads against the reference the data has (ref_gyr/acc/mag, or derived from ref_q
+   by training.data.reference), or against an invariant without a reference: the field norm (sidecar
+   norm, else the median on the training blocks) and the gravity norm at rest.
+2. Split every recording into 3·BLOCKS contiguous blocks; every third is held out. Interleaved
+   blocks keep the held-out rows inside the ranges the fit saw (a temperature ramp, a drift), so
+   the bounded terms (training.diagnosis.diagnose_export) are judged where they are valid.
+3. Fit every candidate family of training.diagnosis.candidates on the training blocks and score it on the
+   held-out blocks (training.diagnosis.diagnose_fit: least squares, instruments for the target's own signal,
+   a batch-means test with Bonferroni over the candidates). The best significant family is grown by
+   forward selection: every other family of the same target is fitted jointly with the selected
+   ones and the one that improves the held-out residual most is added while it is significant and
+   explains at least MIN_EXPLAINED of what is left — so a lever arm with its centripetal part, or a
+   g-sensitivity with a lag, is found as one effect.
+4. Carry the effect (training.diagnosis.diagnose_export), rerun the runtime, measure before/after on the
+   held-out blocks, iterate.
+"""
+from __future__ import annotations
+
+import json
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+
+from contract.layout import INPUTS, TERM_SIGNALS, TERMS_MAX, TRIAD_ORDER, settings_array
+from training.artefact import ModelArtefact, coefficients_array, load_artefact, settings_dict
+from training.data.dataset import ImuData
+from training.data.io import read_imu_csv
+from training.data.reference import derive_references
+from training.diagnosis.candidates import (TRIAD_NAMES, build_candidates, central_differences,
+                                           instrument_signals)
+from training.diagnosis.diagnose_export import add_effect, aux_slots_needed, term_count
+from training.diagnosis.diagnose_fit import Fit, Residuals, fit_candidates, offset_fit, predict
+from training.diagnosis.effect_readings import DISPLAY, readings
+from training.main_job import recording_parameters
+from training.runtime import run_batch, term_signals
+from training.train import REFERENCE_OUTLIER_SIGMAS
+
+#: Held-out blocks per recording; each recording is cut into 3·BLOCKS blocks and every third is held
+#: out (a third of the rows). 16 blocks of a 150 s recording are ~3 s long, longer than the ~1 s
+#: correlation time of handheld motion (0.1-1 Hz); 15 degrees of freedom keep the Bonferroni-
+#: corrected t quantile moderate.
+BLOCKS = 16
+HOLDOUT_EVERY = 3
+#: Regression rows are decimated to at most this rate [Hz] (BROAD is 286 Hz): the batch-means test
+#: does not count rows as independent anyway.
+REGRESSION_RATE_HZ = 50.0
+#: Significance level after Bonferroni correction over the candidate count.
+ALPHA = 0.01
+#: A family must explain at least this share of the held-out residual it is compared with: below
+#: it, a "significant" fit on tens of thousands of rows is too small to matter for any metric.
+MIN_EXPLAINED = 0.05
+#: Time is a last-resort regressor (a drift with time since power-on does not transfer between
+#: power cycles): a family without `time` within this explained share of the best wins, and time
+#: never joins a combination.
+TIME_TIE = 0.02
+#: Iterations of select -> grow -> add -> rerun.
+MAX_ITERATIONS = 4
+#: Families one effect may combine.
+MAX_FAMILIES = 4
+#: Rest detection for the gravity-norm invariant [rad/s].
+REST_RATE = 0.05
+_SLICES = {"gyr": slice(0, 3), "acc": slice(3, 6), "mag": slice(6, 9)}
+_METRIC_NAMES = {"gyr": "rate error RMS", "acc": "specific-force error RMS", "mag": "field error RMS"}
+_AUX_SLOTS = [n for n in INPUTS if n.startswith("aux_")]
+
+
+def targets_of(data: ImuData) -> dict[str, str]:
+    """target -> kind ('triad' or 'norm') for the residuals this recording supports."""
+    out = {}
+    for triad in TRIAD_ORDER:
+        if not data.has(triad):
+            continue
+        ref = getattr(data, f"ref_{triad}")
+        if ref is not None and np.isfinite(ref).any():
+            out[triad] = "triad"
+        elif triad in ("mag", "acc"):
+            out[f"{triad}_norm"] = "norm"
+    return out
+
+
+def _reference_norm(target: str, data: ImuData, comp: np.ndarray, rows: np.ndarray) -> float:
+    """Invariant magnitude: sidecar field norm / standard gravity, else the training-block median."""
+    if target == "mag_norm" and data.field_norm_ut is not None:
+        return data.field_norm_ut
+    if target == "acc_norm":
+        return 9.80665
+    return float(np.nanmedian(np.linalg.norm(comp[rows], axis=1)))
+
+
+def _run(artefact: ModelArtefact, data: ImuData, terms: bool = True) -> np.ndarray:
+    """Runtime outputs of `data` with the artefact (without its terms when terms=False)."""
+    art = artefact if terms else replace(artefact, terms=[])
+    values = settings_dict(art)
+    values.update(recording_parameters(data))
+    inputs = data.inputs([a["column"] for a in art.aux_inputs])
+    return run_batch(coefficients_array(art), np.asarray(settings_array(values)), data.t, inputs)
+
+
+def _blocks(t: np.ndarray) -> np.ndarray:
+    """(N,) block index 0..3·BLOCKS−1 of every row by time."""
+    span = max(t[-1] - t[0], 1e-9)
+    return np.minimum((HOLDOUT_EVERY * BLOCKS * (t - t[0]) / span).astype(int), HOLDOUT_EVERY * BLOCKS - 1)
+
+
+def holdout_rows(t: np.ndarray) -> np.ndarray:
+    """(N,) bool: the rows of the held-out blocks of a recording with sample times t [s]."""
+    return _blocks(t) % HOLDOUT_EVERY == HOLDOUT_EVERY - 1
+
+
+def _signals(d: ImuData, out0: np.ndarray) -> dict[str, np.ndarray]:
+    """Candidate signals of one recording: the runtime's term signals (from the compensated triads
+    before the terms), the recording's aux columns and the central differences of the triads."""
+    sig = term_signals(d.t, out0[:, :9], d.temp)
+    signals = {name: sig[:, k] for k, name in enumerate(TERM_SIGNALS) if name not in _AUX_SLOTS}
+    signals.update(d.aux)
+    for triad, cols in _SLICES.items():
+        dc = central_differences(out0[:, cols], d.t)
+        signals.update({f"dc_{triad}_{a}": dc[:, k] for k, a in enumerate("xyz")})
+    return signals
+
+
+def _residual(target: str, kind: str, d: ImuData, out: np.ndarray, fitted: np.ndarray):
+    """(residual (N, m), unit vectors (N, 3) or None) of one target."""
+    triad = target.split("_")[0]
+    comp = out[:, _SLICES[triad]]
+    if kind == "triad":
+        return comp - getattr(d, f"ref_{triad}"), None
+    norm = np.linalg.norm(comp, axis=1)
+    r = norm - _reference_norm(target, d, comp, fitted)
+    if triad == "acc":
+        r = np.where(np.linalg.norm(out[:, 0:3], axis=1) < REST_RATE, r, np.nan)
+    return _without_disturbances(r)[:, None], comp / norm[:, None]
+
+
+def _without_disturbances(r: np.ndarray) -> np.ndarray:
+    """A norm residual with NaN where it is further than REFERENCE_OUTLIER_SIGMAS robust standard
+    deviations (1.4826 · MAD) from its median: an invariant only holds where nothing outside the
+    sensor changes it (x-io's log: a 12 s magnetic disturbance lowers the field norm by 13 %, and
+    the norm target would otherwise fit it with rate terms that distort every undisturbed field)."""
+    ok = np.isfinite(r)
+    if ok.sum() < 10:
+        return r
+    centre = np.median(r[ok])
+    scale = 1.4826 * np.median(np.abs(r[ok] - centre))
+    return np.where(np.abs(r - centre) <= REFERENCE_OUTLIER_SIGMAS * scale, r, np.nan)
+
+
+def residuals(artefact: ModelArtefact, datasets: list[ImuData], targets: dict[str, str]) -> Residuals:
+    """Residuals of every target and the candidate signals, stacked over the recordings."""
+    parts = []
+    for k, d in enumerate(datasets):
+        out, out0 = _run(artefact, d), _run(artefact, d, terms=False)
+        block, held = _blocks(d.t), holdout_rows(d.t)
+        step = max(1, int(round(float(1.0 / np.median(np.diff(d.t))) / REGRESSION_RATE_HZ)))
+        sampled = np.zeros(len(d), bool)
+        sampled[::step] = True
+        mask = np.ones(len(d), bool) if d.eval_mask is None else d.eval_mask.astype(bool)
+        res = {t: _residual(t, kind, d, out, ~held) for t, kind in targets.items()}
+        parts.append(dict(t=d.t, signals=_signals(d, out0), res=res, train=sampled & ~held, test=sampled & held,
+                          holdout=held & mask, fitted=~held,
+                          block=np.where(held, k * HOLDOUT_EVERY * BLOCKS + block, -1)))
+    keys = set.intersection(*(set(p["signals"]) for p in parts))
+    signals = {k: np.concatenate([p["signals"][k] for p in parts]) for k in sorted(keys)}
+    starts = np.cumsum([0] + [len(d) for d in datasets[:-1]])
+    return Residuals(
+        t=np.concatenate([p["t"] for p in parts]), starts=starts, signals=signals,
+        instruments={triad: instrument_signals(signals, triad, starts) for triad in TRIAD_NAMES},
+        residual={t: np.concatenate([p["res"][t][0] for p in parts]) for t in targets},
+        direction={t: np.concatenate([p["res"][t][1] for p in parts]) for t in targets if targets[t] == "norm"},
+        **{k: np.concatenate([p[k] for p in parts]) for k in ("train", "test", "holdout", "fitted", "block")})
+
+
+def metric(r: Residuals, target: str) -> float:
+    """Held-out RMS of a target's residual in its display unit (°/s, m/s², µT)."""
+    e = r.residual[target][r.holdout] * DISPLAY[target.split("_")[0]][1]
+    e = e[np.isfinite(e)]
+    return float(np.sqrt(np.mean(e * e))) if e.size else float("nan")
+
+
+def metric_name(target: str) -> str:
+    """'rate error RMS (held-out), °/s' style name of the target's metric."""
+    triad = target.split("_")[0]
+    return f"{'norm ' if target.endswith('_norm') else ''}{_METRIC_NAMES[triad]} (held-out), {DISPLAY[triad][0]}"
+
+
+def _uses_time(fit: Fit) -> bool:
+    return any("time" in c.signals() for c in fit.candidates)
+
+
+def _carriable(fit: Fit, r: Residuals, artefact: ModelArtefact) -> bool:
+    """The artefact has room for the fit's terms and aux inputs."""
+    aux_free = len(_AUX_SLOTS) - len(artefact.aux_inputs)
+    return term_count(fit, r, artefact) <= TERMS_MAX and len(aux_slots_needed(fit, artefact)) <= aux_free
+
+
+def _select(fits: list[Fit], r: Residuals, artefact: ModelArtefact) -> tuple[Fit | None, list[str]]:
+    """Best significant fit the FMU has room for, and notes on what was passed over."""
+    notes = []
+    ok = [f for f in fits if f.explained_fraction >= MIN_EXPLAINED and f.p_value < ALPHA]
+    fitting = [f for f in ok if _carriable(f, r, artefact)]
+    if len(fitting) < len(ok):
+        notes.append(f"significant candidates needing more than the free {TERMS_MAX} term slots or "
+                     f"{len(_AUX_SLOTS)} aux inputs were skipped")
+    if not fitting:
+        return None, notes
+    best = max(fitting, key=lambda f: f.explained_fraction)
+    if _uses_time(best):
+        others = [f for f in fitting if not _uses_time(f) and f.explained_fraction >= best.explained_fraction - TIME_TIE]
+        if others:
+            alt = max(others, key=lambda f: f.explained_fraction)
+            notes.append(f"'{alt.label}' chosen over 'time' ({alt.explained_fraction:.1%} vs "
+                         f"{best.explained_fraction:.1%}): time is the last-resort regressor")
+            best = alt
+    return best, notes
+
+
+def _grow(best: Fit, candidates, r: Residuals, base0: Fit, artefact: ModelArtefact) -> Fit:
+    """Forward selection: add the family of the same target that improves the held-out residual
+    most, while significant (Bonferroni over the families tried) and explaining ≥ MIN_EXPLAINED.
+    A time shift stands alone: its fit is linear in the lag, the runtime's shift is not
+    (training.diagnosis.diagnose.refine_lag), so a family grown on its linearisation would fit the difference."""
+    combo = best
+    while len(combo.candidates) < MAX_FAMILIES and best.candidates[0].kind != "lag":
+        others = [c for c in candidates if c.target == combo.target and c not in combo.candidates
+                  and "time" not in c.signals() and c.kind != "lag"]
+        tries = [fit_candidates(combo.candidates + (c,), r, combo, base0, len(others)) for c in others]
+        ok = [f for f in tries if f is not None and f.p_value < ALPHA and f.gain >= MIN_EXPLAINED
+              and _carriable(f, r, artefact)]
+        if not ok:
+            return combo
+        combo = max(ok, key=lambda f: f.gain)
+    return combo
+
+
+def _fitted_rms(artefact: ModelArtefact, datasets: list[ImuData], triad: str) -> float:
+    """RMS of a triad's residual against its reference over the training blocks of every recording."""
+    sq, n = 0.0, 0
+    for d in datasets:
+        e = (_run(artefact, d)[:, _SLICES[triad]] - getattr(d, f"ref_{triad}"))[~holdout_rows(d.t)]
+        e = e[np.all(np.isfinite(e), axis=1)]
+        sq, n = sq + float(np.sum(e * e)), n + e.size
+    return np.sqrt(sq / max(n, 1))
+
+
+def refine_lag(new: ModelArtefact, old: ModelArtefact, effect: Fit, datasets: list[ImuData]) -> ModelArtefact:
+    """For a time shift, the lag that minimises the training-block residual through the runtime,
+    searched within ±50 % of the linearised estimate's step (bounded Brent, to 0.01 sample)."""
+    if effect.candidates[0].kind != "lag":
+        return new
+    from scipy.optimize import minimize_scalar
+    name = f"lag_{effect.target}"
+    start, step = old.settings.get(name, 0.0), new.settings[name] - old.settings.get(name, 0.0)
+    lo, hi = sorted((start + 0.5 * step, start + 1.5 * step))
+
+    def with_lag(tau: float) -> ModelArtefact:
+        return replace(new, settings={**new.settings, name: float(tau)})
+
+    best = minimize_scalar(lambda tau: _fitted_rms(with_lag(tau), datasets, effect.target), bounds=(lo, hi),
+                           method="bounded", options={"xatol": 0.01 / _rate(datasets)})
+    return with_lag(best.x)
+
+
+def _lag_changes(old: ModelArtefact, new: ModelArtefact) -> dict[str, float]:
+    """triad -> lag [s] added between two artefacts (triads whose lag changed)."""
+    out = {}
+    for triad in TRIAD_NAMES:
+        step = new.settings.get(f"lag_{triad}", 0.0) - old.settings.get(f"lag_{triad}", 0.0)
+        if step != 0.0:
+            out[triad] = step
+    return out
+
+
+def _candidate_json(f: Fit) -> dict:
+    return {"name": f.label, "target": f.target, "regressors": [x for c in f.candidates for x in c.labels()],
+            "explained_fraction": f.explained_fraction, "p_value": f.p_value}
+
+
+def _rate(datasets: list[ImuData]) -> float:
+    return float(1.0 / np.median(np.concatenate([np.diff(d.t) for d in datasets])))
+
+
+def load_recordings(paths: list[Path]) -> tuple[list[ImuData], list[str]]:
+    """Read the recordings and derive missing references from ref_q (notes say what was derived)."""
+    datasets, notes = [], []
+    for p in paths:
+        data, derived = derive_references(read_imu_csv(p))
+        datasets.append(data)
+        notes += [f"{data.name}: {n}" for n in derived]
+    return datasets, notes
+
+
+def _aux_info(datasets: list[ImuData]) -> dict[str, dict]:
+    """Unit and meaning of aux columns from the sidecars' optional
+    {"aux": {column: {"unit": "A", "meaning": "motor current"}}} (text entries only)."""
+    out: dict[str, dict] = {}
+    for d in datasets:
+        aux = d.meta.get("aux")
+        for column, info in (aux.items() if isinstance(aux, dict) else ()):
+            if isinstance(info, dict):
+                out.setdefault(column, {}).update({k: v for k, v in info.items()
+                                                   if k in ("unit", "meaning") and isinstance(v, str)})
+    return out
+
+
+def _iterate(artefact: ModelArtefact, datasets: list[ImuData], targets: dict[str, str], max_iterations: int,
+             progress: bool):
+    """Select, grow, add, rerun; returns (artefact, residuals, iterations, first ranking, plot data, notes)."""
+    from tqdm import tqdm
+    r = residuals(artefact, datasets, targets)
+    current, iterations, first, plot_data, notes = artefact, [], None, None, []
+    rate, info = _rate(datasets), _aux_info(datasets)
+    units = {k: v["unit"] for k, v in info.items() if "unit" in v}
+    rejected: set[tuple[str, str]] = set()
+    for k in range(max_iterations):
+        candidates = [c for c in build_candidates(r.signals, list(targets)) if (c.target, c.name) not in rejected]
+        base = {t: offset_fit(t, r) for t in targets}
+        fits = [f for f in (fit_candidates((c,), r, base[c.target], base[c.target], len(candidates))
+                            for c in tqdm(candidates, desc=f"diagnose: candidates, iteration {k + 1}",
+                                          unit="family", disable=not progress, leave=False)) if f is not None]
+        fits.sort(key=lambda f: -f.explained_fraction)
+        first = fits if first is None else first
+        best, why = _select(fits, r, current)
+        notes += why
+        if best is None:
+            break
+        effect = _grow(best, candidates, r, base[best.target], current)
+        new = refine_lag(add_effect(current, effect, r, effect.label, info), current, effect, datasets)
+        r_new = residuals(new, datasets, targets)
+        if not metric(r_new, effect.target) < metric(r, effect.target):
+            notes.append(f"'{effect.label}' on {effect.target} explained {effect.explained_fraction:.1%} in the fit "
+                         f"but did not lower the held-out error through the runtime ({metric(r, effect.target):.4g} → "
+                         f"{metric(r_new, effect.target):.4g}): not added")
+            rejected |= {(c.target, c.name) for c in effect.candidates}
+            continue
+        iterations.append({"selected": {**_candidate_json(effect), "families": [c.name for c in effect.candidates],
+                                        "terms": term_count(effect, r, current) - len(current.terms),
+                                        "offset": effect.offset.tolist(),
+                                        "readings": readings(effect, rate, units, _lag_changes(current, new))},
+                           "target": effect.target, "metric": metric_name(effect.target),
+                           "before": metric(r, effect.target), "after": metric(r_new, effect.target),
+                           "candidates": [_candidate_json(f) for f in fits[:10]]})
+        plot_data = plot_data or (r, r_new, effect, predict(effect, r))
+        current, r = new, r_new
+    return current, r, iterations, first or [], plot_data, notes
+
+
+def diagnose(paths: list[Path], model_path: Path, out_dir: Path, seed: int = 0,
+             max_iterations: int = MAX_ITERATIONS, plots: bool = True, progress: bool = True) -> dict:
+    """Diagnose recordings `paths` with the artefact `model_path`; write out_dir/diagnosis.json,
+    out_dir/model.json (the artefact carrying the effects found) and out_dir/report.md (+ PNG plots).
+
+    Returns the diagnosis.json document. Deterministic: least squares and fixed splits only; `seed`
+    is recorded in the new artefact's provenance (nothing is drawn at random).
+    """
+    from training.diagnosis.diagnose_report import write_report
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    artefact = load_artefact(model_path)
+    datasets, notes = load_recordings([Path(p) for p in paths])
+    targets = {}
+    for d in datasets:
+        targets.update(targets_of(d))
+    r0 = residuals(artefact, datasets, targets)
+    start = {t: metric(r0, t) for t in targets}
+    current, r, iterations, first_fits, plot_data, why = _iterate(artefact, datasets, targets, max_iterations, progress)
+    first = iterations[0] if iterations else None
+    target = first["target"] if first else (first_fits[0].target if first_fits else next(iter(targets)))
+    before, after = start[target], metric(r, target)
+    result = {
+        "target": target, "metric": metric_name(target),
+        "candidates": [_candidate_json(f) for f in first_fits],
+        "selected": ({k: first["selected"][k] for k in ("name", "target", "regressors", "families", "readings")}
+                     if first else None),
+        "before": before, "after": after,
+        "improvement_pct": 100.0 * (before - after) / before if first and before > 0 else 0.0,
+        "iterations": iterations,
+        "metrics_before": {t: start[t] for t in targets},
+        "metrics_after": {t: metric(r, t) for t in targets},
+        "recordings": [{"name": d.name, "samples": len(d)} for d in datasets],
+        "holdout": f"every {HOLDOUT_EVERY}rd of {HOLDOUT_EVERY * BLOCKS} contiguous blocks of each recording",
+        "alpha_bonferroni": ALPHA, "min_explained": MIN_EXPLAINED,
+        "regression_rate_hz": REGRESSION_RATE_HZ,
+        "thermal_refitted": "no (each effect's offset is a constant correction term of its triad)",
+        "test": (f"one-sided t test of held-out predictive accuracy: ln(SSE_base/SSE_candidate) over the {BLOCKS} "
+                 "held-out blocks of each recording"),
+        "model_in": str(model_path), "seed": seed, "notes": notes + why,
+        "conclusion": ("nothing significant left" if not iterations else
+                       f"added: {', '.join(s['selected']['name'] + ' -> ' + s['target'] for s in iterations)}"),
+    }
+    current.save(out_dir / "model.json")
+    (out_dir / "diagnosis.json").write_text(json.dumps(result, indent=2, ensure_ascii=False) + "\n", encoding="utf-8")
+    write_report(out_dir, result, plot_data if plots else None)
+    return result

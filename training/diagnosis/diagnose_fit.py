@@ -1,0 +1,200 @@
+"""Fitting candidate families to the diagnosis residuals and testing them on held-out data.
+
+Regression: the residual of a triad target is stacked over its three components, with a
+per-component offset; a norm target (no reference) is linearised, |x − δ| − n ≈ r − u·δ with
+u = x/|x|, so an offset vector δ and a column effect e enter as u·δ and u·e. Least squares on the
+training rows, columns scaled to unit RMS, SVD truncated at RCOND. A family built from the target's
+own triad shares the target's noise, so least squares would fit the noise on itself (a pure-noise
+residual regressed on x·|x| explains ~85 %); it is fitted by two-stage least squares (instrumental
+variables: Angrist & Pischke 2009, ch. 4) with the same columns formed from neighbour means
+(training.diagnosis.candidates.instrument_signals), which carry the motion but not the noise of the sample.
+
+Significance: a one-sided test of predictive accuracy over batches (Diebold & Mariano 1995, J. Bus.
+Econ. Stat. 13(3); batch means: Schmeiser 1982, Oper. Res. 30(3)). The held-out rows form contiguous
+blocks; d_b = ln(SSE_base,b / SSE_candidate,b), the log of how much block b's squared error shrinks,
+and t = mean(d)/(sd(d)/√K) is Student t with K − 1 degrees of freedom when the candidate does not
+predict better than the base (the offset alone, or the families already selected). Blocks seconds
+long are nearly independent even when the residual varies slowly. The log ratio weighs every block
+alike: with a difference of squared errors, an effect that grows with the motion (a rate
+nonlinearity, a lag) or with the temperature rate is judged by its few largest blocks, and a
+94 %-explained temperature-rate bias came out p ≈ 0.01.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy import stats
+
+from training.diagnosis.candidates import Candidate, column_effects
+
+#: Relative singular-value cut of the column-scaled least squares: a combination of columns that
+#: varies by less than 1 % of the strongest one — e.g. mag_x²+mag_y²+mag_z² at a constant field
+#: norm — would need coefficients ≥ 100× the effect it explains and would amplify noise, so it is
+#: dropped (truncated SVD) instead of fitted.
+RCOND = 0.01
+OFFSETS = 3
+
+
+@dataclass
+class Residuals:
+    """Stacked over recordings: per target (N, m) residuals and, for norms, unit vectors (N, 3)."""
+
+    t: np.ndarray                          # (N,) s, per recording time
+    starts: np.ndarray                     # first row of every recording
+    signals: dict[str, np.ndarray]         # name -> (N,)
+    instruments: dict[str, dict]           # triad -> signals with that triad's instruments
+    residual: dict[str, np.ndarray]        # target -> (N, 3) triad or (N, 1) norm
+    direction: dict[str, np.ndarray]       # norm target -> (N, 3) unit vectors
+    train: np.ndarray                      # (N,) bool, regression rows of the training blocks
+    test: np.ndarray                       # (N,) bool, regression rows of the held-out blocks
+    holdout: np.ndarray                    # (N,) bool, every held-out row counted by the metric
+    fitted: np.ndarray                     # (N,) bool, every row of the training blocks (term ranges)
+    block: np.ndarray                      # (N,) held-out block id (−1 in the training blocks)
+
+
+@dataclass
+class Fit:
+    """Families fitted jointly on one target: beta = [offset (3), column coefficients...]."""
+
+    candidates: tuple[Candidate, ...]
+    beta: np.ndarray
+    explained_fraction: float     # share of the offset-only held-out residual explained
+    gain: float                   # share of the base's held-out residual explained
+    p_value: float                # one-sided, against the base, Bonferroni-corrected by the caller's count
+
+    @property
+    def target(self) -> str:
+        return self.candidates[0].target
+
+    @property
+    def label(self) -> str:
+        """The fitted families' names joined by ' + ', as reports and notes show them."""
+        return " + ".join(c.name for c in self.candidates)
+
+    @property
+    def offset(self) -> np.ndarray:
+        return self.beta[:OFFSETS]
+
+    def coefficients(self) -> list[np.ndarray]:
+        """Column coefficients per candidate."""
+        out, k = [], OFFSETS
+        for c in self.candidates:
+            out.append(self.beta[k:k + len(c.columns)])
+            k += len(c.columns)
+        return out
+
+
+def _effects(cands, r: Residuals, rows: np.ndarray, instrument: bool) -> np.ndarray:
+    """(n, J, 3) column effects of the candidates at rows (instrument columns if asked and own)."""
+    parts = []
+    for c in cands:
+        signals = r.instruments[c.triad] if instrument and c.own else r.signals
+        parts.append(column_effects(c, signals, rows))
+    return np.concatenate(parts, axis=1) if parts else np.zeros((int(rows.sum()), 0, 3))
+
+
+def design(cands, target: str, r: Residuals, rows: np.ndarray, instrument: bool = False):
+    """(y, X, sample): the stacked regression at `rows`; sample maps each stacked row to its row."""
+    E = _effects(cands, r, rows, instrument)
+    y = r.residual[target][rows]
+    n = len(y)
+    if y.shape[1] == 3:
+        X = np.concatenate([np.column_stack([np.tile(np.eye(3)[c], (n, 1)), E[:, :, c]]) for c in range(3)])
+        return y.T.ravel(), X, np.tile(np.arange(n), 3)
+    u = r.direction[target][rows]
+    return y[:, 0], np.column_stack([u, np.einsum("njc,nc->nj", E, u)]), np.arange(n)
+
+
+def _lstsq(X: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """Least squares of y on the columns of X, scaled to unit RMS, by SVD truncated at RCOND."""
+    scale = np.sqrt(np.mean(X * X, axis=0))
+    scale[scale == 0] = 1.0
+    beta = np.linalg.lstsq(X / scale, y, rcond=RCOND)[0]
+    return beta / (scale if beta.ndim == 1 else scale[:, None])
+
+
+def solve(X: np.ndarray, y: np.ndarray, Z: np.ndarray | None = None) -> np.ndarray:
+    """Least squares, or two-stage least squares with instruments Z (same shape as X)."""
+    if Z is None:
+        return _lstsq(X, y)
+    return _lstsq(Z @ _lstsq(Z, X), y)
+
+
+def _finite(*arrays) -> np.ndarray:
+    ok = np.ones(len(arrays[0]), bool)
+    for a in arrays:
+        ok &= np.isfinite(a) if a.ndim == 1 else np.all(np.isfinite(a), axis=1)
+    return ok
+
+
+def fit_beta(cands, target: str, r: Residuals) -> np.ndarray | None:
+    """Coefficients [offset, columns] on the training rows; None when too few finite rows."""
+    y, X, _ = design(cands, target, r, r.train)
+    own = any(c.own for c in cands)
+    Z = design(cands, target, r, r.train, instrument=True)[1] if own else None
+    ok = _finite(y, X) if Z is None else _finite(y, X, Z)
+    if ok.sum() < 4 * X.shape[1]:
+        return None
+    return solve(X[ok], y[ok], None if Z is None else Z[ok])
+
+
+def test_errors(cands, beta: np.ndarray, target: str, r: Residuals):
+    """(e, sample) held-out stacked errors y − X·beta (NaN where not computable) and their rows."""
+    y, X, sample = design(cands, target, r, r.test)
+    e = y - X @ beta
+    return np.where(_finite(y, X), e, np.nan), sample
+
+
+def batch_log_ratios(e_base: np.ndarray, e_new: np.ndarray, batch: np.ndarray) -> np.ndarray:
+    """ln(SSE_base / SSE_new) per batch label of the rows (batches with a zero sum left out)."""
+    labels = np.unique(batch)
+    sb = np.array([np.sum(e_base[batch == b] ** 2) for b in labels])
+    sn = np.array([np.sum(e_new[batch == b] ** 2) for b in labels])
+    ok = (sb > 0) & (sn > 0)
+    return np.log(sb[ok] / sn[ok])
+
+
+def one_sided_p(d: np.ndarray) -> float:
+    """One-sided p of mean(d) > 0 from K batch values d: t = mean/(sd/√K), Student t, K − 1 dof."""
+    if d.size < 2:
+        return 1.0
+    sd = float(np.std(d, ddof=1))
+    if sd == 0.0:
+        return 0.0 if d.mean() > 0 else 1.0
+    return float(stats.t.sf(d.mean() / (sd / np.sqrt(d.size)), d.size - 1))
+
+
+def offset_fit(target: str, r: Residuals) -> Fit:
+    """The offset alone (the base of every first comparison)."""
+    beta = fit_beta((), target, r)
+    return Fit((), np.zeros(OFFSETS) if beta is None else beta, 0.0, 0.0, 1.0)
+
+
+def fit_candidates(cands, r: Residuals, base: Fit, offset_only: Fit, n_tests: int) -> Fit | None:
+    """Fit `cands` jointly; score against `base` and the offset alone on the held-out rows."""
+    target = cands[0].target
+    beta = fit_beta(cands, target, r)
+    if beta is None:
+        return None
+    e1, sample = test_errors(cands, beta, target, r)
+    eb, _ = test_errors(base.candidates, base.beta, target, r)
+    e0, _ = test_errors((), offset_only.beta, target, r)
+    ok = np.isfinite(e1) & np.isfinite(eb) & np.isfinite(e0)
+    if ok.sum() < 2 * len(beta):
+        return None
+    sse1, sseb, sse0 = (float(np.sum(e[ok] ** 2)) for e in (e1, eb, e0))
+    rows = np.flatnonzero(r.test)[sample[ok]]
+    gain = 1.0 - sse1 / sseb if sseb > 0 else 0.0
+    p = one_sided_p(batch_log_ratios(eb[ok], e1[ok], r.block[rows])) if gain > 0 else 1.0
+    return Fit(tuple(cands), beta, 1.0 - sse1 / sse0 if sse0 > 0 else 0.0, gain, min(1.0, p * n_tests))
+
+
+def predict(fit: Fit, r: Residuals) -> np.ndarray:
+    """Fitted effect of the fit's columns (without the offset) on every row, in the target's shape."""
+    rows = np.ones(len(r.t), bool)
+    E = _effects(fit.candidates, r, rows, instrument=False)
+    effect = np.einsum("njc,j->nc", E, fit.beta[OFFSETS:])
+    if fit.target in r.direction:
+        return np.sum(r.direction[fit.target] * effect, axis=1, keepdims=True)
+    return effect
