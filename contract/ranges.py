@@ -34,7 +34,7 @@ class SettingRange:
 #: so a larger value more likely is degrees given as rad (2.5 "degrees" would be 143°).
 DECLINATION_TYPICAL_RAD = math.radians(30.0)
 #: Earth-field magnitude [µT]: the surface field is 22–67 µT; the bounds are the loader's
-#: (training/io.py MAG_MEDIAN_NORM_MIN_UT/MAX_UT, pinned by tests/test_value_checks.py): a value
+#: (training/data/io.py MAG_MEDIAN_NORM_MIN_UT/MAX_UT, pinned by tests/test_value_checks.py): a value
 #: in gauss is 100× smaller, one in nT 1000× larger.
 FIELD_NORM_MIN_UT = 5.0
 FIELD_NORM_MAX_UT = 1000.0

@@ -1,7 +1,7 @@
 """Our distribution's name and version (pyproject.toml [project] name and version).
 
 The name is `imufusion-fmu`; `imufusion` is x-io Technologies' Fusion package, which this
-project only benchmarks against (training/bench.py), so nothing records our version under it.
+project only benchmarks against (training/bench/bench.py), so nothing records our version under it.
 """
 from __future__ import annotations
 

@@ -4,14 +4,14 @@
  *
  * y_n = sum_j beta_j g(w_j . x_n + b_j) with g = tanh or the logistic sigmoid, no output bias;
  * x_n = 2 (x - inMin) / (inMax - inMin) - 1 and y = outMin + (y_n + 1) (outMax - outMin) / 2.
- * Trained by training/elm.py (growing ELM with back-tuning, docs/elm.md).
+ * Trained by training/models/elm.py (growing ELM with back-tuning, docs/elm.md).
  *
  * Calibrated range: [inMin, inMax] per axis is the box of fields the network was fitted on. A
  * field outside it is clamped into the box, the network's correction y(xc) - xc is evaluated there
  * and added to the field itself: inside the box this is y(x) unchanged; outside, the correction at
  * the box edge is applied instead of an extrapolated network, and ImuElmApply reports the excursion.
  *
- * Block layout (IMU_ELM_BLOCK doubles, training.elm.to_block):
+ * Block layout (IMU_ELM_BLOCK doubles, training.models.elm.to_block):
  *   [0]  enabled (0: the field passes through unchanged, 1: apply)
  *   [1]  activation (ImuElmActivation: 0 tanh, 1 sigmoid)
  *   [2]  L, hidden nodes, integer 1..IMU_ELM_MAX_HIDDEN

@@ -3,7 +3,7 @@
  * @brief PSO-BP gyro bias model b(T, dT/dt): three 2-H-1 tansig networks, one per axis, and the
  *        causal temperature-rate estimator that feeds them.
  *
- * Per axis i (training/psobp.py trains it; this file evaluates it in the same operation order):
+ * Per axis i (training/models/psobp.py trains it; this file evaluates it in the same operation order):
  *     u0 = 2 (T - tMin) / (tMax - tMin) - 1            min-max normalised temperature
  *     u1 = 2 (r - rMin) / (rMax - rMin) - 1            min-max normalised rate r = dT/dt
  *     h_j = tanh(w1[i][j][0] u0 + w1[i][j][1] u1 + b1[i][j]),  j = 0..H-1

@@ -3,7 +3,7 @@
  * @brief PCG32 pseudo-random generator (O'Neill 2014, XSH-RR 64/32) with uniform and normal draws.
  *
  * The state lives in the caller's struct and is seeded from a parameter: same seed, same stream,
- * in C and in Python (training/rng.py is the bit-exact twin). Reference: seed 42, stream 54 gives
+ * in C and in Python (training/models/rng.py is the bit-exact twin). Reference: seed 42, stream 54 gives
  * 0xa15c02b7 0x7b47f409 0xba1d3330 0x83d2f293 0xbfa4784b 0xcbed606e (pcg32-demo).
  */
 #ifndef IMU_RNG_H

@@ -2,7 +2,7 @@
  * @file ImuBatchMagPf.c
  * @brief Batch entry points of the magnetometer particle filter and its generator (Python only).
  *
- * Flat settings array (user units, order of training/magpf.py SETTINGS):
+ * Flat settings array (user units, order of training/models/magpf.py SETTINGS):
  *  0 particleCount, 1 highThreshold, 2 lowThreshold, 3 measurementNoise [uT],
  *  4 processNoiseHard [uT/update], 5 processNoiseSoft [1/update], 6 priorSpreadHard [uT],
  *  7 priorSpreadSoft [1], 8-10 priorHardIron [uT], 11-16 priorSoftIron [1], 17 roughening,

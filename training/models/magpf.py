@@ -429,7 +429,8 @@ class MagPf:
         return self.estimate.copy()
 
     def _take_back_prior(self) -> None:
-        """ImuMagPfTakeBackPrior."""
+        """ImuMagPfRbTakeBackPrior / ImuMagPfSplitTakeBackPrior: the mode re-draws its particles around the
+        prior calibration, then the common part (ImuMagPfPriorTakenBack)."""
         average = self.prior_average
         if int(self.s["rao_blackwell"]):
             magpf_rb.reset(self)

@@ -15,7 +15,7 @@ from training.artefact import ModelArtefact
 from training.data.dataset import ImuData
 from training.data.reference_source import SOURCE_TEXT
 from training.models.fit_quality import at_t0, cross_axis_deg, is_warning
-from training.models.thermal import ThermalModel, apply_thermal
+from training.models.thermal import apply_thermal
 
 UNITS = {"gyr": "rad/s", "acc": "m/s²", "mag": "µT"}
 NAMES = {"gyr": "gyroscope", "acc": "accelerometer", "mag": "magnetometer"}
