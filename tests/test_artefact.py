@@ -9,6 +9,8 @@ from contract.layout import (LAYOUT_VERSION, N_COEFFICIENTS, OFFSET_TERMS, SETTI
                              TERMS_BLOCK, identity_coefficients, settings_defaults)
 from training.artefact import FORMAT_VERSION, ModelArtefact, coefficients_array, load_artefact, settings_dict
 from training.data.dataset import ImuData
+from training.models import elm
+from training.models.psobp import MODE_RESIDUAL, PsoBpModel
 from training.models.thermal import ThermalModel, apply_thermal
 from training.recommend import GYRO_BIAS_RESIDUAL_FLOOR
 from training.train import train
@@ -219,7 +221,10 @@ def _edit_doc(artefact, tmp_path, edit):
 
 @pytest.mark.parametrize("edit, problem", [
     (lambda d: d.update(format="imu-csv/1"), "format is 'imu-csv/1'"),
-    (lambda d: d.update(format_version=FORMAT_VERSION + 1), "format_version 2 is not supported"),
+    (lambda d: d.update(format_version=FORMAT_VERSION + 1), f"format_version {FORMAT_VERSION + 1} is not supported"),
+    (lambda d: d.update(stages={"elm": {"form": "field", "activation": "relu"}}), "stages.elm: activation must be one of"),
+    (lambda d: d.update(stages={"psobp": {"mode": "full", "hidden": 2}}), "stages.psobp: a PSO-BP stage lacks"),
+    (lambda d: d.update(stages={"net": {}}), "stages: unknown stage 'net'"),
     (lambda d: d.update(model_type="other"), "model_type is 'other'"),
     (lambda d: d.pop("settings"), "missing key 'settings'"),
     (lambda d: d["thermal"].pop("mag"), "missing key 'thermal.mag'"),
@@ -243,6 +248,51 @@ def test_load_rejects_malformed_documents(tmp_path, artefact, edit, problem):
     with pytest.raises(ModelError) as err:
         load_artefact(path)
     assert str(err.value).startswith(f"{path}: ") and problem in str(err.value)
+
+
+def _stage_models():
+    """A field-form ELM and a residual PSO-BP network with distinct, awkward numbers."""
+    rng = np.random.default_rng(17)
+    net = elm.ElmModel("tanh", rng.normal(size=(5, 3)), rng.normal(size=5), rng.normal(size=(5, 3)),
+                       elm.MinMax(np.array([-60.0, -55.5, -70.1]), np.array([61.0, 58.25, 69.9])),
+                       elm.MinMax(np.array([-59.0, -54.0, -71.0]), np.array([60.0, 57.0, 68.0])),
+                       seed=3, loss=1e-3, train_time_s=0.5)
+    bias = PsoBpModel(MODE_RESIDUAL, 4, 12.5, 10.0, 40.0, -0.02, 0.03, rng.normal(size=(3, 4, 2)),
+                      rng.normal(size=(3, 4)), 1e-3 * rng.normal(size=(3, 4)), 1e-4 * rng.normal(size=3))
+    return net, bias
+
+
+def test_stages_are_stored_by_name_and_load_to_the_same_coefficients(tmp_path, artefact):
+    """Format 2 stores the neural stages as named parts with units, not as C blocks; loading gives
+    the same runtime coefficients bit for bit."""
+    net, bias = _stage_models()
+    art = ModelArtefact(seed=0, thermal=artefact.thermal, settings={}, elm=net, psobp=bias)
+    path = art.save(tmp_path / "model.json")
+    doc = json.loads(path.read_text())
+    assert "blocks" not in doc and set(doc["stages"]) == {"elm", "psobp"}
+    assert doc["stages"]["elm"]["field_box_ut"]["hi"] == [61.0, 58.25, 69.9]
+    assert doc["stages"]["psobp"]["mode"] == "residual" and doc["stages"]["psobp"]["temperature_range_c"] == [10.0, 40.0]
+    assert np.array_equal(coefficients_array(load_artefact(path)), coefficients_array(art))
+
+
+def test_a_format_1_artefact_loads_through_the_converter(tmp_path, artefact):
+    """Format 1 stored raw C blocks: it loads to the same coefficients and is written back as format 2."""
+    net, bias = _stage_models()
+    art = ModelArtefact(seed=0, thermal=artefact.thermal, settings={}, elm=net, psobp=bias)
+    doc = art.to_json_dict()
+    doc.update(format_version=1, blocks=art.stage_blocks())
+    doc.pop("stages")
+    old = tmp_path / "old.json"
+    old.write_text(json.dumps(doc), encoding="utf-8")
+    loaded = load_artefact(old)
+    assert loaded.format_version == FORMAT_VERSION
+    assert np.array_equal(coefficients_array(loaded), coefficients_array(art))
+    again = json.loads(loaded.save(tmp_path / "new.json").read_text())
+    assert again["format_version"] == FORMAT_VERSION and set(again["stages"]) == {"elm", "psobp"}
+    doc["blocks"]["psobp"][1] = 99.0
+    old.write_text(json.dumps(doc), encoding="utf-8")
+    with pytest.raises(ModelError, match="blocks.psobp: hidden size 99"):
+        load_artefact(old)
 
 
 def test_load_rejects_missing_and_non_json_files(tmp_path):

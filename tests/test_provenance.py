@@ -9,6 +9,7 @@ import tomllib
 import zipfile
 from pathlib import Path
 
+import numpy as np
 import pytest
 from fmpy import read_model_description
 
@@ -19,6 +20,7 @@ from fmu.provenance import PROVENANCE_FILE, build_time
 from fmu.validator import VALIDATION_CHECKS
 from training.artefact import ModelArtefact, load_artefact
 from training.cli import EXAMPLES, build_parser, main
+from training.models import elm
 from training.models.thermal import ThermalModel
 
 PYPROJECT = tomllib.loads((Path(__file__).parents[1] / "pyproject.toml").read_text())["project"]
@@ -46,7 +48,7 @@ def small_artefact() -> ModelArtefact:
                          training_data=[{"name": "bench_a.csv.gz", "samples": 12000},
                                         {"name": "bench_b.csv", "samples": 345}],
                          notes=["magnetometer: no field reference, passed through", "gyro degree 0: one plateau"],
-                         terms=[dict(TERM)], blocks={"elm": elm_block()})
+                         terms=[dict(TERM)], elm=elm.from_block(np.array(elm_block())))
 
 
 @pytest.fixture(scope="module")

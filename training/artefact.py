@@ -2,8 +2,13 @@
 
 One file carries everything needed to regenerate the FMU coefficient header and to reproduce
 the fit: format and version, model type, units, seed, library versions, training data, the
-per-triad gain/bias temperature models with their fit statistics, recommended FMU settings
-and notes. Floats are written by Python's shortest round-trip repr, so load(save(x)) is exact.
+per-triad gain/bias temperature models with their fit statistics, the neural stages (ELM,
+PSO-BP) as named parts in their units, recommended FMU settings and notes. Floats are written by
+Python's shortest round-trip repr, so load(save(x)) is exact.
+
+Format 2 stores the neural stages by name (`stages`); format 1 stored them as the runtime's raw
+coefficient blocks (`blocks`). A format-1 file loads through `_upgrade_format_1`, which reads the
+blocks with the stages' own block readers; it is written back as format 2.
 """
 from __future__ import annotations
 
@@ -12,6 +17,7 @@ import platform
 from dataclasses import dataclass, field
 from datetime import datetime, timezone
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -23,8 +29,14 @@ from contract.schema import setting_problem
 from training.models.model_checks import flag_problem, term_problem, thermal_problem
 from training.models.thermal import ThermalModel
 
+if TYPE_CHECKING:  # the neural stages import torch: loaded when an artefact has or writes one
+    from training.models.elm import ElmModel
+    from training.models.psobp import PsoBpModel
+
 FORMAT = "imufusion-model"
-FORMAT_VERSION = 1
+FORMAT_VERSION = 2
+#: Older format versions that still load (through a converter).
+UPGRADABLE = {1}
 MODEL_TYPE = "imufusion-chain"
 UNITS = {"t": "s", "gyr": "rad/s", "acc": "m/s²", "mag": "µT", "temp": "°C",
          "declination": "rad", "field_norm": "µT", "gyro_noise": "rad/s/√Hz",
@@ -62,8 +74,8 @@ class ModelArtefact:
     thermal: triad ('gyr', 'acc', 'mag') -> ThermalModel. fit_stats: triad -> dict of fit
     statistics (JSON scalars). training_data: [{'name', 'samples'}]. settings: setting name ->
     recommended FMU parameter value (contract.layout.SETTINGS units). notes: warnings.
-    blocks: flat coefficient blocks of the neural stages by name ('elm', 'psobp'; layouts in
-    sources/ImuElm.h, sources/ImuPsoBp.h); an absent stage is disabled.
+    elm, psobp: the neural stages (training.models.elm.ElmModel, field form; training.models.psobp.
+    PsoBpModel), None when not trained; settings enable_elm / enable_psobp switch them.
     terms: additive correction terms added by `imufmu diagnose`, each {'name', 'target', 'a', 'b',
     'coefficient', 'lo', 'hi'} with target/a/b names from contract.layout.TERM_TARGETS / TERM_SIGNALS
     (b may be None) and finite bounds lo <= hi of the regressor a·b; the runtime subtracts
@@ -81,7 +93,8 @@ class ModelArtefact:
     notes: list[str] = field(default_factory=list)
     terms: list[dict] = field(default_factory=list)
     aux_inputs: list[dict] = field(default_factory=list)
-    blocks: dict[str, list[float]] = field(default_factory=dict)
+    elm: ElmModel | None = None
+    psobp: PsoBpModel | None = None
     units: dict[str, str] = field(default_factory=lambda: dict(UNITS))
     libraries: dict[str, str] = field(default_factory=library_versions)
     created: str = field(default_factory=utc_now)
@@ -98,8 +111,27 @@ class ModelArtefact:
                 "thermal": {k: _thermal_to_json(self.thermal[k]) for k in TRIAD_ORDER},
                 "fit_stats": dict(self.fit_stats), "settings": dict(self.settings),
                 "notes": list(self.notes), "terms": [dict(t) for t in self.terms],
-                "aux_inputs": [dict(a) for a in self.aux_inputs],
-                "blocks": {k: list(v) for k, v in self.blocks.items()}}
+                "aux_inputs": [dict(a) for a in self.aux_inputs], "stages": self.stages_to_json()}
+
+    def stages_to_json(self) -> dict:
+        """The trained neural stages by name, each as its model stores itself."""
+        from training.models import elm
+        stages = {}
+        if self.elm is not None:
+            stages["elm"] = elm.to_json(self.elm)
+        if self.psobp is not None:
+            stages["psobp"] = self.psobp.to_json()
+        return stages
+
+    def stage_blocks(self) -> dict[str, list[float]]:
+        """The runtime's coefficient block of every trained stage (contract.layout.STAGE_BLOCKS)."""
+        from training.models import elm
+        blocks = {}
+        if self.elm is not None:
+            blocks["elm"] = [float(v) for v in elm.to_block(self.elm)]
+        if self.psobp is not None:
+            blocks["psobp"] = self.psobp.to_block()
+        return blocks
 
     def to_json(self) -> str:
         """JSON text; NaN/inf are rejected (ValueError) rather than written non-standard."""
@@ -216,9 +248,9 @@ def _check_header(doc: dict, path) -> None:
     _require(doc, ("format", "format_version", "model_type"), "", path)
     if doc["format"] != FORMAT:
         _fail(path, f"format is {doc['format']!r}, expected {FORMAT!r}")
-    if doc["format_version"] != FORMAT_VERSION:
+    if doc["format_version"] != FORMAT_VERSION and doc["format_version"] not in UPGRADABLE:
         _fail(path, f"format_version {doc['format_version']!r} is not supported "
-                    f"(this version reads {FORMAT_VERSION})")
+                    f"(this version reads {', '.join(map(str, sorted({*UPGRADABLE, FORMAT_VERSION})))})")
     if doc["model_type"] != MODEL_TYPE:
         _fail(path, f"model_type is {doc['model_type']!r}, expected {MODEL_TYPE!r}")
 
@@ -261,6 +293,8 @@ def load_artefact(path) -> ModelArtefact:
     """
     doc = _read_document(path)
     _check_header(doc, path)
+    if doc["format_version"] == 1:
+        doc = _upgrade_format_1(doc, path)
     _require(doc, _TOP_KEYS, "", path)
     _require(doc["thermal"], TRIAD_ORDER, "thermal", path)
     thermal = {k: _thermal_from_json(doc["thermal"][k], k, path) for k in TRIAD_ORDER}
@@ -271,9 +305,9 @@ def load_artefact(path) -> ModelArtefact:
         notes=doc["notes"] + [n for n in unranged_notes(thermal) if n not in doc["notes"]],
         terms=_terms_from_json(doc.get("terms", []), path),
         aux_inputs=_aux_inputs_from_json(doc.get("aux_inputs", []), doc.get("terms", []), path),
-        blocks=_blocks_from_json(doc.get("blocks", {}), path),
+        **_stages_from_json(doc.get("stages", {}), path),
         units=doc["units"], libraries=libraries_from_json(doc["libraries"]), created=doc["created"],
-        format=doc["format"], format_version=doc["format_version"], model_type=doc["model_type"])
+        format=doc["format"], format_version=FORMAT_VERSION, model_type=doc["model_type"])
 
 
 def _is_number(value) -> bool:
@@ -325,17 +359,46 @@ def _aux_inputs_from_json(aux_inputs, terms, path) -> list[dict]:
     return [dict(a) for a in aux_inputs]
 
 
-def _blocks_from_json(blocks, path) -> dict[str, list[float]]:
-    """Validated stage blocks: known names, the layout's length, finite numbers."""
+def _upgrade_format_1(doc: dict, path) -> dict:
+    """A format-1 document as format 2: its raw stage `blocks` read by the stages' block readers
+    (a disabled block is no stage)."""
+    from training.models import elm
+    from training.models.psobp import PsoBpModel
+    blocks = doc.get("blocks", {})
     if not isinstance(blocks, dict):
         _fail(path, "'blocks' must be an object of stage name -> list of numbers")
+    stages = {}
     for name, values in blocks.items():
         if name not in STAGE_BLOCKS:
             _fail(path, f"blocks: unknown stage '{name}' (known: {', '.join(STAGE_BLOCKS)})")
         if (not isinstance(values, list) or len(values) != STAGE_BLOCKS[name]
                 or not all(isinstance(v, (int, float)) and np.isfinite(v) for v in values)):
             _fail(path, f"blocks.{name} must be {STAGE_BLOCKS[name]} finite numbers")
-    return {k: [float(v) for v in vals] for k, vals in blocks.items()}
+        try:
+            model = elm.from_block(np.asarray(values)) if name == "elm" else PsoBpModel.from_block(values)
+        except ValueError as e:
+            _fail(path, f"blocks.{name}: {e}")
+        if model is not None:
+            stages[name] = elm.to_json(model) if name == "elm" else model.to_json()
+    return {**{k: v for k, v in doc.items() if k != "blocks"}, "format_version": FORMAT_VERSION, "stages": stages}
+
+
+def _stages_from_json(stages, path) -> dict:
+    """{'elm': ElmModel, 'psobp': PsoBpModel} of the stages present; ModelError naming a bad one."""
+    from training.models import elm
+    from training.models.psobp import PsoBpModel
+    if not isinstance(stages, dict):
+        _fail(path, "'stages' must be an object of stage name -> model")
+    readers = {"elm": elm.from_json, "psobp": PsoBpModel.from_json}
+    models = {}
+    for name, doc in stages.items():
+        if name not in readers:
+            _fail(path, f"stages: unknown stage '{name}' (known: {', '.join(readers)})")
+        try:
+            models[name] = readers[name](doc)
+        except ValueError as e:
+            _fail(path, f"stages.{name}: {e}")
+    return models
 
 
 def coefficients_array(artefact: ModelArtefact) -> np.ndarray:
@@ -344,7 +407,7 @@ def coefficients_array(artefact: ModelArtefact) -> np.ndarray:
     terms = terms_block([(t["target"], t["a"], t.get("b"), t["coefficient"], t["lo"], t["hi"])
                          for t in artefact.terms])
     blocks = [artefact.thermal[triad].to_block() for triad in TRIAD_ORDER]
-    return np.array(pack_coefficients(blocks, terms, **artefact.blocks), dtype=np.float64)
+    return np.array(pack_coefficients(blocks, terms, **artefact.stage_blocks()), dtype=np.float64)
 
 
 def settings_dict(artefact: ModelArtefact) -> dict[str, float]:

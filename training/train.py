@@ -9,6 +9,7 @@ import numpy as np
 import torch
 from tqdm import tqdm
 
+
 from contract.errors import ModelError
 from contract.layout import TRIAD_ORDER
 from training.artefact import ModelArtefact
@@ -17,7 +18,9 @@ from training.data.reference import matched_raw
 from training.data.reference_source import TriadReference, choose_reference
 from training.models.calibrated_range import range_notes
 from training.models.degree import AUTO, ceiling, choose_degree, parse_degree
+from training.models.elm import ElmModel
 from training.models.fit_quality import fit_warnings
+from training.models.psobp import PsoBpModel
 from training.models.thermal import (GainBiasFitter, ThermalFit, ThermalModel, apply_thermal,
                                      normalised_temperature, temperature_clusters, temperature_normalisation)
 from training.recommend import recommended_settings, sidecar_values
@@ -160,10 +163,10 @@ def _elm_holdout(sets: list) -> list[tuple[np.ndarray, np.ndarray, np.ndarray, n
 
 
 def _elm_stage(datasets: list[ImuData], thermal: dict[str, ThermalModel], seed: int,
-               notes: list[str]) -> tuple[dict[str, list[float]], bool, dict]:
+               notes: list[str]) -> tuple[ElmModel | None, bool, dict]:
     """Fit the field-form ELM on the thermally compensated field against ref_mag.
 
-    Returns ({'elm': block} or {}, enabled, stats). Enabled only when the ELM lowers the field
+    Returns (the model or None, enabled, stats). Enabled only when the ELM lowers the field
     error RMS of the held-out data (`_elm_holdout`) by ELM_MIN_GAIN; the block is fitted on all
     the data and kept but off otherwise.
     """
@@ -172,7 +175,7 @@ def _elm_stage(datasets: list[ImuData], thermal: dict[str, ThermalModel], seed: 
     if not usable or not thermal["mag"].enabled:
         notes.append("elm: no magnetometer reference (ref_mag, ref_q) or no fitted magnetometer; "
                      "ELM stage off")
-        return {}, False, {}
+        return None, False, {}
     prep = elm.CompassPrep(stride=ELM_STRIDE)
     sets = [elm.prepare_compass(_compensated(d, thermal), None, prep, seed) for d in usable]
     errors = []
@@ -191,22 +194,22 @@ def _elm_stage(datasets: list[ImuData], thermal: dict[str, ThermalModel], seed: 
              "holdout": "each recording against the others" if len(sets) > 1 else
              f"last {ELM_HOLDOUT_FRACTION:.0%} of the recording in time",
              "rms_before": before, "rms_after": after, "enabled": enabled, "train_time_s": model.train_time_s}
-    return {"elm": [float(v) for v in elm.to_block(model)]}, enabled, stats
+    return model, enabled, stats
 
 
 def _psobp_stage(datasets: list[ImuData], thermal: dict[str, ThermalModel], seed: int,
-                 notes: list[str]) -> tuple[dict[str, list[float]], bool, dict]:
+                 notes: list[str]) -> tuple[PsoBpModel | None, bool, dict]:
     """Fit the residual PSO-BP gyro bias network on the longest recording with a gyro reference
     and temperature (networks see one continuous series: the temperature rate needs it).
 
-    Returns ({'psobp': block} or {}, enabled, stats); enabled by psobp.residual_psobp_wins, which
+    Returns (the model or None, enabled, stats); enabled by psobp.residual_psobp_wins, which
     fits on the first two thirds and switches the network on only for a held-out gain.
     """
     from training.models import psobp
     usable = [d for d in datasets if d.ref_gyr is not None and d.has("gyr") and np.isfinite(d.temp).any()]
     if not usable or not thermal["gyr"].enabled:
         notes.append("psobp: no gyro reference with temperature or no fitted gyro; PSO-BP stage off")
-        return {}, False, {}
+        return None, False, {}
     d = max(usable, key=len)
     gyr = apply_thermal(thermal["gyr"], d.gyr, d.temp)
     try:
@@ -214,14 +217,14 @@ def _psobp_stage(datasets: list[ImuData], thermal: dict[str, ThermalModel], seed
         fit = psobp.fit_gyro_residual_psobp(d.t, gyr, d.ref_gyr, d.temp, seed)
     except ValueError as e:  # too few static windows with temperature to fit a network
         notes.append(f"psobp: {e}; PSO-BP stage off")
-        return {}, False, {}
+        return None, False, {}
     if not decision.enable:
         notes.append(f"psobp: held-out residual bias {decision.rms_polynomial:.3g} -> "
                      f"{decision.rms_hybrid:.3g} rad/s is not a {psobp.ENABLE_MIN_GAIN:.0%} gain; stage off")
     stats = {"unit": "rad/s", "recording": d.name, "held_out_windows": decision.windows,
              "rms_polynomial": decision.rms_polynomial, "rms_hybrid": decision.rms_hybrid,
              "enabled": bool(decision.enable)}
-    return {"psobp": [float(v) for v in fit.model.to_block()]}, bool(decision.enable), stats
+    return fit.model, bool(decision.enable), stats
 
 
 def gate_outliers(raw: np.ndarray, target: np.ndarray) -> tuple[np.ndarray, int]:
@@ -411,8 +414,8 @@ def train(datasets: list[ImuData], seed: int = 0, degree: int | str = AUTO,
         for triad in TRIAD_ORDER:
             stats.setdefault(triad, {})["reference"] = refs[triad].source
         prepared = _prepared_datasets(datasets, refs)
-        blocks, elm_on, stats["elm"] = _elm_stage(prepared, thermal, seed, notes)
-        psobp_block, psobp_on, stats["psobp"] = _psobp_stage(prepared, thermal, seed, notes)
+        elm_model, elm_on, stats["elm"] = _elm_stage(prepared, thermal, seed, notes)
+        psobp_model, psobp_on, stats["psobp"] = _psobp_stage(prepared, thermal, seed, notes)
     if not allow_identity:
         _refuse_identity(thermal, refs, selfcal, notes)
     for triad, score in _held_out(datasets, refs, degree, seed, selfcal, notes).items():
@@ -420,17 +423,16 @@ def train(datasets: list[ImuData], seed: int = 0, degree: int | str = AUTO,
     for triad in _worse_than_raw(thermal, stats, notes):
         thermal[triad] = ThermalModel.identity(enabled=False)
         elm_on, psobp_on = elm_on and triad != "mag", psobp_on and triad != "gyr"
-        psobp_block = psobp_block if psobp_on else {}
-    blocks.update(psobp_block)
+        psobp_model = psobp_model if psobp_on else None
     stats = {k: v for k, v in stats.items() if v}
     settings = recommended_settings(datasets, refs, thermal, selfcal, notes)
     notes += fit_warnings(thermal, settings)
     settings["enable_elm"] = float(elm_on)
     settings["enable_psobp"] = float(psobp_on)
-    notes += range_notes(thermal, blocks, settings)
+    notes += range_notes(thermal, elm_model, psobp_model, settings)
     return ModelArtefact(seed=seed, thermal=thermal, settings=settings, fit_stats=stats,
                          training_data=[{"name": d.name, "samples": len(d)} for d in datasets],
-                         notes=notes, blocks=blocks)
+                         notes=notes, elm=elm_model, psobp=psobp_model)
 
 
 @dataclass

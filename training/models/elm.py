@@ -361,6 +361,49 @@ def from_block(block: np.ndarray) -> ElmModel | None:
                     seed=-1, loss=float("nan"), train_time_s=float("nan"))
 
 
+def to_json(model: ElmModel) -> dict:
+    """The field-form model as the artefact stores it (training.artefact, format 2): named parts in
+    their units, no C layout. `field_box_ut` is the box of fields [µT] it was fitted on (the runtime
+    clamps to it), `output_range_ut` the range its normalised outputs map to; w, b act on inputs
+    normalised to [-1, 1] and beta gives normalised outputs (dimensionless)."""
+    to_block(model)  # only what the runtime can evaluate is stored: the field form, at most MAX_HIDDEN nodes
+    return {"form": "field", "activation": model.activation, "hidden": model.hidden,
+            "field_box_ut": {"lo": model.x_norm.lo.tolist(), "hi": model.x_norm.hi.tolist()},
+            "output_range_ut": {"lo": model.y_norm.lo.tolist(), "hi": model.y_norm.hi.tolist()},
+            "w": model.w.tolist(), "b": model.b.tolist(), "beta": model.beta.tolist(), "seed": int(model.seed),
+            "training_loss": float(model.loss) if np.isfinite(model.loss) else None}
+
+
+def _finite_array(doc: dict, key: str, shape: tuple[int, ...]) -> np.ndarray:
+    """doc[key] as a finite float array of `shape`; ValueError naming the key otherwise."""
+    try:
+        a = np.asarray(doc[key], dtype=np.float64)
+    except (KeyError, TypeError, ValueError):
+        raise ValueError(f"'{key}' is missing or not numbers") from None
+    if a.shape != shape or not np.all(np.isfinite(a)):
+        raise ValueError(f"'{key}' must be finite numbers of shape {list(shape)}, got {list(a.shape)}")
+    return a
+
+
+def from_json(doc: dict) -> ElmModel:
+    """Inverse of `to_json`; ValueError naming the first bad entry."""
+    if not isinstance(doc, dict) or doc.get("form") != "field":
+        raise ValueError("an ELM stage must be an object with form 'field'")
+    if doc.get("activation") not in ACTIVATIONS:
+        raise ValueError(f"activation must be one of {sorted(ACTIVATIONS)}")
+    n = doc.get("hidden")
+    if not isinstance(n, int) or isinstance(n, bool) or not 1 <= n <= MAX_HIDDEN:
+        raise ValueError(f"hidden must be a whole number in 1..{MAX_HIDDEN}")
+    box, out = doc.get("field_box_ut") or {}, doc.get("output_range_ut") or {}
+    loss = doc.get("training_loss")
+    return ElmModel(doc["activation"], _finite_array(doc, "w", (n, 3)), _finite_array(doc, "b", (n,)),
+                    _finite_array(doc, "beta", (n, 3)),
+                    MinMax(_finite_array(box, "lo", (3,)), _finite_array(box, "hi", (3,))),
+                    MinMax(_finite_array(out, "lo", (3,)), _finite_array(out, "hi", (3,))),
+                    seed=int(doc.get("seed", -1)), loss=float("nan") if loss is None else float(loss),
+                    train_time_s=float("nan"))
+
+
 def c_apply(block: np.ndarray, x: np.ndarray) -> np.ndarray:
     """The C runtime's ImuElmApply over x (N, 3) µT through ImuBatchElmPredict -> (N, 3) µT."""
     from training.runtime import load_runtime

@@ -54,6 +54,8 @@ from training.runtime import load_runtime
 MAX_HIDDEN = 16
 #: Block entry 0 (sources/ImuPsoBp.h ImuPsoBpMode): off (zero bias), full bias, residual bias.
 MODE_OFF, MODE_FULL, MODE_RESIDUAL = 0, 1, 2
+#: The modes by name, as the artefact stores them.
+MODE_NAMES = {MODE_OFF: "off", MODE_FULL: "full", MODE_RESIDUAL: "residual"}
 #: Block layout (sources/ImuPsoBp.h): header, then per axis w1 (2 MAX), b1 (MAX), w2 (MAX), b2.
 HEADER = 7
 AXIS_BLOCK = 4 * MAX_HIDDEN + 1
@@ -145,6 +147,29 @@ class PsoBpModel:
         if np.any(w1[:, h:] != 0) or np.any(b1[:, h:] != 0) or np.any(w2[:, h:] != 0):
             raise ValueError(f"weights above hidden size {h} are not zero")
         return cls(int(v[0]), h, *v[2:7], w1[:, :h], b1[:, :h], w2[:, :h], axes[:, -1])
+
+    def to_json(self) -> dict:
+        """The model as the artefact stores it (training.artefact, format 2): named parts in their
+        units, no C layout. w1, b1 act on the temperature and its rate normalised to [-1, 1] over
+        their ranges; w2 [rad/s] and b2 [rad/s] give the bias of each axis."""
+        return {"mode": MODE_NAMES[self.mode], "hidden": self.hidden, "rate_time_constant_s": float(self.tau_s),
+                "temperature_range_c": [float(self.t_min), float(self.t_max)],
+                "temperature_rate_range_c_per_s": [float(self.r_min), float(self.r_max)],
+                "w1": self.w1.tolist(), "b1": self.b1.tolist(), "w2_rad_s": self.w2.tolist(),
+                "b2_rad_s": self.b2.tolist()}
+
+    @classmethod
+    def from_json(cls, doc: dict) -> "PsoBpModel":
+        """Inverse of `to_json`; ValueError naming the first bad entry."""
+        if not isinstance(doc, dict) or doc.get("mode") not in MODE_NAMES.values():
+            raise ValueError(f"a PSO-BP stage must be an object with mode one of {sorted(MODE_NAMES.values())}")
+        try:
+            (t_min, t_max), (r_min, r_max) = doc["temperature_range_c"], doc["temperature_rate_range_c_per_s"]
+            return cls({v: k for k, v in MODE_NAMES.items()}[doc["mode"]], doc["hidden"],
+                       float(doc["rate_time_constant_s"]), float(t_min), float(t_max), float(r_min), float(r_max),
+                       doc["w1"], doc["b1"], doc["w2_rad_s"], doc["b2_rad_s"])
+        except (KeyError, TypeError) as e:
+            raise ValueError(f"a PSO-BP stage lacks or mistypes {e}") from None
 
 
 def temperature_rate(t: np.ndarray, temp: np.ndarray, tau_s: float,
