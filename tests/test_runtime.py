@@ -328,7 +328,7 @@ def call_batch(c, s, n=3, t=None, x=None):
     t = np.arange(n, dtype=float) if t is None else t
     x = np.zeros((n, len(layout.INPUTS))) if x is None else x
     out = np.zeros((n, len(layout.OUTPUTS)))
-    ptr = runtime._pointer
+    ptr = runtime.pointer
     return lib.ImuBatchRun(ptr(c), c.size, ptr(s), s.size, n, ptr(t) if t.size else None,
                            ptr(x), ptr(out))
 

@@ -93,19 +93,32 @@ def build_runtime() -> Path:
     return target
 
 
+_DP, _SZ, _IP = ctypes.POINTER(ctypes.c_double), ctypes.c_size_t, ctypes.POINTER(ctypes.c_int)
+#: Every entry point of the runtime library (sources/batch/*.c) with its (argument types, result
+#: type): the one place Python declares them.
+SIGNATURES = {
+    "ImuBatchRun": ([_DP, _SZ, _DP, _SZ, _SZ, _DP, _DP, _DP], ctypes.c_int),
+    "ImuBatchCheckSettings": ([_DP, _SZ, ctypes.POINTER(ctypes.c_char_p)], ctypes.c_int),
+    "ImuBatchLayout": ([_IP] * 5, None),
+    "ImuBatchTermSignals": ([_SZ, _DP, _DP, _DP, _DP, _DP], None),
+    "ImuBatchElmPredict": ([_DP, _SZ, _SZ, _DP, _DP], ctypes.c_int),
+    "ImuBatchPsoBpCorrect": ([_DP, _SZ, _SZ, _DP, _DP, _DP, _DP], ctypes.c_int),
+    "ImuBatchPsoBpPredict": ([_DP, _SZ, _SZ, _DP, _DP, _DP], ctypes.c_int),
+    "ImuBatchPsoBpEvaluate": ([_DP, _SZ, _SZ, _DP, _DP, _DP], ctypes.c_int),
+    "ImuBatchMagPfRun": ([_DP, _SZ, _SZ, _DP, _DP], ctypes.c_int),
+    "ImuBatchMagPfCheckSettings": ([_DP, _SZ, ctypes.POINTER(ctypes.c_char_p)], ctypes.c_int),
+    "ImuBatchRngDraw": ([ctypes.c_double, ctypes.c_double, ctypes.c_int, _SZ, _DP], ctypes.c_int),
+    "ImuBatchSizes": ([ctypes.POINTER(ctypes.c_size_t)] * 3, None),
+}
+
+
 @lru_cache(maxsize=None)
 def _load(path: str) -> ctypes.CDLL:
-    """Open a compiled runtime library and declare the argument types of its entry points."""
+    """Open a compiled runtime library and declare the signatures of its entry points (SIGNATURES)."""
     lib = ctypes.CDLL(path)
-    dp, sz, ip = ctypes.POINTER(ctypes.c_double), ctypes.c_size_t, ctypes.POINTER(ctypes.c_int)
-    lib.ImuBatchRun.argtypes = [dp, sz, dp, sz, sz, dp, dp, dp]
-    lib.ImuBatchRun.restype = ctypes.c_int
-    lib.ImuBatchCheckSettings.argtypes = [dp, sz, ctypes.POINTER(ctypes.c_char_p)]
-    lib.ImuBatchCheckSettings.restype = ctypes.c_int
-    lib.ImuBatchLayout.argtypes = [ip] * 5
-    lib.ImuBatchLayout.restype = None
-    lib.ImuBatchTermSignals.argtypes = [sz, dp, dp, dp, dp, dp]
-    lib.ImuBatchTermSignals.restype = None
+    for name, (argtypes, restype) in SIGNATURES.items():
+        getattr(lib, name).argtypes = argtypes
+        getattr(lib, name).restype = restype
     return lib
 
 
@@ -130,9 +143,9 @@ def _as_array(name: str, value, shape: tuple) -> np.ndarray:
     return a
 
 
-def _pointer(a: np.ndarray):
+def pointer(a: np.ndarray):
     """ctypes double pointer to the data of a contiguous float64 array."""
-    return a.ctypes.data_as(ctypes.POINTER(ctypes.c_double))
+    return a.ctypes.data_as(_DP)
 
 
 def _error(lib: ctypes.CDLL, code: int, settings: np.ndarray) -> ValueError:
@@ -140,7 +153,7 @@ def _error(lib: ctypes.CDLL, code: int, settings: np.ndarray) -> ValueError:
     text = ERROR_CODES.get(code, "unknown error")
     if code == -6:
         message = ctypes.c_char_p()
-        lib.ImuBatchCheckSettings(_pointer(settings), settings.size, ctypes.byref(message))
+        lib.ImuBatchCheckSettings(pointer(settings), settings.size, ctypes.byref(message))
         text = message.value.decode() if message.value else text
     return ValueError(f"C runtime rejected the input (code {code}): {text}")
 
@@ -162,8 +175,8 @@ def run_batch(coefficients, settings, t, inputs) -> np.ndarray:
     tt = _as_array("t", t, (-1,))
     x = _as_array("inputs", inputs, (tt.shape[0], len(layout.INPUTS)))
     out = np.empty((tt.shape[0], len(layout.OUTPUTS)), dtype=np.float64)
-    code = lib.ImuBatchRun(_pointer(c), c.size, _pointer(s), s.size, tt.shape[0],
-                           _pointer(tt), _pointer(x), _pointer(out))
+    code = lib.ImuBatchRun(pointer(c), c.size, pointer(s), s.size, tt.shape[0],
+                           pointer(tt), pointer(x), pointer(out))
     if code != 0:
         raise _error(lib, code, s)
     return out
@@ -183,5 +196,12 @@ def term_signals(t, components, temperature, aux=None) -> np.ndarray:
     temp = _as_array("temperature", temperature, (n,))
     u = _as_array("aux", np.zeros((n, len(layout.AUX_INPUTS))) if aux is None else aux, (n, len(layout.AUX_INPUTS)))
     out = np.empty((n, len(layout.TERM_SIGNALS)), dtype=np.float64)
-    lib.ImuBatchTermSignals(n, _pointer(tt), _pointer(x), _pointer(temp), _pointer(u), _pointer(out))
+    lib.ImuBatchTermSignals(n, pointer(tt), pointer(x), pointer(temp), pointer(u), pointer(out))
     return out
+
+
+def runtime_sizes() -> dict[str, int]:
+    """sizeof [bytes] of ImuAttitude, ImuPipeline and ModelInstance, from the compiled runtime library."""
+    sizes = [ctypes.c_size_t() for _ in range(3)]
+    load_runtime().ImuBatchSizes(*(ctypes.byref(s) for s in sizes))
+    return dict(zip(("attitude", "pipeline", "model_instance"), (s.value for s in sizes)))

@@ -11,7 +11,6 @@ RMSE in degrees over eval_mask samples with a finite reference, no heading-offse
 from __future__ import annotations
 
 import csv
-import ctypes
 import time
 from pathlib import Path
 
@@ -292,17 +291,6 @@ def _stage_switches() -> dict[str, dict[str, float]]:
     return {n: {n: 0.0} for n, _ in layout.SETTINGS if n.startswith("enable_")}
 
 
-def runtime_sizes() -> dict[str, int]:
-    """sizeof [bytes] of ImuAttitude, ImuPipeline and ModelInstance, from the compiled runtime library."""
-    from training.runtime import load_runtime
-    lib = load_runtime()
-    lib.ImuBatchSizes.argtypes = [ctypes.POINTER(ctypes.c_size_t)] * 3
-    lib.ImuBatchSizes.restype = None
-    sizes = [ctypes.c_size_t() for _ in range(3)]
-    lib.ImuBatchSizes(*(ctypes.byref(s) for s in sizes))
-    return dict(zip(("attitude", "pipeline", "model_instance"), (s.value for s in sizes)))
-
-
 def bench_speed(out_dir: str | Path) -> dict:
     """Per-sample cost of the runtime (whole chain at default settings, each stage off, quaternion
     mode), VQF's batch cost in the same run and the ratio; FMU doStep cost through fmpy; memory of
@@ -312,7 +300,7 @@ def bench_speed(out_dir: str | Path) -> dict:
     from fmu.cosim import run_fmu
     from training.fmu_build import build_fmu
     from training.main_job import DEFAULT_CALIBRATION, SCENARIO_DIR
-    from training.runtime import run_batch
+    from training.runtime import run_batch, runtime_sizes
     from training.simulator import load_scenario, simulate
     from training.train import train
     out_dir = Path(out_dir)

@@ -30,7 +30,6 @@ targets and stored with the model.
 """
 from __future__ import annotations
 
-import ctypes
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -406,16 +405,11 @@ def from_json(doc: dict) -> ElmModel:
 
 def c_apply(block: np.ndarray, x: np.ndarray) -> np.ndarray:
     """The C runtime's ImuElmApply over x (N, 3) µT through ImuBatchElmPredict -> (N, 3) µT."""
-    from training.runtime import load_runtime
-    lib = load_runtime()
-    dp = ctypes.POINTER(ctypes.c_double)
-    lib.ImuBatchElmPredict.argtypes = [dp, ctypes.c_size_t, ctypes.c_size_t, dp, dp]
-    lib.ImuBatchElmPredict.restype = ctypes.c_int
+    from training.runtime import load_runtime, pointer
     blk = np.ascontiguousarray(block, dtype=np.float64)
     xin = np.ascontiguousarray(x, dtype=np.float64).reshape(-1, 3)
     out = np.empty_like(xin)
-    code = lib.ImuBatchElmPredict(blk.ctypes.data_as(dp), blk.size, xin.shape[0],
-                                  xin.ctypes.data_as(dp), out.ctypes.data_as(dp))
+    code = load_runtime().ImuBatchElmPredict(pointer(blk), blk.size, xin.shape[0], pointer(xin), pointer(out))
     if code != 0:
         raise ValueError(f"ImuBatchElmPredict rejected the input (code {code}): "
                          f"{BATCH_ERRORS.get(code, 'unknown error')}")

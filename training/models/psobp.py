@@ -41,14 +41,13 @@ estimated rate) to remove white noise.
 """
 from __future__ import annotations
 
-import ctypes
 import time
 from dataclasses import dataclass, replace
 
 import numpy as np
 import torch
 
-from training.runtime import load_runtime
+from training.runtime import load_runtime, pointer
 
 #: Compile-time maximum hidden size (IMU_PSOBP_MAX_HIDDEN in sources/ImuPsoBp.h).
 MAX_HIDDEN = 16
@@ -239,11 +238,6 @@ def correct_gyro_psobp(model: PsoBpModel, t: np.ndarray, gyr: np.ndarray,
 def correct_gyro_psobp_c(model: PsoBpModel, t: np.ndarray, gyr: np.ndarray,
                          temp: np.ndarray) -> np.ndarray:
     """`correct_gyro_psobp` computed by the C runtime (ImuBatchPsoBpCorrect), (N, 3) [rad/s]."""
-    lib = load_runtime()
-    fn = lib.ImuBatchPsoBpCorrect
-    dp = ctypes.POINTER(ctypes.c_double)
-    fn.argtypes = [dp, ctypes.c_size_t, ctypes.c_size_t, dp, dp, dp, dp]
-    fn.restype = ctypes.c_int
     block = np.ascontiguousarray(model.to_block(), dtype=np.float64)
     t = np.ascontiguousarray(t, dtype=np.float64)
     temp = np.ascontiguousarray(temp, dtype=np.float64)
@@ -251,8 +245,8 @@ def correct_gyro_psobp_c(model: PsoBpModel, t: np.ndarray, gyr: np.ndarray,
     if t.ndim != 1 or temp.shape != t.shape or gyr.shape != (t.shape[0], 3):
         raise ValueError(f"need t, temp (N,) and gyr (N, 3), got {t.shape}, {temp.shape}, {gyr.shape}")
     out = np.empty_like(gyr)
-    code = fn(block.ctypes.data_as(dp), block.size, t.shape[0], t.ctypes.data_as(dp),
-              temp.ctypes.data_as(dp), gyr.ctypes.data_as(dp), out.ctypes.data_as(dp))
+    code = load_runtime().ImuBatchPsoBpCorrect(pointer(block), block.size, t.shape[0], pointer(t), pointer(temp),
+                                               pointer(gyr), pointer(out))
     if code != 0:
         raise ValueError(f"C runtime rejected the PSO-BP input (code {code}): "
                          f"{ERROR_CODES.get(code, 'unknown error')}")
@@ -261,19 +255,14 @@ def correct_gyro_psobp_c(model: PsoBpModel, t: np.ndarray, gyr: np.ndarray,
 
 def _c_call(name: str, model: PsoBpModel, a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Call ImuBatchPsoBp<name>(block, nBlock, n, a, b, out) of the runtime library."""
-    lib = load_runtime()
-    fn = getattr(lib, f"ImuBatchPsoBp{name}")
-    dp = ctypes.POINTER(ctypes.c_double)
-    fn.argtypes = [dp, ctypes.c_size_t, ctypes.c_size_t, dp, dp, dp]
-    fn.restype = ctypes.c_int
+    fn = getattr(load_runtime(), f"ImuBatchPsoBp{name}")
     block = np.ascontiguousarray(model.to_block(), dtype=np.float64)
     a = np.ascontiguousarray(a, dtype=np.float64)
     b = np.ascontiguousarray(b, dtype=np.float64)
     if a.shape != b.shape or a.ndim != 1:
         raise ValueError(f"inputs must be two (N,) arrays, got {a.shape} and {b.shape}")
     out = np.empty((a.shape[0], 3))
-    code = fn(block.ctypes.data_as(dp), block.size, a.shape[0], a.ctypes.data_as(dp),
-              b.ctypes.data_as(dp), out.ctypes.data_as(dp))
+    code = fn(pointer(block), block.size, a.shape[0], pointer(a), pointer(b), pointer(out))
     if code != 0:
         raise ValueError(f"C runtime rejected the PSO-BP input (code {code}): "
                          f"{ERROR_CODES.get(code, 'unknown error')}")
