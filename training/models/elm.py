@@ -485,14 +485,6 @@ def prepare_compass(data: ImuData, linear, prep: CompassPrep = CompassPrep(), se
                       int((~ok).sum()))
 
 
-def fit_elm(data: ImuData, linear, fitter: ElmFitter = ElmFitter(), prep: CompassPrep = CompassPrep(),
-            seed: int = 0) -> ElmModel:
-    """Field-form ELM for a recording (ImuData with mag, acc, ref_q and ref_mag, or the
-    `reference` of prepare_compass): prepared with `prep`, trained on the 90 % training split."""
-    s = prepare_compass(data, linear, prep, seed)
-    return fitter.fit(s.field[s.train], s.reference[s.train], seed)
-
-
 def heading_rms_deg(field_ut: np.ndarray, euler: np.ndarray) -> float:
     """RMS [°] of the tilt-compensated heading of fields (N, 3) (true roll, pitch from euler
     (N, 3)) against the reference yaw euler[:, 2]."""
