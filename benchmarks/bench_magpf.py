@@ -116,9 +116,9 @@ def simulated(seeds: int) -> None:
             end = int(end_s * d.rate_hz)
             wide = magpf.zero_prior(60.0)
             for name, over in SIM_VARIANTS.items():
-                rows[name].append(run_filter(d, magpf.settings(60.0, seed=seed, **{**wide, **over}), end))
+                rows[name].append(run_filter(d, magpf.settings(60.0, pf_seed=seed, **{**wide, **over}), end))
             if HELD in rows:
-                rows[HELD].append(run_filter(d, magpf.settings(60.0, seed=seed, **magpf.trained_prior(d.hard_iron[0], d.soft_iron[0])), end))
+                rows[HELD].append(run_filter(d, magpf.settings(60.0, pf_seed=seed, **magpf.trained_prior(d.hard_iron[0], d.soft_iron[0])), end))
             start = int(kwargs.get("jump_at_s", 0.0) * d.rate_hz)
             rows["ellipsoid fit (batch)"].append(run_ellipsoid(magpf.TumblingData(
                 d.mag[start:], d.truth[start:], d.hard_iron[start:], d.soft_iron[start:],
@@ -136,9 +136,8 @@ def simulated(seeds: int) -> None:
 BROAD_PF = {"enable_pf": 1.0, "pf_measurement_noise": 0.8, "pf_prior_spread_hard": 0.5,
             "pf_prior_spread_soft": 0.005, "pf_min_rotation": float(np.deg2rad(6.0)),
             "pf_decimation": 4.0, "pf_change_spread_hard": 15.0}
-#: The same in the filter's own names (training.models.magpf), for the change count.
-BROAD_MAGPF = {"measurement_noise_ut": 0.8, "prior_spread_hard_ut": 0.5, "prior_spread_soft": 0.005,
-               "min_rotation_deg": 6.0, "decimation": 4, "change_spread_hard_ut": 15.0}
+#: BROAD_PF without the switch: the standalone filter's settings (training.models.magpf), for the change count.
+BROAD_MAGPF = {name: value for name, value in BROAD_PF.items() if name in magpf.FMU_SETTINGS}
 FIELD = [layout.OUTPUTS.index(n) for n in ("field_x", "field_y", "field_z")]
 QUATERNION = [layout.OUTPUTS.index(n) for n in ("q_w", "q_x", "q_y", "q_z")]
 MAGNET_TRIALS = ("32", "33", "35")
@@ -254,7 +253,7 @@ def broad_train(sensitivity_table: bool = False) -> None:
         derived_figures[n] = _evaluate(d, coefficients, on)
         hand = _evaluate(d, coefficients, BROAD_PF)
         field = apply_ellipsoid(fit, d.mag)
-        changes = magpf.run_c(field, magpf.settings(d.field_norm_ut, **pf_settings.to_magpf(derived))).changes
+        changes = magpf.run_c(field, magpf.settings(d.field_norm_ut, **derived)).changes
         (s0, h0), (s1, h1) = off_figures[n], derived_figures[n]
         print(f"| {d.name[:36]} | {_spread(d.mag, d.eval_mask.astype(bool)):.2f} | {s0:.2f} | {s1:.2f} | "
               f"{hand[0]:.2f} | {h0:.2f} | {h1:.2f} | {h1 - h0:+.2f} | {int(changes[-1])} | {hand[1]:.2f} |",

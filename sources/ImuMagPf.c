@@ -14,6 +14,7 @@
  * ImuMagPfPrivate.h declares what these files share; ImuMagPf.h is the pipeline's interface.
  */
 #include <math.h>
+#include <stddef.h>
 #include <string.h>
 #include "ImuMagPfPrivate.h"
 #include "ImuMath.h"
@@ -24,45 +25,78 @@
 #define IMU_MAG_PF_MAX_FIELD_RATIO 20.0   /* samples above 20 |h_0| are absurd (saturation, glitch) */
 #define IMU_MAG_PF_MIN_FIELD_RATIO 1e-3   /* samples below 0.001 |h_0| are dropouts */
 
-/** @brief Default settings (docs/magpf.md: prior = a trained calibration) for a field norm [uT]. */
-void ImuMagPfSettingsDefault(ImuMagPfSettings *settings, double fieldNorm)
+/** @brief One internal setting: its snake_case name (the batch library's and Python's), unit,
+ *         place in ImuMagPfSettings, kind and default. */
+typedef struct {
+    const char *name;
+    const char *unit;
+    size_t offset;   /* bytes into ImuMagPfSettings */
+    int integer;     /* 1: an int field, 0: a double field */
+    double value;    /* default [unit] */
+} ImuMagPfInternalSetting;
+
+#define IMU_MAG_PF_FIELD(field) offsetof(ImuMagPfSettings, field)
+#define IMU_MAG_PF_ELEMENT(field, k) (offsetof(ImuMagPfSettings, field) + (k) * sizeof(double))
+
+/** The settings the FMU does not expose, with their defaults (docs/magpf.md: prior = a trained
+ *  calibration, so zero prior hard and soft iron around the calibrated field): the one list of
+ *  them, in the order of the batch library's second settings array. */
+static const ImuMagPfInternalSetting ImuMagPfInternal[IMU_MAG_PF_INTERNAL_COUNT] = {
+    {"prior_hard_iron_x", "uT", IMU_MAG_PF_ELEMENT(priorHardIron, 0), 0, 0.0},
+    {"prior_hard_iron_y", "uT", IMU_MAG_PF_ELEMENT(priorHardIron, 1), 0, 0.0},
+    {"prior_hard_iron_z", "uT", IMU_MAG_PF_ELEMENT(priorHardIron, 2), 0, 0.0},
+    {"prior_soft_iron_xx", "1", IMU_MAG_PF_ELEMENT(priorSoftIron, 0), 0, 0.0},
+    {"prior_soft_iron_xy", "1", IMU_MAG_PF_ELEMENT(priorSoftIron, 1), 0, 0.0},
+    {"prior_soft_iron_xz", "1", IMU_MAG_PF_ELEMENT(priorSoftIron, 2), 0, 0.0},
+    {"prior_soft_iron_yy", "1", IMU_MAG_PF_ELEMENT(priorSoftIron, 3), 0, 0.0},
+    {"prior_soft_iron_yz", "1", IMU_MAG_PF_ELEMENT(priorSoftIron, 4), 0, 0.0},
+    {"prior_soft_iron_zz", "1", IMU_MAG_PF_ELEMENT(priorSoftIron, 5), 0, 0.0},
+    {"roughening", "1", IMU_MAG_PF_FIELD(roughening), 0, 0.2},
+    {"innovation_time_constant", "updates", IMU_MAG_PF_FIELD(innovationTimeConstant), 0, 5.0},
+    {"max_inflation", "1", IMU_MAG_PF_FIELD(maxInflation), 0, 20.0},
+    {"hidden_units", "1", IMU_MAG_PF_FIELD(hiddenUnits), 1, 5.0},
+    {"training_epochs", "1", IMU_MAG_PF_FIELD(trainingEpochs), 1, 20.0},
+    {"learning_rate", "1", IMU_MAG_PF_FIELD(learningRate), 0, 0.1},
+    {"max_tries", "1", IMU_MAG_PF_FIELD(maxTries), 1, 3.0},
+    {"enable_splitting", "0/1", IMU_MAG_PF_FIELD(enableSplitting), 1, 1.0},
+    {"change_threshold", "1", IMU_MAG_PF_FIELD(changeThreshold), 0, 25.0},
+    {"change_spread_soft", "1", IMU_MAG_PF_FIELD(changeSpreadSoft), 0, 0.01},
+    {"enable_move", "0/1", IMU_MAG_PF_FIELD(enableMove), 1, 1.0},
+    {"norm_time_constant", "updates", IMU_MAG_PF_FIELD(normTimeConstant), 0, 300.0},
+};
+
+int ImuMagPfInternalInfo(size_t index, const char **name, const char **unit, double *value)
 {
-    int j;
-    settings->particleCount = 128;
-    settings->highThreshold = 2.0;
-    settings->lowThreshold = 0.5;
-    settings->measurementNoise = 0.3;
-    settings->processNoiseHard = 0.01;
-    settings->processNoiseSoft = 2e-4;
-    settings->priorSpreadHard = 3.0;
-    settings->priorSpreadSoft = 0.02;
-    for (j = 0; j < 3; j++) {
-        settings->priorHardIron[j] = 0.0;
+    if (index >= IMU_MAG_PF_INTERNAL_COUNT) {
+        return -1;
     }
-    for (j = 0; j < 6; j++) {
-        settings->priorSoftIron[j] = 0.0;
+    *name = ImuMagPfInternal[index].name;
+    *unit = ImuMagPfInternal[index].unit;
+    *value = ImuMagPfInternal[index].value;
+    return 0;
+}
+
+void ImuMagPfSetInternal(ImuMagPfSettings *settings, size_t index, double value)
+{
+    const ImuMagPfInternalSetting *e = &ImuMagPfInternal[index];
+    char *field = (char *)settings + e->offset;
+    if (e->integer) {
+        /* a whole number in [0, 2^31), else -1, which every integer setting's check rejects */
+        const int n = (isfinite(value) && value == floor(value) && value >= 0.0 && value < 2147483648.0)
+                          ? (int)value : -1;
+        memcpy(field, &n, sizeof n);
+    } else {
+        memcpy(field, &value, sizeof value);
     }
-    settings->roughening = 0.2;
-    settings->innovationTimeConstant = 5.0;
-    settings->maxInflation = 20.0;
-    settings->decimation = 16;
-    settings->minRotation = 0.5;
-    settings->hiddenUnits = 5;
-    settings->trainingEpochs = 20;
-    settings->learningRate = 0.1;
-    settings->maxTries = 3;
-    settings->enableSplitting = 1;
-    settings->enableMove = 1;
-    settings->sphereBins = 2;
-    settings->changeThreshold = 25.0;
-    settings->changeSpreadHard = 30.0;
-    settings->changeSpreadSoft = 0.01;
-    settings->raoBlackwell = 1;
-    settings->holdPrior = 1;
-    settings->normTimeConstant = 300.0;
-    settings->settleSpread = 1.0;
-    settings->seed = 1U;
-    settings->fieldNorm = fieldNorm;
+}
+
+void ImuMagPfSettingsDefault(ImuMagPfSettings *settings)
+{
+    size_t i;
+    memset(settings, 0, sizeof *settings);
+    for (i = 0; i < IMU_MAG_PF_INTERNAL_COUNT; i++) {
+        ImuMagPfSetInternal(settings, i, ImuMagPfInternal[i].value);
+    }
 }
 
 /** @brief Message for the first invalid count or threshold setting, or NULL. */
@@ -82,19 +116,19 @@ static const char *ImuMagPfCheckCounts(const ImuMagPfSettings *s)
         return "pf_decimation (decimation) must be in 1..1000";
     }
     if (s->hiddenUnits < 1 || s->hiddenUnits > IMU_MAG_PF_MAX_HIDDEN) {
-        return "hiddenUnits must be in 1.." IMU_MAG_PF_STRING(IMU_MAG_PF_MAX_HIDDEN);
+        return "hidden_units (hiddenUnits) must be in 1.." IMU_MAG_PF_STRING(IMU_MAG_PF_MAX_HIDDEN);
     }
     if (s->trainingEpochs < 1 || s->trainingEpochs > 200) {
-        return "trainingEpochs must be in 1..200";
+        return "training_epochs (trainingEpochs) must be in 1..200";
     }
     if (s->maxTries < 1 || s->maxTries > 20) {
-        return "maxTries must be in 1..20";
+        return "max_tries (maxTries) must be in 1..20";
     }
     if (s->enableSplitting != 0 && s->enableSplitting != 1) {
-        return "enableSplitting must be 0 or 1";
+        return "enable_splitting (enableSplitting) must be 0 or 1";
     }
     if (s->enableMove != 0 && s->enableMove != 1) {
-        return "enableMove must be 0 or 1";
+        return "enable_move (enableMove) must be 0 or 1";
     }
     if (s->raoBlackwell != 0 && s->raoBlackwell != 1) {
         return "pf_rao_blackwell (raoBlackwell) must be 0 or 1";
@@ -127,40 +161,40 @@ static const char *ImuMagPfCheckValues(const ImuMagPfSettings *s)
         return "pf_prior_spread_soft (priorSpreadSoft) must be in [0, 1]";
     }
     if (!ImuAllFinite(s->priorHardIron, 3) || !ImuAllFinite(s->priorSoftIron, 6)) {
-        return "priorHardIron and priorSoftIron must be finite";
+        return "prior_hard_iron_* and prior_soft_iron_* (priorHardIron, priorSoftIron) must be finite";
     }
     if (!(s->roughening >= 0.0 && s->roughening <= 10.0)) {
         return "roughening must be in [0, 10]";
     }
     if (!(s->innovationTimeConstant >= 0.0 && s->innovationTimeConstant <= 1e6)) {
-        return "innovationTimeConstant must be in [0, 1e6] updates (0: off)";
+        return "innovation_time_constant (innovationTimeConstant) must be in [0, 1e6] updates (0: off)";
     }
     if (!(s->maxInflation >= 1.0 && s->maxInflation <= 1e3)) {
-        return "maxInflation must be in [1, 1000]";
+        return "max_inflation (maxInflation) must be in [1, 1000]";
     }
-    if (!(s->minRotation >= 0.0 && s->minRotation <= 90.0)) {
-        return "pf_min_rotation (minRotation) must be in [0, 90] deg";
+    if (!(s->minRotation >= 0.0 && s->minRotation <= 0.5 * IMU_PI)) {
+        return "pf_min_rotation (minRotation) must be in [0, pi/2] rad";
     }
     if (!(s->learningRate > 0.0 && s->learningRate <= 10.0)) {
-        return "learningRate must be in (0, 10]";
+        return "learning_rate (learningRate) must be in (0, 10]";
     }
     if (!(s->changeThreshold == 0.0 || (s->changeThreshold >= 2.0 && s->changeThreshold <= 1e6))) {
-        return "changeThreshold must be 0 (off) or in [2, 1e6]";
+        return "change_threshold (changeThreshold) must be 0 (off) or in [2, 1e6]";
     }
     if (!(s->changeSpreadHard >= 0.0 && s->changeSpreadHard <= 1e4)) {
         return "pf_change_spread_hard (changeSpreadHard) must be in [0, 1e4] uT";
     }
     if (!(s->changeSpreadSoft >= 0.0 && s->changeSpreadSoft <= 1.0)) {
-        return "changeSpreadSoft must be in [0, 1]";
+        return "change_spread_soft (changeSpreadSoft) must be in [0, 1]";
     }
     if (!(s->settleSpread >= 0.0 && s->settleSpread <= 1e4)) {
         return "pf_settle_spread (settleSpread) must be in [0, 1e4] uT (0: always settled)";
     }
     if (!(s->normTimeConstant >= 0.0 && s->normTimeConstant <= 1e6)) {
-        return "normTimeConstant must be in [0, 1e6] updates (0: off)";
+        return "norm_time_constant (normTimeConstant) must be in [0, 1e6] updates (0: off)";
     }
     if (!(s->fieldNorm > 0.0 && s->fieldNorm <= 1e4)) {
-        return "fieldNorm must be in (0, 1e4] uT";
+        return "field_norm (fieldNorm) must be in (0, 1e4] uT";
     }
     if (s->raoBlackwell && !(s->priorSpreadHard > 0.0 && s->changeSpreadHard > 0.0)) {
         return "pf_prior_spread_hard (priorSpreadHard) and pf_change_spread_hard (changeSpreadHard) must be > 0 uT when pf_rao_blackwell is 1";
@@ -198,7 +232,7 @@ static void ImuMagPfDerive(ImuMagPf *pf)
         c->processNoise[j] = j < 3 ? s->processNoiseHard : s->processNoiseSoft;
     }
     c->innovationRate = s->innovationTimeConstant > 0.0 ? 1.0 / s->innovationTimeConstant : 0.0;
-    c->minRotationCosine = cos(s->minRotation * IMU_PI / 180.0);
+    c->minRotationCosine = cos(s->minRotation);
 }
 
 int ImuMagPfConfigure(ImuMagPf *pf, const ImuMagPfSettings *settings)

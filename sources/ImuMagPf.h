@@ -18,6 +18,7 @@
 #ifndef IMU_MAG_PF_H
 #define IMU_MAG_PF_H
 
+#include <stddef.h>
 #include <stdint.h>
 #include "ImuCommon.h"
 #include "ImuRng.h"
@@ -29,8 +30,10 @@
 #define IMU_MAG_PF_MAX_TRAINING 64   /* high-weight particles used to train the network */
 #define IMU_MAG_PF_MAX_BIN_SIDE 4    /* largest sphereBins (cells per cube-face side) */
 #define IMU_MAG_PF_MAX_BINS (6 * IMU_MAG_PF_MAX_BIN_SIDE * IMU_MAG_PF_MAX_BIN_SIDE) /* 96 */
+#define IMU_MAG_PF_INTERNAL_COUNT 21 /* settings that are not FMU parameters (ImuMagPf.c ImuMagPfInternal) */
 
-/** User settings (units in the comments). */
+/** User settings (units in the comments): the FMU parameters pf_* and field_norm, and the internal
+ *  settings of ImuMagPf.c ImuMagPfInternal. */
 typedef struct {
     int particleCount;             /* 1, N in 2..IMU_MAG_PF_MAX_PARTICLES */
     double highThreshold;          /* 1, omega1 relative to 1/N, in (1, 100] */
@@ -46,7 +49,7 @@ typedef struct {
     double innovationTimeConstant; /* filter updates of the innovation average; 0: no adaptation */
     double maxInflation;           /* 1, largest process-noise inflation factor, >= 1 */
     int decimation;                /* filter every k-th valid sample, 1..1000 */
-    double minRotation;            /* deg, skip samples within this angle of the last used one, [0, 90] */
+    double minRotation;            /* rad, skip samples within this angle of the last used one, [0, pi/2] */
     int hiddenUnits;               /* tansig units of the network, 1..IMU_MAG_PF_MAX_HIDDEN */
     int trainingEpochs;            /* gradient-descent epochs per training, 1..200 */
     double learningRate;           /* 1, gradient-descent step on normalised data, (0, 10] */
@@ -150,8 +153,16 @@ typedef struct {
     ImuMagPfWork work;
 } ImuMagPf;
 
-/** @brief Default settings (docs/magpf.md: prior = a trained calibration) for a field norm [uT]. */
-IMU_HIDDEN void ImuMagPfSettingsDefault(ImuMagPfSettings *settings, double fieldNorm);
+/** @brief Zero every setting, then give the internal ones (not FMU parameters) their defaults; the
+ *         FMU parameters come from the settings array (ImuPipeline.c ImuPipelinePfSettings), whose
+ *         defaults are the variable table's (contract/variables.py). */
+IMU_HIDDEN void ImuMagPfSettingsDefault(ImuMagPfSettings *settings);
+/** @brief Name (snake_case), unit and default of internal setting index < IMU_MAG_PF_INTERNAL_COUNT;
+ *         0, or -1 past the end. */
+IMU_HIDDEN int ImuMagPfInternalInfo(size_t index, const char **name, const char **unit, double *value);
+/** @brief Set internal setting index < IMU_MAG_PF_INTERNAL_COUNT to value [its unit]; an integer
+ *         setting that is not a whole number in [0, 2^31) becomes -1, which the check rejects. */
+IMU_HIDDEN void ImuMagPfSetInternal(ImuMagPfSettings *settings, size_t index, double value);
 /** @brief 0 if the settings are valid, else -1 with *message naming the setting and its range. */
 IMU_HIDDEN int ImuMagPfSettingsCheck(const ImuMagPfSettings *settings, const char **message);
 /** @brief Check settings and derive the coefficients, keeping the evolving state (a restored FMU

@@ -42,10 +42,13 @@ static int ImuPipelineInteger(double value)
     return (isfinite(value) && value == floor(value) && value >= 0.0 && value < 2147483648.0) ? (int)value : -1;
 }
 
-/** @brief Particle-filter settings: its defaults for the field norm, then the FMU parameters. */
+/** @brief Particle-filter settings: its internal defaults (ImuMagPfSettingsDefault), then the FMU
+ *         parameters in their units (radians for pf_min_rotation): the one mapping from the settings
+ *         array to the filter, which the batch library reaches through ImuRuntimeSettings. */
 static void ImuPipelinePfSettings(ImuMagPfSettings *pf, const double *a)
 {
-    ImuMagPfSettingsDefault(pf, a[ImuSetFieldNorm]);
+    ImuMagPfSettingsDefault(pf);
+    pf->fieldNorm = a[ImuSetFieldNorm];
     pf->particleCount = ImuPipelineInteger(a[ImuSetPfParticles]);
     pf->measurementNoise = a[ImuSetPfMeasurementNoise];
     pf->processNoiseHard = a[ImuSetPfProcessNoiseHard];
@@ -58,7 +61,7 @@ static void ImuPipelinePfSettings(ImuMagPfSettings *pf, const double *a)
     pf->lowThreshold = a[ImuSetPfThresholdLow];
     pf->sphereBins = ImuPipelineInteger(a[ImuSetPfSphereBins]);
     pf->raoBlackwell = ImuPipelineFlag(a[ImuSetPfRaoBlackwell]);
-    pf->minRotation = a[ImuSetPfMinRotation] * (180.0 / IMU_PI);
+    pf->minRotation = a[ImuSetPfMinRotation];
     pf->changeSpreadHard = a[ImuSetPfChangeSpreadHard];
     pf->holdPrior = ImuPipelineFlag(a[ImuSetPfHoldPrior]);
     pf->settleSpread = a[ImuSetPfSettleSpread];

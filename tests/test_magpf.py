@@ -6,6 +6,8 @@ from datetime import datetime
 import numpy as np
 import pytest
 
+from contract import layout
+from training import runtime
 from training.models import magmoments as mm, magpf
 from training.models.ellipsoid import apply_ellipsoid, fit_ellipsoid
 from training.models.rng import Pcg32
@@ -109,8 +111,8 @@ def test_systematic_resampling_counts():
 @pytest.mark.parametrize("splitting, move, bins", [(1, 1, 2), (0, 1, 2), (1, 0, 0), (0, 0, 3)])
 def test_c_equals_numpy_twin_first_updates(splitting, move, bins):
     d = magpf.simulate_tumbling(0, duration_s=0.6)
-    s = magpf.settings(60.0, particle_count=32, seed=5, enable_splitting=splitting, enable_move=move,
-                       sphere_bins=bins, decimation=1, **magpf.zero_prior(60.0),
+    s = magpf.settings(60.0, pf_particles=32, pf_seed=5, enable_splitting=splitting, enable_move=move,
+                       pf_sphere_bins=bins, pf_decimation=1, **magpf.zero_prior(60.0),
                        **magpf.METHOD_AS_DESCRIBED)
     c, py = magpf.run_c(d.mag, s), magpf.run_python(d.mag, s)
     for a, b in ((c.hard_iron, py.hard_iron), (c.soft_iron, py.soft_iron), (c.neff, py.neff),
@@ -126,7 +128,7 @@ def test_c_equals_numpy_twin_rao_blackwell(move, jump, prior):
     # held until the data contradict it, then a change restarts the filter. The twin follows the
     # C code operation by operation.
     d = magpf.simulate_tumbling(6, duration_s=3.0, jump_at_s=jump)
-    s = magpf.settings(60.0, particle_count=16, seed=9, decimation=4, enable_move=move,
+    s = magpf.settings(60.0, pf_particles=16, pf_seed=9, pf_decimation=4, enable_move=move,
                        **(magpf.zero_prior(60.0) if prior == "zero" else {}))
     c, py = magpf.run_c(d.mag, s), magpf.run_python(d.mag, s)
     for a, b in ((c.hard_iron, py.hard_iron), (c.soft_iron, py.soft_iron), (c.neff, py.neff),
@@ -151,7 +153,7 @@ def test_c_equals_numpy_twin_through_a_declared_glitch_and_the_prior_taken_back(
     # afterwards the prior calibration (the truth) explains the data and is taken back. Both steps
     # and the mode-0 buffer confirmation run identically in the twin.
     d = magpf.simulate_tumbling(8, duration_s=2.0)
-    s = magpf.settings(60.0, particle_count=16, seed=3, decimation=1, rao_blackwell=rao_blackwell,
+    s = magpf.settings(60.0, pf_particles=16, pf_seed=3, pf_decimation=1, pf_rao_blackwell=rao_blackwell,
                        **magpf.trained_prior(d.hard_iron[0], d.soft_iron[0]))
     mag = _disturbed(d, 0.5, 0.3, 1)
     c, py = magpf.run_c(mag, s), magpf.run_python(mag, s)
@@ -171,7 +173,7 @@ def test_a_disturbance_declared_as_a_change_falls_back_to_the_trained_calibratio
     # from the disturbance and kept what they found (7–11 µT off on these seeds).
     for seed in range(HELD_SEEDS):
         d = magpf.simulate_tumbling(seed, duration_s=30.0)
-        s = magpf.settings(60.0, seed=seed, rao_blackwell=rao_blackwell, decimation=4,
+        s = magpf.settings(60.0, pf_seed=seed, pf_rao_blackwell=rao_blackwell, pf_decimation=4,
                            **magpf.trained_prior(d.hard_iron[0], d.soft_iron[0]))
         r = magpf.run_c(_disturbed(d, 10.0, 1.0, seed), s)
         after = int(21.0 * d.rate_hz)
@@ -187,7 +189,7 @@ def test_a_removed_magnet_returns_to_the_trained_calibration():
     d = magpf.simulate_tumbling(1, duration_s=40.0)
     t = np.arange(len(d.mag)) / d.rate_hz
     mag = d.mag + np.where(((t >= 10.0) & (t < 25.0))[:, None], [20.0, 0.0, 0.0], 0.0)
-    r = magpf.run_c(mag, magpf.settings(60.0, seed=1, **magpf.trained_prior(d.hard_iron[0], d.soft_iron[0])))
+    r = magpf.run_c(mag, magpf.settings(60.0, pf_seed=1, **magpf.trained_prior(d.hard_iron[0], d.soft_iron[0])))
     assert r.changes[-1] >= 2
     assert np.abs(r.hard_iron[int(20.0 * d.rate_hz)] - d.hard_iron[0] - [20.0, 0.0, 0.0]).max() <= ACCEPTANCE_HARD_UT
     np.testing.assert_array_equal(r.hard_iron[int(35.0 * d.rate_hz):], np.tile(d.hard_iron[0], (500, 1)))
@@ -200,7 +202,7 @@ def test_a_stuck_reading_is_not_a_change():
     d = magpf.simulate_tumbling(4, duration_s=20.0)
     mag = d.mag.copy()
     mag[1000:1100] = [25.0, -30.0, 35.0]
-    r = magpf.run_c(mag, magpf.settings(60.0, seed=4, decimation=2,
+    r = magpf.run_c(mag, magpf.settings(60.0, pf_seed=4, pf_decimation=2,
                                         **magpf.trained_prior(d.hard_iron[0], d.soft_iron[0])))
     assert r.changes[-1] == 0
     np.testing.assert_array_equal(r.hard_iron[-1], d.hard_iron[0])
@@ -254,7 +256,7 @@ def test_acceptance_over_20_seeds(jump):
     figures = []
     for seed in range(ACCEPTANCE_SEEDS):
         d = magpf.simulate_tumbling(seed, jump_at_s=jump)
-        r = magpf.run_c(d.mag, magpf.settings(60.0, seed=seed, **magpf.zero_prior(60.0)))
+        r = magpf.run_c(d.mag, magpf.settings(60.0, pf_seed=seed, **magpf.zero_prior(60.0)))
         figures.append(_acceptance_figures(d, r))
         if jump is not None:
             assert r.changes[-1] > r.changes[int(jump * d.rate_hz) - 1]   # the jump is declared
@@ -269,7 +271,7 @@ def test_a_burst_of_glitches_neither_declares_a_change_nor_moves_the_estimate():
     d = magpf.simulate_tumbling(2, duration_s=40.0)
     corrupted = d.mag.copy()
     corrupted[3000:3016, 2] += 25.0
-    s = magpf.settings(60.0, seed=2, **magpf.zero_prior(60.0))
+    s = magpf.settings(60.0, pf_seed=2, **magpf.zero_prior(60.0))
     clean, glitched = magpf.run_c(d.mag, s), magpf.run_c(corrupted, s)
     assert glitched.changes[-1] == clean.changes[-1]
     assert np.abs(glitched.hard_iron[-1] - clean.hard_iron[-1]).max() < 0.05
@@ -277,7 +279,7 @@ def test_a_burst_of_glitches_neither_declares_a_change_nor_moves_the_estimate():
 
 def test_identity_estimate_stays_near_zero():
     d = magpf.simulate_tumbling(1, duration_s=20.0, hard_iron=(0, 0, 0), soft_iron=(0,) * 6)
-    r = magpf.run_c(d.mag, magpf.settings(60.0, prior_spread_hard_ut=2.0, prior_spread_soft=0.01, hold_prior=0))
+    r = magpf.run_c(d.mag, magpf.settings(60.0, pf_prior_spread_hard=2.0, pf_prior_spread_soft=0.01, pf_hold_prior=0))
     assert np.abs(r.hard_iron[-500:]).max() < IDENTITY_HARD_BOUND_UT
     assert np.abs(r.soft_iron[-500:]).max() < IDENTITY_SOFT_BOUND
 
@@ -287,7 +289,7 @@ def test_held_calibration_is_exact_until_a_hard_iron_jump_then_reconverges():
     # jitter — until a 20 µT hard-iron jump at 30 s is declared; 30 s later the issue's bounds hold.
     for seed in range(HELD_SEEDS):
         d = magpf.simulate_tumbling(seed, jump_at_s=30.0)
-        r = magpf.run_c(d.mag, magpf.settings(60.0, seed=seed, **magpf.trained_prior(d.hard_iron[0], d.soft_iron[0])))
+        r = magpf.run_c(d.mag, magpf.settings(60.0, pf_seed=seed, **magpf.trained_prior(d.hard_iron[0], d.soft_iron[0])))
         before = slice(0, int(30.0 * d.rate_hz))
         assert np.all(r.hard_iron[before] == d.hard_iron[0]) and np.all(r.soft_iron[before] == d.soft_iron[0])
         assert r.changes[before.stop - 1] == 0 and r.changes[-1] >= 1
@@ -300,7 +302,7 @@ def test_a_held_calibration_the_data_contradict_from_the_start_is_a_change():
     # calibration is the change test's baseline from the first update, so the mismatch is declared
     # at once and the filter converges to the issue's bounds by the end of 60 s.
     d = magpf.simulate_tumbling(3)
-    r = magpf.run_c(d.mag, magpf.settings(60.0, seed=3))
+    r = magpf.run_c(d.mag, magpf.settings(60.0, pf_seed=3))
     assert r.changes[int(5.0 * d.rate_hz)] >= 1
     hard, norm = _acceptance_figures(d, r)
     assert hard <= ACCEPTANCE_HARD_UT and norm <= ACCEPTANCE_NORM_PERCENT
@@ -318,7 +320,7 @@ def test_an_ambient_norm_drift_is_not_a_change_of_the_carrier():
     grow = 1.0 + AMBIENT_GROWTH * np.clip((t - 10.0) / 40.0, 0.0, 1.0)
     drifting = (d.truth * grow[:, None]) @ inv.T + d.hard_iron + noise
     stepped = d.mag + np.where(t[:, None] >= 30.0, [3.0, 0.0, 0.0], 0.0)
-    s = magpf.settings(60.0, seed=0, decimation=4, **magpf.trained_prior(d.hard_iron[0], d.soft_iron[0]))
+    s = magpf.settings(60.0, pf_seed=0, pf_decimation=4, **magpf.trained_prior(d.hard_iron[0], d.soft_iron[0]))
     assert magpf.run_c(drifting, s).changes[-1] == 0
     assert magpf.run_c(drifting, {**s, "norm_time_constant": 0.0}).changes[-1] >= 1
     assert magpf.run_c(stepped, s).changes[-1] >= 1
@@ -326,9 +328,9 @@ def test_an_ambient_norm_drift_is_not_a_change_of_the_carrier():
 
 def test_deterministic_and_seed_dependent():
     d = magpf.simulate_tumbling(2, duration_s=5.0)
-    a = magpf.run_c(d.mag, magpf.settings(60.0, seed=11))
-    b = magpf.run_c(d.mag, magpf.settings(60.0, seed=11))
-    c = magpf.run_c(d.mag, magpf.settings(60.0, seed=12))
+    a = magpf.run_c(d.mag, magpf.settings(60.0, pf_seed=11))
+    b = magpf.run_c(d.mag, magpf.settings(60.0, pf_seed=11))
+    c = magpf.run_c(d.mag, magpf.settings(60.0, pf_seed=12))
     np.testing.assert_array_equal(a.hard_iron, b.hard_iron)
     assert not np.array_equal(a.hard_iron, c.hard_iron)
 
@@ -347,27 +349,29 @@ def test_invalid_samples_are_skipped():
 
 
 @pytest.mark.parametrize("override, word", [
-    ({"particle_count": magpf.MAX_PARTICLES + 1}, "particleCount"),
-    ({"measurement_noise_ut": -1.0}, "measurementNoise"),
-    ({"process_noise_hard_ut": -0.1}, "processNoiseHard"),
-    ({"field_norm_ut": 0.0}, "fieldNorm"),
-    ({"low_threshold": 1.5}, "lowThreshold"),
-    ({"hidden_units": 9}, "hiddenUnits"),
-    ({"sphere_bins": magpf.MAX_BIN_SIDE + 1}, "sphereBins"),
-    ({"change_threshold": 1.0}, "changeThreshold"),
-    ({"enable_move": 2}, "enableMove"),
-    ({"rao_blackwell": 2}, "raoBlackwell"),
-    ({"hold_prior": 2}, "holdPrior"),
-    ({"settle_spread_ut": -1.0}, "settleSpread"),
-    ({"norm_time_constant": -1.0}, "normTimeConstant"),
-    ({"prior_spread_hard_ut": 0.0}, "priorSpreadHard"),
+    ({"pf_particles": magpf.MAX_PARTICLES + 1}, "pf_particles"),
+    ({"pf_measurement_noise": -1.0}, "pf_measurement_noise"),
+    ({"pf_process_noise_hard": -0.1}, "pf_process_noise_hard"),
+    ({"field_norm": 0.0}, "field_norm"),
+    ({"pf_threshold_low": 1.5}, "pf_threshold_low"),
+    ({"hidden_units": 9}, "hidden_units"),
+    ({"hidden_units": 2.5}, "hidden_units"),
+    ({"pf_sphere_bins": magpf.MAX_BIN_SIDE + 1}, "pf_sphere_bins"),
+    ({"change_threshold": 1.0}, "change_threshold"),
+    ({"enable_move": 2}, "enable_move"),
+    ({"pf_rao_blackwell": 2}, "pf_rao_blackwell"),
+    ({"pf_hold_prior": 2}, "pf_hold_prior"),
+    ({"pf_settle_spread": -1.0}, "pf_settle_spread"),
+    ({"norm_time_constant": -1.0}, "norm_time_constant"),
+    ({"pf_prior_spread_hard": 0.0}, "pf_prior_spread_hard"),
+    ({"pf_min_rotation": 2.0}, "pf_min_rotation"),
 ])
 def test_invalid_settings_rejected_with_message(override, word):
     s = {**magpf.settings(50.0), **override}
     assert word in magpf.check_settings_c(s)
     with pytest.raises(ValueError, match=word):
         magpf.run_c(np.zeros((2, 3)), s)
-    if "particle_count" in override:
+    if "pf_particles" in override:
         assert str(magpf.MAX_PARTICLES) in magpf.check_settings_c(s)
 
 
@@ -389,3 +393,32 @@ def test_geomag_matches_published_igrf_value():
     f = earth_field(52.5, 13.3, 0.05, datetime(2020, 6, 1))
     assert abs(f.norm_ut - 49.8) < 0.3 and abs(f.dip_deg - 67.9) < 0.3
     assert abs(f.declination_deg - 4.3) < 0.3
+
+
+def test_settings_are_the_fmu_parameters_and_the_c_filters_internal_settings():
+    """One vocabulary: field_norm and the pf_* parameters with the variable table's defaults, then
+    the internal settings the C filter names (ImuMagPfInternal), none of them an FMU name."""
+    internal = [name for name, _, _ in magpf.internal_settings()]
+    fmu_defaults = layout.settings_defaults()
+    assert all(internal) and len(set(internal)) == len(internal)
+    assert not set(internal) & set(fmu_defaults)
+    s = magpf.settings(50.0)
+    assert list(s) == list(magpf.setting_names())
+    assert {n: s[n] for n in magpf.FMU_SETTINGS if n != "field_norm"} == \
+        {n: fmu_defaults[n] for n in magpf.FMU_SETTINGS if n != "field_norm"}
+
+
+def test_batch_entry_and_fmu_chain_run_the_same_filter_from_the_same_settings():
+    """ImuBatchMagPfRun builds its settings with the pipeline's own mapping (ImuPipelinePfSettings):
+    on the raw field of an identity model the chain's hard-iron outputs equal the batch filter's
+    bit for bit (pf_min_rotation in rad on both paths)."""
+    d = magpf.simulate_tumbling(3, duration_s=4.0)
+    n = len(d.mag)
+    t = np.arange(n) / d.rate_hz
+    inputs = np.column_stack([np.zeros((n, 3)), np.tile([0.0, 0.0, -9.81], (n, 1)), d.mag, np.full(n, 25.0),
+                              np.zeros((n, len(layout.AUX_INPUTS)))])
+    pf = {"pf_particles": 32.0, "pf_decimation": 2.0, "pf_min_rotation": 0.01, **magpf.zero_prior(d.field_norm_ut)}
+    out = runtime.run_batch(layout.identity_coefficients(),
+                            layout.settings_array({"enable_pf": 1.0, "field_norm": d.field_norm_ut, **pf}), t, inputs)
+    chain = out[:, [layout.OUTPUTS.index(f"hard_iron_{a}") for a in "xyz"]]
+    np.testing.assert_array_equal(chain, magpf.run_c(d.mag, magpf.settings(d.field_norm_ut, **pf)).hard_iron)

@@ -147,13 +147,13 @@ def test_derived_settings_hold_a_noisier_sensor_and_declare_a_20_ut_jump():
         noise = {"noise_uniform_ut": 0.3 * NOISY, "noise_t_scale_ut": 0.1 * NOISY}
         clean = magpf.simulate_tumbling(20 + seed, **noise)
         jump = magpf.simulate_tumbling(20 + seed, **noise, jump_at_s=30.0)
-        held = magpf.settings(clean.field_norm_ut, seed=seed,
+        held = magpf.settings(clean.field_norm_ut, pf_seed=seed,
                               **magpf.trained_prior(clean.hard_iron[0], clean.soft_iron[0]))
-        s = {**held, **ps.to_magpf(own)}
+        s = {**held, **own}
         assert magpf.run_c(clean.mag, s).changes[-1] == 0, seed
         changes = magpf.run_c(jump.mag, s).changes
         assert changes[int(30.0 * jump.rate_hz) - 1] == 0 and changes[-1] >= 1, seed
-        false_with_quiet_settings += int(magpf.run_c(clean.mag, {**held, **ps.to_magpf(quiet)}).changes[-1])
+        false_with_quiet_settings += int(magpf.run_c(clean.mag, {**held, **quiet}).changes[-1])
     assert false_with_quiet_settings > 0
 
 

@@ -13,11 +13,13 @@ State x = [h_p (3) µT, b11 b12 b13 b22 b23 b33]; compensation h_c = (I + B)(h_m
 from __future__ import annotations
 
 import ctypes
+import functools
 import math
 from dataclasses import dataclass
 
 import numpy as np
 
+from contract import layout
 from training import runtime
 from training.models import magpf_rb
 from training.models.rng import Pcg32
@@ -42,88 +44,76 @@ TINY = 1e-12
 SOFT_INDEX = np.array([[3, 4, 5], [4, 6, 7], [5, 7, 8]])
 N_OUTPUTS = 14               # compensated (3), hard iron (3), soft iron (6), N_eff, changes
 
-#: Flat settings of ImuBatchMagPfRun: (name, unit, default) = the C defaults
-#: (ImuMagPfSettingsDefault); field_norm_ut has no default (`settings()` sets it). The default prior
-#: (spread 3 µT / 0.02 around the prior mean) assumes a trained calibration as prior mean;
-#: ZERO_PRIOR is the wide prior for an uncalibrated start.
-SETTINGS = (
-    ("particle_count", "1", 128),
-    ("high_threshold", "1/N", 2.0),
-    ("low_threshold", "1/N", 0.5),
-    ("measurement_noise_ut", "µT", 0.3),
-    ("process_noise_hard_ut", "µT/update", 0.01),
-    ("process_noise_soft", "1/update", 2e-4),
-    ("prior_spread_hard_ut", "µT", 3.0),
-    ("prior_spread_soft", "1", 0.02),
-    ("prior_hard_iron_x_ut", "µT", 0.0),
-    ("prior_hard_iron_y_ut", "µT", 0.0),
-    ("prior_hard_iron_z_ut", "µT", 0.0),
-    ("prior_soft_iron_xx", "1", 0.0),
-    ("prior_soft_iron_xy", "1", 0.0),
-    ("prior_soft_iron_xz", "1", 0.0),
-    ("prior_soft_iron_yy", "1", 0.0),
-    ("prior_soft_iron_yz", "1", 0.0),
-    ("prior_soft_iron_zz", "1", 0.0),
-    ("roughening", "1", 0.2),
-    ("innovation_time_constant", "updates", 5.0),
-    ("max_inflation", "1", 20.0),
-    ("decimation", "samples", 16),
-    ("hidden_units", "1", 5),
-    ("training_epochs", "1", 20),
-    ("learning_rate", "1", 0.1),
-    ("max_tries", "1", 3),
-    ("enable_splitting", "0/1", 1),
-    ("seed", "1", 1),
-    ("field_norm_ut", "µT", None),
-    ("min_rotation_deg", "deg", 0.5),
-    ("sphere_bins", "1", 2),
-    ("change_threshold", "1", 25.0),
-    ("change_spread_hard_ut", "µT", 30.0),
-    ("change_spread_soft", "1", 0.01),
-    ("enable_move", "0/1", 1),
-    ("rao_blackwell", "0/1", 1),
-    ("hold_prior", "0/1", 1),
-    ("norm_time_constant", "updates", 300.0),
-    ("settle_spread_ut", "µT", 1.0),
-)
-SETTING_NAMES = tuple(name for name, _, _ in SETTINGS)
+#: The FMU settings the filter reads (sources/ImuPipeline.c ImuPipelinePfSettings): field_norm and
+#: the pf_* parameters, with the variable table's units (pf_min_rotation in rad) and defaults.
+FMU_SETTINGS = ("field_norm",) + tuple(name for name, _ in layout.SETTINGS if name.startswith("pf_"))
 
 
 #: The method as its source describes it (docs/magpf.md, mode 0): the 9-state filter with the
-#: change test as tuned for it; the defaults above are those of the Rao-Blackwellised mode.
-METHOD_AS_DESCRIBED = {"rao_blackwell": 0, "innovation_time_constant": 50.0, "change_threshold": 100.0,
-                       "change_spread_hard_ut": 10.0, "change_spread_soft": 0.0, "min_rotation_deg": 0.0,
+#: change test as tuned for it; the defaults are those of the Rao-Blackwellised mode.
+METHOD_AS_DESCRIBED = {"pf_rao_blackwell": 0, "innovation_time_constant": 50.0, "change_threshold": 100.0,
+                       "pf_change_spread_hard": 10.0, "change_spread_soft": 0.0, "pf_min_rotation": 0.0,
                        "norm_time_constant": 0.0}
 
 
-def zero_prior(field_norm_ut: float) -> dict:
+@functools.cache
+def internal_settings() -> tuple[tuple[str, str, float], ...]:
+    """(name, unit, default) of the settings that are not FMU parameters, in the order of the batch
+    library's second array: read from the C filter (sources/ImuMagPf.c ImuMagPfInternal), their
+    one definition. The default prior (zero around the calibrated field, spread pf_prior_spread_*)
+    assumes a trained calibration as prior mean; `zero_prior` is the wide prior for an
+    uncalibrated start."""
+    lib, rows = _lib(), []
+    name, unit, value = ctypes.c_char_p(), ctypes.c_char_p(), ctypes.c_double()
+    while lib.ImuBatchMagPfInternal(len(rows), ctypes.byref(name), ctypes.byref(unit), ctypes.byref(value)) == 0:
+        rows.append((name.value.decode(), unit.value.decode(), value.value))
+    return tuple(rows)
+
+
+def internal_defaults() -> dict[str, float]:
+    """Default of every internal setting, by name (units of `internal_settings`)."""
+    return {name: value for name, _, value in internal_settings()}
+
+
+def setting_names() -> tuple[str, ...]:
+    """Every name `settings` knows: FMU_SETTINGS, then the internal settings."""
+    return FMU_SETTINGS + tuple(internal_defaults())
+
+
+def zero_prior(field_norm: float) -> dict:
     """Wide prior around zero for an uncalibrated start: 0.5 |h_0| [µT] and 0.05, adapting from the
     first sample (nothing to hold)."""
-    return {"prior_spread_hard_ut": 0.5 * float(field_norm_ut), "prior_spread_soft": 0.05, "hold_prior": 0}
+    return {"pf_prior_spread_hard": 0.5 * float(field_norm), "pf_prior_spread_soft": 0.05, "pf_hold_prior": 0}
 
 
 def trained_prior(hard_iron_ut, soft_iron, spread_hard_ut: float = 0.5, spread_soft: float = 0.005) -> dict:
     """Prior settings around a known calibration (hard iron [µT], soft iron b11 b12 b13 b22 b23
     b33), as `train` would give it: tight spreads, held until a change (the default)."""
-    p = {f"prior_hard_iron_{a}_ut": float(v) for a, v in zip("xyz", hard_iron_ut)}
+    p = {f"prior_hard_iron_{a}": float(v) for a, v in zip("xyz", hard_iron_ut)}
     p.update({f"prior_soft_iron_{k}": float(v) for k, v in zip(("xx", "xy", "xz", "yy", "yz", "zz"), soft_iron)})
-    return {**p, "prior_spread_hard_ut": float(spread_hard_ut), "prior_spread_soft": float(spread_soft)}
+    return {**p, "pf_prior_spread_hard": float(spread_hard_ut), "pf_prior_spread_soft": float(spread_soft)}
 
 
-def settings(field_norm_ut: float, **overrides) -> dict:
-    """Default settings for a field norm [µT] with `overrides` (names of SETTINGS)."""
-    unknown = set(overrides) - set(SETTING_NAMES)
+def settings(field_norm: float, **overrides) -> dict:
+    """Default settings for a field norm [µT] with `overrides` (names of `setting_names`): the FMU
+    defaults of contract/variables.py and the internal defaults of the C filter."""
+    unknown = set(overrides) - set(setting_names())
     if unknown:
         raise ValueError(f"unknown magpf setting(s): {', '.join(sorted(unknown))}")
-    s = {name: default for name, _, default in SETTINGS}
-    s["field_norm_ut"] = float(field_norm_ut)
+    fmu = layout.settings_defaults()
+    s = {name: fmu[name] for name in FMU_SETTINGS}
+    s["field_norm"] = float(field_norm)
+    s.update(internal_defaults())
     s.update(overrides)
     return s
 
 
-def settings_array(s: dict) -> np.ndarray:
-    """(38,) float64 array of a settings dict in the order of SETTINGS."""
-    return np.array([float(s[name]) for name in SETTING_NAMES], dtype=np.float64)
+def settings_arrays(s: dict) -> tuple[np.ndarray, np.ndarray]:
+    """The two arrays of the batch entry: the FMU settings array (contract.layout SETTINGS order,
+    FMU defaults where s has no value) and the internal settings in the order of `internal_settings`."""
+    fmu = np.array(layout.settings_array({name: s[name] for name in FMU_SETTINGS}), dtype=np.float64)
+    internal = np.array([float(s[name]) for name, _, _ in internal_settings()], dtype=np.float64)
+    return fmu, internal
 
 
 # ----------------------------------------------------------------------------- C batch entry
@@ -133,9 +123,12 @@ def _lib() -> ctypes.CDLL:
     """The runtime library with the magpf entry points declared."""
     lib = runtime.load_runtime()
     dp, sz = ctypes.POINTER(ctypes.c_double), ctypes.c_size_t
-    lib.ImuBatchMagPfRun.argtypes = [dp, sz, sz, dp, dp]
+    text = ctypes.POINTER(ctypes.c_char_p)
+    lib.ImuBatchMagPfInternal.argtypes = [sz, text, text, dp]
+    lib.ImuBatchMagPfInternal.restype = ctypes.c_int
+    lib.ImuBatchMagPfRun.argtypes = [dp, sz, dp, sz, sz, dp, dp]
     lib.ImuBatchMagPfRun.restype = ctypes.c_int
-    lib.ImuBatchMagPfCheckSettings.argtypes = [dp, sz, ctypes.POINTER(ctypes.c_char_p)]
+    lib.ImuBatchMagPfCheckSettings.argtypes = [dp, sz, dp, sz, text]
     lib.ImuBatchMagPfCheckSettings.restype = ctypes.c_int
     lib.ImuBatchRngDraw.argtypes = [ctypes.c_double, ctypes.c_double, ctypes.c_int, sz, dp]
     lib.ImuBatchRngDraw.restype = ctypes.c_int
@@ -148,9 +141,10 @@ def _ptr(a: np.ndarray):
 
 def check_settings_c(s: dict) -> str | None:
     """None if the C filter accepts the settings, else its message naming the setting."""
-    a = settings_array(s)
+    fmu, internal = settings_arrays(s)
     message = ctypes.c_char_p()
-    code = _lib().ImuBatchMagPfCheckSettings(_ptr(a), a.size, ctypes.byref(message))
+    code = _lib().ImuBatchMagPfCheckSettings(_ptr(fmu), fmu.size, _ptr(internal), internal.size,
+                                             ctypes.byref(message))
     return None if code == 0 else (message.value or b"invalid settings").decode()
 
 
@@ -179,9 +173,10 @@ def run_c(mag, s: dict) -> MagPfRun:
     m = np.ascontiguousarray(mag, dtype=np.float64)
     if m.ndim != 2 or m.shape[1] != 3:
         raise ValueError(f"mag must have shape (N, 3), got {m.shape}")
-    a = settings_array(s)
+    fmu, internal = settings_arrays(s)
     out = np.empty((m.shape[0], N_OUTPUTS), dtype=np.float64)
-    if _lib().ImuBatchMagPfRun(_ptr(a), a.size, m.shape[0], _ptr(m), _ptr(out)) != 0:
+    if _lib().ImuBatchMagPfRun(_ptr(fmu), fmu.size, _ptr(internal), internal.size, m.shape[0], _ptr(m),
+                               _ptr(out)) != 0:
         raise ValueError("ImuBatchMagPfRun failed")
     return _split_outputs(out)
 
@@ -346,31 +341,31 @@ class MagPf:
         if message is not None:
             raise ValueError(f"magpf settings rejected: {message}")
         self.s = dict(s)
-        self.n = int(s["particle_count"])
-        var = float(s["measurement_noise_ut"]) ** 2
-        self.field_sq = float(s["field_norm_ut"]) ** 2
+        self.n = int(s["pf_particles"])
+        var = float(s["pf_measurement_noise"]) ** 2
+        self.field_sq = float(s["field_norm"]) ** 2
         self.obs_mean = 3.0 * var
         self.half_inv_var = 0.5 / (4.0 * self.field_sq * var + 6.0 * var * var)
-        self.high_weight = float(s["high_threshold"]) / self.n
-        self.low_weight = float(s["low_threshold"]) / self.n
+        self.high_weight = float(s["pf_threshold_high"]) / self.n
+        self.low_weight = float(s["pf_threshold_low"]) / self.n
         self.rough = float(s["roughening"]) * float(self.n) ** (-1.0 / STATE_SIZE)
-        self.q = np.array([s["process_noise_hard_ut"]] * 3 + [s["process_noise_soft"]] * 6, float)
+        self.q = np.array([s["pf_process_noise_hard"]] * 3 + [s["pf_process_noise_soft"]] * 6, float)
         tc = float(s["innovation_time_constant"])
         self.innovation_rate = 1.0 / tc if tc > 0 else 0.0
-        self.min_rotation_cos = math.cos(float(s["min_rotation_deg"]) * 3.14159265358979323846 / 180.0)
+        self.min_rotation_cos = math.cos(float(s["pf_min_rotation"]))
         self.reset()
 
     def reset(self) -> None:
         """Reseed and draw the prior (weights 1/N)."""
         s = self.s
-        self.rng = Pcg32(int(s["seed"]), RNG_STREAM)
+        self.rng = Pcg32(int(s["pf_seed"]), RNG_STREAM)
         self.neff = float(self.n)
         self.innovation_average = 1.0
         self.prior_average = 1.0
         self.inflation = 1.0
         self.counter = 0
         self.last_used = np.zeros(3)
-        k = int(s["sphere_bins"])
+        k = int(s["pf_sphere_bins"])
         self.bins = np.zeros((max(1, 6 * k * k), 3))
         self.bin_list: list[int] = []
         self.updates_since_change = 0
@@ -380,7 +375,7 @@ class MagPf:
         self.residual_mean = 0.0
         self.retesting = False
         self._clear_evidence()
-        if int(s["rao_blackwell"]):
+        if int(s["pf_rao_blackwell"]):
             magpf_rb.reset(self)
             return
         self._draw_prior()
@@ -388,13 +383,13 @@ class MagPf:
     def _prior_state(self) -> np.ndarray:
         """ImuMagPfPriorState: the prior calibration [h_p µT, b11 b12 b13 b22 b23 b33]."""
         s = self.s
-        return np.array([s[f"prior_hard_iron_{a}_ut"] for a in "xyz"]
+        return np.array([s[f"prior_hard_iron_{a}"] for a in "xyz"]
                         + [s[f"prior_soft_iron_{k}"] for k in ("xx", "xy", "xz", "yy", "yz", "zz")], dtype=np.float64)
 
     def _draw_prior(self) -> None:
         """ImuMagPfDrawPrior (mode 0): the cloud around the prior calibration, weights 1/N."""
         s = self.s
-        spread = np.array([s["prior_spread_hard_ut"]] * 3 + [s["prior_spread_soft"]] * 6, float)
+        spread = np.array([s["pf_prior_spread_hard"]] * 3 + [s["pf_prior_spread_soft"]] * 6, float)
         self.particle = self._prior_state() + spread * self.rng.normals(self.n * STATE_SIZE).reshape(self.n, STATE_SIZE)
         self.weight = np.full(self.n, 1.0 / self.n)
         self.estimate = self.weight @ self.particle
@@ -432,7 +427,7 @@ class MagPf:
         """ImuMagPfRbTakeBackPrior / ImuMagPfSplitTakeBackPrior: the mode re-draws its particles around the
         prior calibration, then the common part (ImuMagPfPriorTakenBack)."""
         average = self.prior_average
-        if int(self.s["rao_blackwell"]):
+        if int(self.s["pf_rao_blackwell"]):
             magpf_rb.reset(self)
         else:
             self._draw_prior()
@@ -450,14 +445,14 @@ class MagPf:
         if not np.all(np.isfinite(mag)):
             return False
         norm = float(np.sqrt(mag @ mag))
-        f = float(self.s["field_norm_ut"])
+        f = float(self.s["field_norm"])
         return MIN_FIELD_RATIO * f < norm < MAX_FIELD_RATIO * f
 
     def _turned(self, reference: np.ndarray, mag: np.ndarray) -> bool:
         """ImuMagPfTurned: the direction of mag is more than min_rotation from reference's."""
         norm = float(np.sqrt(mag @ mag))
         last = float(np.sqrt(reference @ reference))
-        return (float(self.s["min_rotation_deg"]) <= 0.0 or last <= 0.0
+        return (float(self.s["pf_min_rotation"]) <= 0.0 or last <= 0.0
                 or float(mag @ reference) < self.min_rotation_cos * norm * last)
 
     def _rotated(self, mag: np.ndarray) -> bool:
@@ -510,7 +505,7 @@ class MagPf:
 
     def _bin_index(self, mag: np.ndarray) -> int:
         """Cube-map bin (6 faces × k × k) of the direction of mag − ĥ_p."""
-        k = int(self.s["sphere_bins"])
+        k = int(self.s["pf_sphere_bins"])
         d = mag - self.estimate[:3]
         ad = np.abs(d)
         a = (0 if ad[0] >= ad[2] else 2) if ad[0] >= ad[1] else (1 if ad[1] >= ad[2] else 2)
@@ -520,7 +515,7 @@ class MagPf:
         return ((2 * a + int(d[a] < 0.0)) * k + u) * k + v
 
     def _store(self, mag: np.ndarray) -> None:
-        b = self._bin_index(mag) if int(self.s["sphere_bins"]) > 0 else 0
+        b = self._bin_index(mag) if int(self.s["pf_sphere_bins"]) > 0 else 0
         if b not in self.bin_list:
             self.bin_list.append(b)
         self.bins[b] = mag
@@ -585,7 +580,7 @@ class MagPf:
     def _redraw(self) -> None:
         """ImuMagPfRedraw: after a declared change, the cloud around the estimate, the buffer flushed."""
         s = self.s
-        spread = np.array([s["change_spread_hard_ut"]] * 3 + [s["change_spread_soft"]] * 6, float)
+        spread = np.array([s["pf_change_spread_hard"]] * 3 + [s["change_spread_soft"]] * 6, float)
         self.particle = self._change_centre() + spread * self.rng.normals(
             self.n * STATE_SIZE).reshape(self.n, STATE_SIZE)
         self.weight = np.full(self.n, 1.0 / self.n)
@@ -599,12 +594,12 @@ class MagPf:
         mag = np.asarray(mag, dtype=np.float64)
         if not self._valid(mag):
             return False
-        if int(self.s["rao_blackwell"]):
+        if int(self.s["pf_rao_blackwell"]):
             return magpf_rb.update(self, mag)
         if not self._rotated(mag):
             return False
         self.counter += 1
-        if self.counter < int(self.s["decimation"]):
+        if self.counter < int(self.s["pf_decimation"]):
             return False
         self.counter = 0
         self.last_used = mag.copy()

@@ -25,7 +25,7 @@ MIN_SOFT_SPREAD = 1e-4
 
 
 def _reference(pf) -> np.ndarray:
-    return np.array([pf.s[f"prior_hard_iron_{a}_ut"] for a in "xyz"], dtype=np.float64)
+    return np.array([pf.s[f"prior_hard_iron_{a}"] for a in "xyz"], dtype=np.float64)
 
 
 def set_prior(pf, centre, spread: float, soft_mean, soft_spread: float) -> None:
@@ -71,11 +71,11 @@ def reset(pf) -> None:
     pf.moments = [0.0] * mm.MOMENT_COUNT
     pf.previous_moments = [0.0] * mm.MOMENT_COUNT
     soft = [s[f"prior_soft_iron_{k}"] for k in ("xx", "xy", "xz", "yy", "yz", "zz")]
-    set_prior(pf, _reference(pf), float(s["prior_spread_hard_ut"]), mm.quadratic_from_soft(soft),
-              2.0 * float(s["prior_spread_soft"]))
-    draw(pf, _reference(pf), float(s["prior_spread_hard_ut"]))
+    set_prior(pf, _reference(pf), float(s["pf_prior_spread_hard"]), mm.quadratic_from_soft(soft),
+              2.0 * float(s["pf_prior_spread_soft"]))
+    draw(pf, _reference(pf), float(s["pf_prior_spread_hard"]))
     estimate(pf)
-    pf.frozen = bool(int(s["hold_prior"]))
+    pf.frozen = bool(int(s["pf_hold_prior"]))
     pf.change_armed = pf.frozen   # the held calibration is the baseline: a prior the data contradict is a change
     if pf.frozen:   # the held calibration is the prior itself, not the mean of its draw
         pf.estimate = np.concatenate([_reference(pf), np.asarray(soft, dtype=np.float64)])
@@ -89,8 +89,8 @@ def restart(pf, mag: np.ndarray, state: np.ndarray) -> None:
     pf.moments = [0.0] * mm.MOMENT_COUNT
     pf.previous_moments = [0.0] * mm.MOMENT_COUNT
     mm.moments_add(pf.moments, mag - _reference(pf))
-    set_prior(pf, centre, float(s["change_spread_hard_ut"]), soft_mean, 2.0 * float(s["change_spread_soft"]))
-    draw(pf, centre, float(s["change_spread_hard_ut"]))
+    set_prior(pf, centre, float(s["pf_change_spread_hard"]), soft_mean, 2.0 * float(s["change_spread_soft"]))
+    draw(pf, centre, float(s["pf_change_spread_hard"]))
 
 
 def weigh_new(pf) -> bool:
@@ -228,7 +228,7 @@ def update(pf, mag: np.ndarray) -> bool:
         pf.last_used = mag.copy()
         mm.moments_add(pf.moments, mag - _reference(pf))
     pf.counter += 1
-    if pf.counter < int(pf.s["decimation"]):
+    if pf.counter < int(pf.s["pf_decimation"]):
         return False
     pf.counter = 0
     pf._adapt(mag)

@@ -14,7 +14,7 @@ Statistics of the calibrated field h_c (per recording segment; a time step ≤ 0
 rows are dropped):
 
 * r = |h_c| − m, with m the running mean of |h_c| that the filter's change test itself subtracts
-  (exponential, `NORM_TIME_CONSTANT_UPDATES` updates = 300·d/rate seconds at decimation d). To be
+  (exponential, `norm_time_constant_updates()` updates = 300·d/rate seconds at decimation d). To be
   independent of the direction of time, m runs forward and backward and both residuals count.
   **σ** = std of r — the whole residual the test sees in an unchanged environment: sensor noise
   plus what the calibration leaves (field non-uniformity, model error), σ² = σ_w² + σ_slow².
@@ -26,7 +26,7 @@ rows are dropped):
   this needs no rest segment.
 * **σ_slow** = √(σ² − σ_w²): the part of the residual that does not average out over time.
 
-Every variance is taken over the values within `OUTLIER_SIGMAS` robust standard deviations of the
+Every variance is taken over the values within `outlier_sigmas()` robust standard deviations of the
 median (the filter's own glitch gate: 4 × change threshold 25 in z = 10 σ), so a few corrupted
 readings in the calibration data do not inflate the settings.
 
@@ -81,11 +81,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-#: Filter constants the rules refer to (C defaults of sources/ImuMagPf.c, not FMU parameters).
-NORM_TIME_CONSTANT_UPDATES = 300.0
-CHANGE_THRESHOLD = 25.0
-#: Glitch gate of the statistics [robust σ]: the filter's own, sqrt(4 × threshold) = 10.
-OUTLIER_SIGMAS = float(np.sqrt(4.0 * CHANGE_THRESHOLD))
+from training.models import magpf
+
 #: Rule constants (see the module docstring).
 UPDATE_INTERVAL_S = 0.02
 GATE_SIGMAS = float(np.sqrt(2.0 * np.log(1000.0)))
@@ -98,6 +95,22 @@ LAG_FACTOR = float(np.sqrt(2.0))
 MAX_LAG_S = 1.0
 #: Fewest finite samples the statistics need.
 MIN_SAMPLES = 100
+
+
+def norm_time_constant_updates() -> float:
+    """The filter's ambient-norm time constant [updates]: its internal default (sources/ImuMagPf.c
+    ImuMagPfInternal, not an FMU parameter)."""
+    return float(magpf.internal_defaults()["norm_time_constant"])
+
+
+def change_threshold() -> float:
+    """The filter's change threshold [1] on the averaged normalised innovation: its internal default."""
+    return float(magpf.internal_defaults()["change_threshold"])
+
+
+def outlier_sigmas() -> float:
+    """Glitch gate of the statistics [robust σ]: the filter's own, sqrt(4 × change threshold) = 10."""
+    return float(np.sqrt(4.0 * change_threshold()))
 
 
 @dataclass(frozen=True)
@@ -125,11 +138,11 @@ def _segments(field: np.ndarray, t: np.ndarray, rate_hz: float) -> list[np.ndarr
 
 
 def _gated_variance(x: np.ndarray) -> float:
-    """Variance of x about its mean over the values within OUTLIER_SIGMAS robust σ of the median."""
+    """Variance of x about its mean over the values within `outlier_sigmas()` robust σ of the median."""
     med = np.median(x)
     scale = 1.4826 * np.median(np.abs(x - med))
     if scale > 0.0:
-        x = x[np.abs(x - med) <= OUTLIER_SIGMAS * scale]
+        x = x[np.abs(x - med) <= outlier_sigmas() * scale]
     return float(np.var(x))
 
 
@@ -175,7 +188,7 @@ def noise_statistics(field_calibrated, t, rate_hz: float, decimation: int) -> No
     count = sum(len(n) for n in norms)
     if count < MIN_SAMPLES:
         raise ValueError(f"need >= {MIN_SAMPLES} finite calibrated field samples, got {count}")
-    window = NORM_TIME_CONSTANT_UPDATES * decimation
+    window = norm_time_constant_updates() * decimation
     residual = np.concatenate([np.concatenate([n - _running_mean(n, window),
                                                n[::-1] - _running_mean(n[::-1], window)]) for n in norms])
     sigma = float(np.sqrt(_gated_variance(residual)))
@@ -214,26 +227,8 @@ def pf_settings_from_calibration(field_calibrated, t, field_norm: float, rate_hz
         "pf_decimation": float(d),
         "pf_measurement_noise": st.sigma,
         "pf_min_rotation": float(min(gate_sigmas * np.sqrt(2.0) * st.sigma_white / field_norm, np.pi / 2)),
-        "pf_change_spread_hard": change_margin * float(np.sqrt(CHANGE_THRESHOLD)) * st.sigma,
+        "pf_change_spread_hard": change_margin * float(np.sqrt(change_threshold())) * st.sigma,
         "pf_settle_spread": settle,
         "pf_prior_spread_hard": settle,
         "pf_prior_spread_soft": settle / float(field_norm),
     }
-
-
-#: FMU setting name -> (training.models.magpf setting name, factor) for the standalone filter.
-_MAGPF_NAMES = {"pf_decimation": ("decimation", 1.0), "pf_measurement_noise": ("measurement_noise_ut", 1.0),
-                "pf_min_rotation": ("min_rotation_deg", 180.0 / np.pi),
-                "pf_change_spread_hard": ("change_spread_hard_ut", 1.0),
-                "pf_settle_spread": ("settle_spread_ut", 1.0),
-                "pf_prior_spread_hard": ("prior_spread_hard_ut", 1.0),
-                "pf_prior_spread_soft": ("prior_spread_soft", 1.0)}
-
-
-def to_magpf(settings: dict[str, float]) -> dict:
-    """The same settings in training.models.magpf's names and units (for `magpf.settings(**...)`)."""
-    out = {}
-    for name, value in settings.items():
-        key, factor = _MAGPF_NAMES[name]
-        out[key] = int(round(value)) if key == "decimation" else float(value) * factor
-    return out
