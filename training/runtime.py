@@ -94,19 +94,21 @@ def build_runtime() -> Path:
 
 
 _DP, _SZ, _IP = ctypes.POINTER(ctypes.c_double), ctypes.c_size_t, ctypes.POINTER(ctypes.c_int)
+_TEXT = ctypes.POINTER(ctypes.c_char_p)
 #: Every entry point of the runtime library (sources/batch/*.c) with its (argument types, result
 #: type): the one place Python declares them.
 SIGNATURES = {
     "ImuBatchRun": ([_DP, _SZ, _DP, _SZ, _SZ, _DP, _DP, _DP], ctypes.c_int),
-    "ImuBatchCheckSettings": ([_DP, _SZ, ctypes.POINTER(ctypes.c_char_p)], ctypes.c_int),
+    "ImuBatchCheckSettings": ([_DP, _SZ, _TEXT], ctypes.c_int),
     "ImuBatchLayout": ([_IP] * 5, None),
     "ImuBatchTermSignals": ([_SZ, _DP, _DP, _DP, _DP, _DP], None),
     "ImuBatchElmPredict": ([_DP, _SZ, _SZ, _DP, _DP], ctypes.c_int),
     "ImuBatchPsoBpCorrect": ([_DP, _SZ, _SZ, _DP, _DP, _DP, _DP], ctypes.c_int),
     "ImuBatchPsoBpPredict": ([_DP, _SZ, _SZ, _DP, _DP, _DP], ctypes.c_int),
     "ImuBatchPsoBpEvaluate": ([_DP, _SZ, _SZ, _DP, _DP, _DP], ctypes.c_int),
-    "ImuBatchMagPfRun": ([_DP, _SZ, _SZ, _DP, _DP], ctypes.c_int),
-    "ImuBatchMagPfCheckSettings": ([_DP, _SZ, ctypes.POINTER(ctypes.c_char_p)], ctypes.c_int),
+    "ImuBatchMagPfInternal": ([_SZ, _TEXT, _TEXT, _DP], ctypes.c_int),
+    "ImuBatchMagPfRun": ([_DP, _SZ, _DP, _SZ, _SZ, _DP, _DP], ctypes.c_int),
+    "ImuBatchMagPfCheckSettings": ([_DP, _SZ, _DP, _SZ, _TEXT], ctypes.c_int),
     "ImuBatchRngDraw": ([ctypes.c_double, ctypes.c_double, ctypes.c_int, _SZ, _DP], ctypes.c_int),
     "ImuBatchSizes": ([ctypes.POINTER(ctypes.c_size_t)] * 3, None),
 }
@@ -205,3 +207,22 @@ def runtime_sizes() -> dict[str, int]:
     sizes = [ctypes.c_size_t() for _ in range(3)]
     load_runtime().ImuBatchSizes(*(ctypes.byref(s) for s in sizes))
     return dict(zip(("attitude", "pipeline", "model_instance"), (s.value for s in sizes)))
+
+
+def magpf_internal_table() -> tuple[tuple[str, str, float], ...]:
+    """(name, unit, default) of the particle filter's internal settings, in the order of the second
+    array of ImuBatchMagPfRun (sources/ImuMagPf.c ImuMagPfInternal, their one definition)."""
+    lib, rows = load_runtime(), []
+    name, unit, value = ctypes.c_char_p(), ctypes.c_char_p(), ctypes.c_double()
+    while lib.ImuBatchMagPfInternal(len(rows), ctypes.byref(name), ctypes.byref(unit), ctypes.byref(value)) == 0:
+        rows.append((name.value.decode(), unit.value.decode(), value.value))
+    return tuple(rows)
+
+
+def magpf_settings_problem(settings: np.ndarray, internal: np.ndarray) -> str | None:
+    """None if the C particle filter accepts the FMU settings array and its internal array, else its
+    message naming the setting (ImuBatchMagPfCheckSettings)."""
+    s, i = _as_array("settings", settings, (-1,)), _as_array("internal", internal, (-1,))
+    message = ctypes.c_char_p()
+    code = load_runtime().ImuBatchMagPfCheckSettings(pointer(s), s.size, pointer(i), i.size, ctypes.byref(message))
+    return None if code == 0 else (message.value or b"invalid settings").decode()

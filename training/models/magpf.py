@@ -12,7 +12,6 @@ State x = [h_p (3) µT, b11 b12 b13 b22 b23 b33]; compensation h_c = (I + B)(h_m
 """
 from __future__ import annotations
 
-import ctypes
 import functools
 import math
 from dataclasses import dataclass
@@ -63,11 +62,7 @@ def internal_settings() -> tuple[tuple[str, str, float], ...]:
     one definition. The default prior (zero around the calibrated field, spread pf_prior_spread_*)
     assumes a trained calibration as prior mean; `zero_prior` is the wide prior for an
     uncalibrated start."""
-    lib, rows = _lib(), []
-    name, unit, value = ctypes.c_char_p(), ctypes.c_char_p(), ctypes.c_double()
-    while lib.ImuBatchMagPfInternal(len(rows), ctypes.byref(name), ctypes.byref(unit), ctypes.byref(value)) == 0:
-        rows.append((name.value.decode(), unit.value.decode(), value.value))
-    return tuple(rows)
+    return runtime.magpf_internal_table()
 
 
 def internal_defaults() -> dict[str, float]:
@@ -119,33 +114,9 @@ def settings_arrays(s: dict) -> tuple[np.ndarray, np.ndarray]:
 # ----------------------------------------------------------------------------- C batch entry
 
 
-def _lib() -> ctypes.CDLL:
-    """The runtime library with the magpf entry points declared."""
-    lib = runtime.load_runtime()
-    dp, sz = ctypes.POINTER(ctypes.c_double), ctypes.c_size_t
-    text = ctypes.POINTER(ctypes.c_char_p)
-    lib.ImuBatchMagPfInternal.argtypes = [sz, text, text, dp]
-    lib.ImuBatchMagPfInternal.restype = ctypes.c_int
-    lib.ImuBatchMagPfRun.argtypes = [dp, sz, dp, sz, sz, dp, dp]
-    lib.ImuBatchMagPfRun.restype = ctypes.c_int
-    lib.ImuBatchMagPfCheckSettings.argtypes = [dp, sz, dp, sz, text]
-    lib.ImuBatchMagPfCheckSettings.restype = ctypes.c_int
-    lib.ImuBatchRngDraw.argtypes = [ctypes.c_double, ctypes.c_double, ctypes.c_int, sz, dp]
-    lib.ImuBatchRngDraw.restype = ctypes.c_int
-    return lib
-
-
-def _ptr(a: np.ndarray):
-    return a.ctypes.data_as(ctypes.POINTER(ctypes.c_double))
-
-
 def check_settings_c(s: dict) -> str | None:
     """None if the C filter accepts the settings, else its message naming the setting."""
-    fmu, internal = settings_arrays(s)
-    message = ctypes.c_char_p()
-    code = _lib().ImuBatchMagPfCheckSettings(_ptr(fmu), fmu.size, _ptr(internal), internal.size,
-                                             ctypes.byref(message))
-    return None if code == 0 else (message.value or b"invalid settings").decode()
+    return runtime.magpf_settings_problem(*settings_arrays(s))
 
 
 @dataclass(frozen=True)
@@ -175,8 +146,8 @@ def run_c(mag, s: dict) -> MagPfRun:
         raise ValueError(f"mag must have shape (N, 3), got {m.shape}")
     fmu, internal = settings_arrays(s)
     out = np.empty((m.shape[0], N_OUTPUTS), dtype=np.float64)
-    if _lib().ImuBatchMagPfRun(_ptr(fmu), fmu.size, _ptr(internal), internal.size, m.shape[0], _ptr(m),
-                               _ptr(out)) != 0:
+    if runtime.load_runtime().ImuBatchMagPfRun(runtime.pointer(fmu), fmu.size, runtime.pointer(internal), internal.size, m.shape[0], runtime.pointer(m),
+                               runtime.pointer(out)) != 0:
         raise ValueError("ImuBatchMagPfRun failed")
     return _split_outputs(out)
 
@@ -185,7 +156,7 @@ def rng_draw_c(seed: int, stream: int, kind: str, n: int) -> np.ndarray:
     """n draws of the C generator: kind 'u32', 'uniform' or 'normal'."""
     out = np.empty(n, dtype=np.float64)
     code = {"u32": 0, "uniform": 1, "normal": 2}[kind]
-    if _lib().ImuBatchRngDraw(float(seed), float(stream), code, n, _ptr(out)) != 0:
+    if runtime.load_runtime().ImuBatchRngDraw(float(seed), float(stream), code, n, runtime.pointer(out)) != 0:
         raise ValueError("ImuBatchRngDraw rejected its arguments")
     return out
 
