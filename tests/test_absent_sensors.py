@@ -18,14 +18,13 @@ from fmu.cosim import OK, WARNING, initialised_fmu, step_samples, step_sizes
 from fmu.packer import reference_recording
 from training import runtime
 from training.data.reference import reference_euler_magnetic
-from training.fmu_build import build_fmu
 from training.frames import wrap_angle
-from training.main_job import MainJobSummary, evaluate_recording
+from training.main_job import SCENARIO_DIR, MainJobSummary, evaluate_recording
 from training.models.thermal import ThermalModel, apply_thermal
 from training.reports.report import write_report
 from training.simulator import load_scenario, simulate
 
-SCENARIO = layout.__file__.rsplit("/contract/", 1)[0] + "/scenarios/eval_handheld.toml"
+SCENARIO = SCENARIO_DIR / "eval_handheld.toml"
 DURATION_S = 60.0
 #: Sensor errors of the recording: a calibrated MEMS unit (as tests/test_attitude_recovery.py):
 #: gyro white noise 0.03 °/s per sample and bias 0.01 °/s, acc 0.02 m/s², field 0.5 µT.
@@ -58,13 +57,6 @@ ACCEL = [layout.OUTPUTS.index(n) for n in ("accel_x", "accel_y", "accel_z")]
 EULER = [layout.OUTPUTS.index(n) for n in ("roll", "pitch", "yaw")]
 MAG_IN = slice(6, 9)
 TEMP_IN = layout.INPUTS.index("temp")
-
-
-@pytest.fixture(scope="module")
-def fmu_path(tmp_path_factory):
-    """An FMI 2.0 FMU with identity coefficients: the outputs are the sensors' own."""
-    return build_fmu(np.array(layout.identity_coefficients()), {},
-                     tmp_path_factory.mktemp("absent") / "ImuFusion.fmu")
 
 
 @pytest.fixture(scope="module")
@@ -109,12 +101,12 @@ def absent_lines(log, sensor):
 
 
 @pytest.mark.parametrize("mode", MODES)
-def test_all_nan_magnetometer_is_absent_not_bad(fmu_path, recording, mode):
+def test_all_nan_magnetometer_is_absent_not_bad(identity_fmu2, recording, mode):
     d = recording
     x = d.inputs()
     x[:, MAG_IN] = np.nan
     params = {"field_norm": d.field_norm_ut, "declination": d.declination_rad, "attitude_mode": MODES[mode]}
-    out, statuses, log = run_fmu_logged(fmu_path, d, x, params)
+    out, statuses, log = run_fmu_logged(identity_fmu2, d, x, params)
     assert set(statuses) == {OK}
     assert [m for m in log if m.startswith("[WARNING]")] == []
     assert len(absent_lines(log, "magnetometer")) == 1 and all(m.startswith("[OK]") for m in absent_lines(log, "magnetometer"))
@@ -130,12 +122,12 @@ def test_all_nan_magnetometer_is_absent_not_bad(fmu_path, recording, mode):
     np.testing.assert_allclose(out, batch, rtol=0, atol=GOLDEN_TOLERANCE, equal_nan=True)
 
 
-def test_unknown_temperature_is_absent_not_bad(fmu_path, recording):
+def test_unknown_temperature_is_absent_not_bad(identity_fmu2, recording):
     d = recording
     x = d.inputs()
     x[:, TEMP_IN] = np.nan
     params = {"field_norm": d.field_norm_ut, "declination": d.declination_rad}
-    out, statuses, log = run_fmu_logged(fmu_path, d, x, params)
+    out, statuses, log = run_fmu_logged(identity_fmu2, d, x, params)
     assert set(statuses) == {OK}
     assert [m for m in log if m.startswith("[WARNING]")] == []
     assert len(absent_lines(log, "temperature")) == 1
@@ -159,13 +151,13 @@ def test_unknown_temperature_evaluates_the_thermal_model_at_its_reference_temper
     np.testing.assert_allclose(out[:, RATE], expected, rtol=0, atol=GOLDEN_TOLERANCE)
 
 
-def test_a_sensor_is_absent_until_its_first_valid_sample_and_bad_after(fmu_path, recording):
+def test_a_sensor_is_absent_until_its_first_valid_sample_and_bad_after(identity_fmu2, recording):
     d = recording.slice(slice(0, 1000))
     x = d.inputs()
     x[:200, MAG_IN] = np.nan       # absent: not recorded yet
     x[400:500, MAG_IN] = np.nan    # then a dropout of a sensor that delivered: bad input
     params = {"field_norm": d.field_norm_ut, "declination": d.declination_rad}
-    out, statuses, log = run_fmu_logged(fmu_path, d, x, params)
+    out, statuses, log = run_fmu_logged(identity_fmu2, d, x, params)
     assert statuses[:400] == [OK] * 400 and statuses[400:500] == [WARNING] * 100
     assert set(statuses[500:]) == {OK}
     assert len(absent_lines(log, "magnetometer")) == 1
@@ -175,14 +167,14 @@ def test_a_sensor_is_absent_until_its_first_valid_sample_and_bad_after(fmu_path,
     np.testing.assert_array_equal(out[400:500, FIELD], np.tile(out[399, FIELD], (100, 1)))  # held
 
 
-def test_evaluation_and_report_leave_absent_outputs_out_and_say_so(fmu_path, recording, tmp_path):
+def test_evaluation_and_report_leave_absent_outputs_out_and_say_so(identity_fmu2, recording, tmp_path):
     # The main job's evaluation on a recording without magnetometer: the field, yaw and heading
     # metrics are NaN (shown as '—'), not figures mixed from NaN or from a yaw relative to the
     # first sample; the FMU-vs-batch comparison counts the NaN at the same places as equal; the
     # report names the absent outputs.
     d = recording.slice(slice(0, 1000))
     d.mag = np.full_like(d.mag, np.nan)
-    result = evaluate_recording(fmu_path, np.array(layout.identity_coefficients()),
+    result = evaluate_recording(identity_fmu2, np.array(layout.identity_coefficients()),
                                 np.array(layout.settings_array()), d, tmp_path / "run.csv")
     assert result.absent == {"field": 1000} and result.as_dict()["absent_outputs"] == {"field": 1000}
     assert result.fmu_vs_batch_max_diff <= GOLDEN_TOLERANCE
@@ -190,13 +182,13 @@ def test_evaluation_and_report_leave_absent_outputs_out_and_say_so(fmu_path, rec
     assert all(np.isnan(metrics[k]) for k in ("field_err_ut", "yaw_err_deg", "heading_err_deg"))
     assert all(np.isfinite(metrics[k]) for k in ("rate_err_dps", "accel_err_ms2", "roll_err_deg",
                                                  "pitch_err_deg", "tilt_err_deg"))
-    report = write_report(MainJobSummary(str(tmp_path), "model.json", str(fmu_path), [], [result]), tmp_path)
+    report = write_report(MainJobSummary(str(tmp_path), "model.json", str(identity_fmu2), [], [result]), tmp_path)
     text = report.read_text()
     assert "## Absent sensors" in text
     assert "field_* NaN in 1000 of 1000 samples (magnetometer absent)" in text
 
 
-def test_fmpy_simulate_fmu_passes_the_nan_outputs_through(fmu_path):
+def test_fmpy_simulate_fmu_passes_the_nan_outputs_through(identity_fmu2):
     # fmpy's own simulation loop and result recording with an absent magnetometer: no error, the
     # field NaN from the first consumed sample on (row 0 is the output before any sample, row k+1
     # the estimate for sample k: docs/fmu.md), the attitude finite, one OK line about the absence.
@@ -207,7 +199,7 @@ def test_fmpy_simulate_fmu_passes_the_nan_outputs_through(fmu_path):
     for i, name in enumerate(layout.INPUTS):
         signals[name] = x[:, i]
     messages = []
-    result = fmpy.simulate_fmu(str(fmu_path), start_time=0.0, stop_time=t[-1], output_interval=t[1] - t[0],
+    result = fmpy.simulate_fmu(str(identity_fmu2), start_time=0.0, stop_time=t[-1], output_interval=t[1] - t[0],
                                input=signals, output=["field_x", "yaw"], debug_logging=True,
                                logger=lambda *m: messages.append((m[2], m[4].decode())))
     assert np.all(np.isnan(result["field_x"][1:])) and np.all(np.isfinite(result["yaw"]))
@@ -215,14 +207,14 @@ def test_fmpy_simulate_fmu_passes_the_nan_outputs_through(fmu_path):
     assert len([m for _, m in messages if "no magnetometer input (NaN): treated as an absent sensor" in m]) == 1
 
 
-def test_imufmu_run_names_the_absent_sensor_in_its_printed_summary(fmu_path, recording, tmp_path, capsys):
+def test_imufmu_run_names_the_absent_sensor_in_its_printed_summary(identity_fmu2, recording, tmp_path, capsys):
     # the FMU's absence line is an OK message (logEvents), so `imufmu run` says it itself
     from training.cli import main
     from training.data.io import write_imu_csv
     d = recording.slice(slice(0, 300))
     d.mag = np.full_like(d.mag, np.nan)
     data = write_imu_csv(d, tmp_path / "no_mag.csv")
-    assert main(["run", str(fmu_path), str(data), "--out", str(tmp_path / "o.csv")]) == 0
+    assert main(["run", str(identity_fmu2), str(data), "--out", str(tmp_path / "o.csv")]) == 0
     notes = [line for line in capsys.readouterr().out.splitlines() if line.startswith("note: ")]
     assert notes == ["note: field_x..z are NaN in 300 of 300 samples: the recording has no valid magnetometer "
                      "input there (absent sensor, docs/fmu.md 'Absent sensors')"]

@@ -16,8 +16,6 @@ spike, 100° after five, and still 11° / 93° after three minutes (clean: 0.9°
 """
 from __future__ import annotations
 
-from pathlib import Path
-
 import numpy as np
 import pytest
 
@@ -25,9 +23,9 @@ from contract import layout
 from training import runtime
 from training.data.reference import reference_quaternion_magnetic
 from training.frames import quat_multiply
+from training.main_job import SCENARIO_DIR
 from training.simulator import load_scenario, simulate
 
-SCENARIOS = layout.__file__.rsplit("/contract/", 1)[0] + "/scenarios"
 GLITCH_S = 60.0                  # s, time of the glitch
 SPIKE_RATE = 34.9                # rad/s, 2000 °/s: the full scale of common MEMS gyros
 GAP_S = 1.0                      # s, rows dropped (c) / time jump (d)
@@ -59,7 +57,7 @@ HOUR_S = 3600.0
 def data():
     """eval_handheld with calibrated-grade sensor errors: gyro white noise 0.03 °/s per sample and
     residual bias 0.01 °/s, acc noise and bias 0.02 m/s², field noise and offset 0.5 µT."""
-    d = simulate(load_scenario(f"{SCENARIOS}/eval_handheld.toml"))
+    d = simulate(load_scenario(SCENARIO_DIR / "eval_handheld.toml"))
     rng = np.random.default_rng(0)
 
     def unit():
@@ -124,8 +122,7 @@ def test_recovers_within_ten_seconds(data, clean, mode, case):
     assert settled[0] <= SETTLED_RATIO * settled[1], (mode, case, "180-240 s [deg] glitch/clean", settled)
 
 
-BROAD_FAST_TRANSLATION = (Path(__file__).resolve().parents[2] / "shared" / "data" / "broad"
-                          / "18_undisturbed_fast_translation_with_breaks_B.csv.gz")
+BROAD_FAST_TRANSLATION = "18_undisturbed_fast_translation_with_breaks_B.csv.gz"
 #: °: total RMSE bound of the Euler fusion with rest bias on BROAD's fast-translation trial 18. Before
 #: the recovery bound it scored 1.30° (VQF 9D 0.81°); counting every rate change between two samples
 #: as a possible glitch raised its gain through the whole fast motion and gave 36.2°. 3° leaves room
@@ -133,10 +130,9 @@ BROAD_FAST_TRANSLATION = (Path(__file__).resolve().parents[2] / "shared" / "data
 BROAD_EULER_BOUND_DEG = 3.0
 
 
-@pytest.mark.skipif(not BROAD_FAST_TRANSLATION.is_file(), reason=f"BROAD trial 18 not found at {BROAD_FAST_TRANSLATION}")
-def test_the_glitch_bound_ignores_smooth_fast_motion_on_measured_data():
+def test_the_glitch_bound_ignores_smooth_fast_motion_on_measured_data(broad_trial):
     from training.bench import bench
     from training.data.io import read_imu_csv
-    data = read_imu_csv(BROAD_FAST_TRANSLATION)
+    data = read_imu_csv(broad_trial(BROAD_FAST_TRANSLATION))
     q = bench.run_imufusion(data, bench.ABLATION["Euler adaptive gains + rest bias"])
     assert bench.broad_errors(q, data)["total"] < BROAD_EULER_BOUND_DEG

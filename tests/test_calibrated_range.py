@@ -24,13 +24,14 @@ from test_thermal_degree import static_recording
 from contract.layout import (OUTPUTS, TRIAD_BLOCK, TRIAD_ORDER, identity_block, identity_coefficients,
                              pack_coefficients, settings_array, terms_block)
 from training.artefact import coefficients_array, load_artefact, settings_dict
+from training.main_job import SCENARIO_DIR
 from training.models import elm
 from training.models.psobp import MODE_RESIDUAL, evaluate_psobp_c
 from training.runtime import run_batch
 from training.simulator import load_scenario, simulate
 from training.train import train
 
-TWO_SOAKS = Path(__file__).resolve().parents[1] / "scenarios" / "variants" / "two_soaks.toml"
+TWO_SOAKS = SCENARIO_DIR / "variants" / "two_soaks.toml"
 #: The soak temperatures of the calibration [°C] and the evaluation temperatures far outside them.
 SOAKS_C = (15.0, 35.0)
 OUTSIDE_C = (-20.0, 70.0)

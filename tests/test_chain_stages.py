@@ -7,9 +7,9 @@ import pytest
 from contract import layout
 from training import runtime
 from training.evaluate import compute_metrics
+from training.main_job import SCENARIO_DIR
 from training.simulator import load_scenario, simulate
 
-SCENARIOS = layout.__file__.rsplit("/contract/", 1)[0] + "/scenarios"
 #: The particle filter must at least halve the field error that an unmodelled 15 µT hard-iron
 #: change leaves (the filter's own acceptance study is docs/magpf.md; this pins that the chain
 #: feeds it and uses its estimate).
@@ -27,7 +27,7 @@ def _truth_calibrated_coefficients(data):
 @pytest.fixture(scope="module")
 def tumbling():
     """A short rotation scenario whose magnetometer reads truth plus a 15 µT hard iron."""
-    data = simulate(load_scenario(f"{SCENARIOS}/eval_rotations.toml"), seed=5).slice(slice(0, 12000))
+    data = simulate(load_scenario(SCENARIO_DIR / "eval_rotations.toml"), seed=5).slice(slice(0, 12000))
     data.mag = data.ref_mag + np.array([15.0, -10.0, 5.0])
     data.gyr, data.acc = data.ref_gyr.copy(), data.ref_acc.copy()
     return data

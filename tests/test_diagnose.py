@@ -10,10 +10,11 @@ import pytest
 from training.artefact import coefficients_array, load_artefact
 from training.data.io import write_imu_csv
 from training.diagnosis.diagnose import diagnose
+from training.main_job import SCENARIO_DIR
 from training.simulator import load_scenario, simulate
 from training.train import train
 
-VARIANTS = Path(__file__).resolve().parents[1] / "scenarios" / "variants"
+VARIANTS = SCENARIO_DIR / "variants"
 #: Issue 7: the held-out gyro rate error must fall by at least 70 % once g-sensitivity is added
 #: (g-sensitivity ≈ 0.18 °/s RMS against 0.03 °/s white noise leaves room for ~83 %).
 GSENS_MIN_IMPROVEMENT_PCT = 70.0

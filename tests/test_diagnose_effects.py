@@ -23,11 +23,11 @@ from training.artefact import coefficients_array, load_artefact, settings_dict
 from training.data.io import write_imu_csv
 from training.diagnosis.diagnose import diagnose, holdout_rows
 from training.fmu_build import build_fmu
-from training.main_job import recording_parameters
+from training.main_job import SCENARIO_DIR, recording_parameters
 from training.simulator import load_scenario, simulate
 from training.train import train
 
-VARIANTS = Path(__file__).resolve().parents[1] / "scenarios" / "variants"
+VARIANTS = SCENARIO_DIR / "variants"
 #: The acceptance bound. benchmarks/effect_sizes.py prints the ideal reduction of every effect
 #: against the sensor's white noise (the noise floor): 87–94 %, so 70 % leaves room for the
 #: estimation error of the fit and for the parts of an effect the runtime cannot carry (an

@@ -5,16 +5,16 @@ its input."""
 from __future__ import annotations
 
 import dataclasses
-from pathlib import Path
 
 import numpy as np
 import pytest
 
 from effects import DEG, EFFECTS, G_SENS_DPS_PER_G, Effect, delay, regressor_family, truth_as_raw
 from training.data.dataset import ImuData
+from training.main_job import SCENARIO_DIR
 from training.simulator import load_scenario, simulate
 
-SCENARIO = Path(__file__).resolve().parents[1] / "scenarios" / "variants" / "diag_effects.toml"
+SCENARIO = SCENARIO_DIR / "variants" / "diag_effects.toml"
 TRIADS = ("gyr", "acc", "mag")
 #: The list of issue 14, which the registry must hold at least.
 REQUIRED = {"none", "mag_delay", "gyro_rate_scale", "aux_field", "lever_arm", "gyro_g_sensitivity",

@@ -8,13 +8,13 @@ recording at the true sensitivity must not be.
 from __future__ import annotations
 
 from dataclasses import replace
-from pathlib import Path
 
 import numpy as np
 import pytest
 
 from contract.layout import TRIAD_ORDER, settings_defaults
 from training.artefact import ModelArtefact
+from training.main_job import SCENARIO_DIR
 from training.models.fit_quality import (CROSS_AXIS_LIMIT_DEG, GYRO_NOISE_CLASS, SCALE_TOLERANCE,
                                          fit_warnings, noise_warnings)
 from training.models.thermal import ThermalModel
@@ -22,7 +22,7 @@ from training.reports.calibration_report import summary_text
 from training.simulator import load_scenario, simulate
 from training.train import train
 
-SCENARIO = Path(__file__).resolve().parents[1] / "scenarios" / "variants" / "two_soaks.toml"
+SCENARIO = SCENARIO_DIR / "variants" / "two_soaks.toml"
 #: Accelerometer sensitivity error of the out-of-class sensor [1] (3x SCALE_TOLERANCE["acc"]).
 ACC_SENSITIVITY = 1.15
 

@@ -11,32 +11,13 @@ import ctypes
 import multiprocessing
 from ctypes import POINTER, byref, c_char_p, c_double, c_int, c_size_t, c_uint, c_void_p
 
-import numpy as np
 import pytest
 
-from contract.layout import identity_coefficients
 from contract.variables import by_name
 from fmu.cosim import initialised_fmu
-from training.fmu_build import build_fmu
 
 ERROR = 3                   # fmi2Error / fmi3Error
 CHILD_TIMEOUT_S = 60        # generous: one case takes about 0.1 s
-
-
-def _build(tmp_path_factory, version: int):
-    """An FMI `version` FMU with identity coefficients."""
-    out = tmp_path_factory.mktemp(f"null{version}") / "ImuFusion.fmu"
-    return build_fmu(np.array(identity_coefficients()), {}, out, fmi_version=version)
-
-
-@pytest.fixture(scope="module")
-def fmu2(tmp_path_factory):
-    return _build(tmp_path_factory, 2)
-
-
-@pytest.fixture(scope="module")
-def fmu3(tmp_path_factory):
-    return _build(tmp_path_factory, 3)
 
 
 def _function(dll, name: str, *argtypes):
@@ -164,7 +145,7 @@ def _child(fmu_path, index: int, pipe) -> None:
 @pytest.mark.parametrize("index", range(len(CASES)), ids=[case[0] for case in CASES])
 def test_null_argument_is_an_error_with_a_message_not_a_crash(request, index):
     name, version, _, word = CASES[index]
-    fmu_path = request.getfixturevalue(f"fmu{version}")
+    fmu_path = request.getfixturevalue(f"identity_fmu{version}")
     context = multiprocessing.get_context("fork")
     receive, send = context.Pipe(duplex=False)
     child = context.Process(target=_child, args=(fmu_path, index, send))

@@ -1,4 +1,4 @@
-"""The ImuFusion FMI 2.0 FMU: model description, binary, variable table, co-simulation, FMU state."""
+"""The ImuFusion FMU: validity and exports for FMI 2.0 and 3.0; for FMI 2.0 the model description, binary, variable table, co-simulation, FMU state."""
 from __future__ import annotations
 
 import ctypes
@@ -15,80 +15,31 @@ from fmpy.logging import addLoggerProxy
 from fmpy.validation import validate_fmu as fmpy_validate_fmu
 
 from contract.errors import BuildError, ModelError
-from contract.layout import (AUX_INPUTS, INPUTS, MAX_DEGREE, N_COEFFICIENTS, OUTPUTS, SETTINGS, TRIAD_BLOCK,
+from contract.layout import (INPUTS, N_COEFFICIENTS, OUTPUTS, SETTINGS,
                              identity_coefficients, settings_array)
 from contract.variables import VARIABLES, by_name
 from fmu.compiler import SOURCE_DIR, compile_binary
 from fmu.cosim import FmuError, initialised_fmu, run_fmu, step_samples, step_sizes
 from fmu.header import coefficient_header, read_header_arrays
 from fmu.model_description import LOG_CATEGORIES, model_description_xml
-from fmu.validator import FMI2_CS_FUNCTIONS, exported_symbols, fmutool_problems, validate_fmu
+from fmu.validator import FMI2_CS_FUNCTIONS, FMI3_FUNCTIONS, exported_symbols, fmutool_problems, validate_fmu
 from training.fmu_build import build_fmu
 from training.runtime import run_batch
+from fmu_cases import GOLDEN_TOLERANCE, TRAINED_SETTINGS, synthetic_recording, trained_coefficients
 
-#: FMU (compiled with fmpy's CMake, -O3) and batch library (-O2) run the same C code; only the
-#: compiler's instruction choice may differ, far below this bound.
-GOLDEN_TOLERANCE = 1e-12
-
-#: Settings of the "trained" FMU: every parameter differs from its default. The lags make the
-#: time-alignment buffer (sources/ImuAlign.h) part of every FMU-state and golden check.
-TRAINED_SETTINGS = {"declination": 0.05, "field_norm": 48.0, "gyro_noise": 5e-4,
-                    "gyro_bias_residual": 2e-4, "mse_time_constant": 0.5, "angle_noise": 0.02,
-                    "enable_thermal": 1.0, "lag_gyr": -0.015, "lag_mag": 0.02}
+#: FMI version -> (the functions its co-simulation binary exports, how many the standard names).
+EXPORTS = {2: (FMI2_CS_FUNCTIONS, 34), 3: (FMI3_FUNCTIONS, 75)}
 
 
-def trained_coefficients() -> np.ndarray:
-    """A non-identity coefficient array: symmetric A near I, degree-2 gain and bias polynomials."""
-    rng = np.random.default_rng(7)
-    c = np.array(identity_coefficients())
-    for triad in range(3):
-        o = 1 + triad * TRIAD_BLOCK
-        c[o + 1:o + 4] = [25.0, 10.0, 2.0]                      # t0 [°C], ts [°C], degree
-        a = np.eye(3) + 0.01 * rng.standard_normal((3, 3))
-        c[o + 4:o + 13] = ((a + a.T) / 2).ravel()
-        g = c[o + 13:o + 13 + 3 * MAX_DEGREE].reshape(3, MAX_DEGREE)
-        g[:, :2] = 1e-3 * rng.standard_normal((3, 2))
-        b = c[o + 13 + 3 * MAX_DEGREE:o + TRIAD_BLOCK - 3].reshape(3, MAX_DEGREE + 1)
-        b[:, :3] = 1e-2 * rng.standard_normal((3, 3))
-    return c
-
-
-def synthetic_recording(n: int = 600) -> tuple[np.ndarray, np.ndarray]:
-    """(t, inputs): a rotating, noisy sensor with jittered 50–200 Hz steps, a 120 s gap, a
-    stretch of unknown (NaN) temperature and slow sines on the auxiliary inputs."""
-    rng = np.random.default_rng(1)
-    dt = rng.uniform(0.005, 0.02, n)
-    dt[n // 2] = 120.0
-    t = np.concatenate([[0.0], np.cumsum(dt[:-1])])
-    s = np.arange(n) / 100.0
-    gyr = np.stack([0.3 * np.sin(1.1 * s), 0.2 * np.cos(0.7 * s), 0.5 * np.sin(0.3 * s)], axis=1)
-    roll, pitch = 0.2 * np.sin(0.5 * s), 0.1 * np.cos(0.4 * s)
-    acc = 9.80665 * np.stack([np.sin(pitch), -np.sin(roll) * np.cos(pitch),
-                              -np.cos(roll) * np.cos(pitch)], axis=1)
-    mag = np.stack([20.0 * np.cos(0.3 * s), -20.0 * np.sin(0.3 * s), np.full(n, 40.0)], axis=1)
-    temp = 20.0 + 10.0 * s / s[-1]
-    temp[n // 4:n // 4 + 20] = np.nan
-    aux = np.column_stack([np.cos(k * s) for k in range(1, len(AUX_INPUTS) + 1)])
-    raw = np.column_stack([gyr, acc, mag, temp, aux])
-    raw[:, :9] += 0.01 * rng.standard_normal((n, 9))
-    return t, raw
-
-
-@pytest.fixture(scope="module")
-def trained_fmu(tmp_path_factory) -> Path:
-    """An FMU built from non-identity coefficients and non-default settings."""
-    return build_fmu(trained_coefficients(), TRAINED_SETTINGS,
-                     tmp_path_factory.mktemp("trained") / "ImuFusion.fmu", provenance="test coefficients")
-
-
-def test_fmpy_validation_finds_no_problems(trained_fmu):
+def test_fmpy_and_full_validation_find_no_problems(trained_fmu):
     assert fmpy_validate_fmu(str(trained_fmu)) == []
-    assert validate_fmu(trained_fmu) == []
+    assert validate_fmu(trained_fmu) == []  # symbols, fmutool -check, smoke run, shipped reference result
 
 
-def test_binary_exports_exactly_the_fmi2_cosimulation_functions(trained_fmu):
-    assert len(FMI2_CS_FUNCTIONS) == 34
-    assert exported_symbols(trained_fmu) == FMI2_CS_FUNCTIONS
+def test_binary_exports_exactly_the_fmi_cosimulation_functions(trained_fmu, fmi_version):
+    functions, count = EXPORTS[fmi_version]
+    assert len(functions) == count
+    assert exported_symbols(trained_fmu) == functions
 
 
 def test_unknown_variable_names_the_known_ones():
@@ -96,8 +47,8 @@ def test_unknown_variable_names_the_known_ones():
         by_name("gyr_w")
 
 
-def test_model_description_follows_table_and_settings(trained_fmu):
-    md = read_model_description(str(trained_fmu))
+def test_model_description_follows_table_and_settings(trained_fmu2):
+    md = read_model_description(str(trained_fmu2))
     assert md.coSimulation.canHandleVariableCommunicationStepSize
     assert md.coSimulation.canGetAndSetFMUstate and md.coSimulation.canSerializeFMUstate
     got = {v.name: (v.valueReference, v.causality, v.type, v.unit) for v in md.modelVariables}
@@ -113,15 +64,15 @@ def test_model_description_follows_table_and_settings(trained_fmu):
     assert sorted(sources) == expected
 
 
-def test_fmu_without_thermal_model_passes_raw_signals_through(trained_fmu):
+def test_fmu_without_thermal_model_passes_raw_signals_through(trained_fmu2):
     t, raw = synthetic_recording(200)
-    out = run_fmu(trained_fmu, t, raw, parameters={"enable_thermal": False, "lag_gyr": 0.0, "lag_mag": 0.0})
+    out = run_fmu(trained_fmu2, t, raw, parameters={"enable_thermal": False, "lag_gyr": 0.0, "lag_mag": 0.0})
     np.testing.assert_allclose(out[:, :9], raw[:, :9], rtol=0, atol=1e-12)
 
 
-def test_fmu_equals_batch_runtime_on_variable_steps(trained_fmu):
+def test_fmu_equals_batch_runtime_on_variable_steps(trained_fmu2):
     t, raw = synthetic_recording()
-    fmu_out = run_fmu(trained_fmu, t, raw)
+    fmu_out = run_fmu(trained_fmu2, t, raw)
     # Both run the same guard (sources/ImuGuard.c): the batch gets the RAW recording, NaN stretch
     # of the temperature included, and holds the last valid temperature through it as the FMU does.
     assert np.isnan(raw[:, INPUTS.index("temp")]).any()
@@ -133,7 +84,7 @@ def test_fmu_equals_batch_runtime_on_variable_steps(trained_fmu):
                                rtol=0, atol=1e-12)
 
 
-def test_fmu_equals_batch_runtime_on_bad_input(trained_fmu):
+def test_fmu_equals_batch_runtime_on_bad_input(trained_fmu2):
     # The batch library runs the FMU's input/time/output guard (sources/ImuGuard.c), so the two
     # agree on any input and the batch outputs stay finite.
     t, raw = synthetic_recording()
@@ -141,41 +92,47 @@ def test_fmu_equals_batch_runtime_on_bad_input(trained_fmu):
     raw[50:70, 6:9] = 0.0                                                 # all-zero field stretch
     raw[90:100, 9], raw[100:105, 9], raw[400, 9] = 400.0, -100.0, np.inf  # temperature out of range
     raw[120, 3:6] = -np.inf                                               # bad accelerometer sample
-    fmu_out = run_fmu(trained_fmu, t, raw)
+    fmu_out = run_fmu(trained_fmu2, t, raw)
     batch_out = run_batch(trained_coefficients(), settings_array(TRAINED_SETTINGS), t, raw)
     assert np.all(np.isfinite(batch_out))
     np.testing.assert_allclose(fmu_out, batch_out, rtol=0, atol=GOLDEN_TOLERANCE)
 
 
-def test_parameters_are_set_by_name(trained_fmu):
+def test_parameters_are_set_by_name(trained_fmu2):
     t, raw = synthetic_recording(50)
     params = {"declination": -0.1, "enable_thermal": False}
-    fmu_out = run_fmu(trained_fmu, t, raw, parameters=params)
+    fmu_out = run_fmu(trained_fmu2, t, raw, parameters=params)
     batch_out = run_batch(trained_coefficients(), settings_array({**TRAINED_SETTINGS, **params}), t, raw)
     np.testing.assert_allclose(fmu_out, batch_out, rtol=0, atol=GOLDEN_TOLERANCE, equal_nan=True)
     with pytest.raises(FmuError, match="not a parameter"):
-        run_fmu(trained_fmu, t, raw, parameters={"gyr_x": 1.0})
+        run_fmu(trained_fmu2, t, raw, parameters={"gyr_x": 1.0})
 
 
-def test_invalid_field_norm_fails_initialisation_naming_it(trained_fmu):
+#: FMI version -> (an invalid parameter value, what the error must say about it).
+INVALID_PARAMETERS = {2: ({"field_norm": -1.0}, "field_norm"),
+                      3: ({"gyro_noise": -1.0}, "gyro_noise must be finite and within [0, 0.1]")}
+
+
+def test_invalid_parameter_fails_initialisation_naming_it(trained_fmu, fmi_version):
+    parameters, message = INVALID_PARAMETERS[fmi_version]
     t, raw = synthetic_recording(5)
-    with pytest.raises(FmuError, match="fmi2ExitInitializationMode") as info:
-        run_fmu(trained_fmu, t, raw, parameters={"field_norm": -1.0})
-    assert "field_norm" in str(info.value)
+    with pytest.raises(FmuError, match=f"fmi{fmi_version}ExitInitializationMode") as info:
+        run_fmu(trained_fmu, t, raw, parameters=parameters)
+    assert message in str(info.value)
 
 
 @pytest.mark.parametrize("name, value", [("pf_particles", 2.9), ("pf_particles", 4294967298.0),
                                          ("enable_pf", 0.5), ("enable_thermal", 2.0)])
-def test_run_fmu_refuses_integer_and_boolean_values_it_would_have_to_round(trained_fmu, name, value):
+def test_run_fmu_refuses_integer_and_boolean_values_it_would_have_to_round(trained_fmu2, name, value):
     """int(2.9) = 2 particles, bool(0.5) = filter on: the library path refuses, naming the parameter."""
     t, raw = synthetic_recording(5)
     with pytest.raises(FmuError, match=name):
-        run_fmu(trained_fmu, t, raw, parameters={name: value})
+        run_fmu(trained_fmu2, t, raw, parameters={name: value})
 
 
-def test_parameters_cannot_be_set_after_initialisation(trained_fmu):
+def test_parameters_cannot_be_set_after_initialisation(trained_fmu2):
     with pytest.raises(FmuError, match="parameters are fixed"):
-        with initialised_fmu(trained_fmu) as fmu:
+        with initialised_fmu(trained_fmu2) as fmu:
             fmu.setReal([by_name("field_norm").value_reference], [40.0])
 
 
@@ -192,32 +149,32 @@ def _restore_midway(fmu_path, t, raw, params, k):
     return head, first, second
 
 
-def test_fmu_state_restore_continues_identically(trained_fmu):
+def test_fmu_state_restore_continues_identically(trained_fmu2):
     t, raw = synthetic_recording(300)
-    head, first, second = _restore_midway(trained_fmu, t, raw, TRAINED_SETTINGS, 120)
+    head, first, second = _restore_midway(trained_fmu2, t, raw, TRAINED_SETTINGS, 120)
     np.testing.assert_array_equal(first, second)
     np.testing.assert_array_equal(np.vstack([head, first]),
-                                  run_fmu(trained_fmu, t, raw, parameters=TRAINED_SETTINGS))
+                                  run_fmu(trained_fmu2, t, raw, parameters=TRAINED_SETTINGS))
 
 
-def test_particle_filter_in_the_fmu_equals_batch_and_its_state_is_restored(trained_fmu):
+def test_particle_filter_in_the_fmu_equals_batch_and_its_state_is_restored(trained_fmu2):
     # The filter (particles, power sums, generator) is part of the FMU state: a restore in the
     # middle of the run continues bit-identically, and the FMU equals the batch runtime.
     t, raw = synthetic_recording(600)
     params = {**TRAINED_SETTINGS, "enable_pf": True, "pf_decimation": 4, "pf_hold_prior": False}
-    fmu_out = run_fmu(trained_fmu, t, raw, parameters=params)
+    fmu_out = run_fmu(trained_fmu2, t, raw, parameters=params)
     batch_out = run_batch(trained_coefficients(), settings_array(params), t, raw)
     np.testing.assert_allclose(fmu_out, batch_out, rtol=0, atol=GOLDEN_TOLERANCE, equal_nan=True)
     assert np.all(fmu_out[:, OUTPUTS.index("pf_neff")] > 0.0)
-    _, first, second = _restore_midway(trained_fmu, t, raw, params, 300)
+    _, first, second = _restore_midway(trained_fmu2, t, raw, params, 300)
     np.testing.assert_array_equal(first, second)
     np.testing.assert_array_equal(first, fmu_out[300:])
 
 
-def test_serialized_fmu_state_restores_identically(trained_fmu):
+def test_serialized_fmu_state_restores_identically(trained_fmu2):
     t, raw = synthetic_recording(300)
     h, k = step_sizes(t, 0.01), 200
-    with initialised_fmu(trained_fmu, t[0], TRAINED_SETTINGS) as fmu:
+    with initialised_fmu(trained_fmu2, t[0], TRAINED_SETTINGS) as fmu:
         step_samples(fmu, t[:k], raw[:k], h[:k])
         state = fmu.getFMUstate()
         data = fmu.serializeFMUstate(state)
@@ -261,10 +218,10 @@ def test_compiler_warning_is_a_build_error_with_the_output(tmp_path):
         compile_binary(tmp_path)
 
 
-def test_reset_returns_to_the_instantiated_state(trained_fmu):
+def test_reset_returns_to_the_instantiated_state(trained_fmu2):
     t, raw = synthetic_recording(100)
     h = step_sizes(t, 0.01)
-    with initialised_fmu(trained_fmu, t[0], TRAINED_SETTINGS) as fmu:
+    with initialised_fmu(trained_fmu2, t[0], TRAINED_SETTINGS) as fmu:
         first = step_samples(fmu, t, raw, h)
         fmu.reset()
         assert fmu.getReal([by_name("field_norm").value_reference]) == [TRAINED_SETTINGS["field_norm"]]
@@ -275,9 +232,9 @@ def test_reset_returns_to_the_instantiated_state(trained_fmu):
     np.testing.assert_array_equal(first, second)
 
 
-def test_instantiate_rejects_a_foreign_guid(trained_fmu, tmp_path):
-    md = read_model_description(str(trained_fmu))
-    fmu = FMU2Slave(guid="{not-this-fmu}", unzipDirectory=extract(str(trained_fmu), tmp_path),
+def test_instantiate_rejects_a_foreign_guid(trained_fmu2, tmp_path):
+    md = read_model_description(str(trained_fmu2))
+    fmu = FMU2Slave(guid="{not-this-fmu}", unzipDirectory=extract(str(trained_fmu2), tmp_path),
                     modelIdentifier=md.coSimulation.modelIdentifier)
     with pytest.raises(Exception, match="Failed to instantiate"):
         fmu.instantiate()
@@ -305,18 +262,18 @@ except Exception:
 """
 
 
-def test_fmpy_default_logger_still_works_after_runs_in_the_same_process(trained_fmu, tmp_path):
+def test_fmpy_default_logger_still_works_after_runs_in_the_same_process(trained_fmu2, tmp_path):
     """fmpy's message proxy keeps one static pointer to a Python logger: a logger made per run and
     freed afterwards left it dangling, and the next FMU logging through fmpy's defaults crashed the
     process (fmu/fmi2_logger.py). In a child process, so that a crash is a failure, not the end."""
-    result = subprocess.run([sys.executable, "-c", _FMPY_DEFAULT_LOGGER_AFTER_RUN, str(trained_fmu),
+    result = subprocess.run([sys.executable, "-c", _FMPY_DEFAULT_LOGGER_AFTER_RUN, str(trained_fmu2),
                              str(tmp_path / "unzipped")], capture_output=True, text=True, timeout=300,
                             cwd=Path(__file__).resolve().parents[1])
     assert result.returncode == 0, result.stderr[-2000:]
     assert result.stdout.strip().splitlines()[-1] == "refused"
 
 
-def test_the_log_still_reaches_run_fmu_after_other_code_repointed_the_proxy(trained_fmu):
+def test_the_log_still_reaches_run_fmu_after_other_code_repointed_the_proxy(trained_fmu2):
     """fmpy's simulate_fmu (or any caller) points fmpy's message proxy at its own logger; run_fmu
     must point it back, or the FMU's messages (here: the invalid parameter named) go elsewhere."""
     foreign = []
@@ -325,13 +282,13 @@ def test_the_log_still_reaches_run_fmu_after_other_code_repointed_the_proxy(trai
     addLoggerProxy(ctypes.byref(callbacks))   # what simulate_fmu(..., logger=...) does
     t, raw = synthetic_recording(5)
     with pytest.raises(FmuError, match="invalid parameter: field_norm"):
-        run_fmu(trained_fmu, t, raw, parameters={"field_norm": -1.0})
+        run_fmu(trained_fmu2, t, raw, parameters={"field_norm": -1.0})
     assert foreign == []
 
 
-def test_start_values_in_binary_match_model_description(trained_fmu, tmp_path):
-    md = read_model_description(str(trained_fmu))
-    fmu = FMU2Slave(guid=md.guid, unzipDirectory=extract(str(trained_fmu), tmp_path),
+def test_start_values_in_binary_match_model_description(trained_fmu2, tmp_path):
+    md = read_model_description(str(trained_fmu2))
+    fmu = FMU2Slave(guid=md.guid, unzipDirectory=extract(str(trained_fmu2), tmp_path),
                     modelIdentifier=md.coSimulation.modelIdentifier)
     fmu.instantiate()
     reals = [v for v in md.modelVariables if v.start is not None and v.type == "Real"]
@@ -342,8 +299,8 @@ def test_start_values_in_binary_match_model_description(trained_fmu, tmp_path):
     assert thermal == [1]
 
 
-def test_fmutool_check_finds_no_problems(trained_fmu):
-    assert fmutool_problems(trained_fmu) == []
+def test_fmutool_check_finds_no_problems(trained_fmu2):
+    assert fmutool_problems(trained_fmu2) == []
 
 
 def test_log_categories_match_the_binary():
@@ -352,8 +309,8 @@ def test_log_categories_match_the_binary():
     assert re.findall(r'"(\w+)"', names) == [name for name, _ in LOG_CATEGORIES]
 
 
-def test_every_variable_has_a_description_and_reals_a_unit(trained_fmu):
-    md = read_model_description(str(trained_fmu))
+def test_every_variable_has_a_description_and_reals_a_unit(trained_fmu2):
+    md = read_model_description(str(trained_fmu2))
     assert md.defaultExperiment.stepSize and md.defaultExperiment.stopTime
     units = {u.name: u for u in md.unitDefinitions}
     for v in md.modelVariables:

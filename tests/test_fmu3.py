@@ -1,4 +1,4 @@
-"""The ImuFusion FMI 3.0 FMU: validity, exports, golden outputs, FMU state across processes, instances."""
+"""The ImuFusion FMI 3.0 FMU (validity and exports: tests/test_fmu.py): golden outputs, FMU state across processes, instances."""
 from __future__ import annotations
 
 import subprocess
@@ -10,25 +10,15 @@ import numpy as np
 import pytest
 from fmpy import read_model_description
 from fmpy.model_description import read_build_description
-from fmpy.validation import validate_fmu as fmpy_validate_fmu
 
 from contract.variables import VARIABLES
 from fmu.build_description import BUILD_DESCRIPTION
 from fmu.compiler import fmu_source_files
-from fmu.cosim import FmuError, Stepper, initialised_fmu, run_fmu, step_samples, step_sizes
+from fmu.cosim import Stepper, initialised_fmu, run_fmu, step_samples, step_sizes
 from fmu.model_description import FMI3_TYPES, LOG_CATEGORIES, TIME_VALUE_REFERENCE
-from fmu.validator import FMI3_FUNCTIONS, exported_symbols, validate_fmu
-from training.fmu_build import build_fmu
-from test_fmu import GOLDEN_TOLERANCE, TRAINED_SETTINGS, synthetic_recording, trained_coefficients
+from fmu_cases import GOLDEN_TOLERANCE, TRAINED_SETTINGS, synthetic_recording, trained_coefficients
 from contract.layout import settings_array
 from training.runtime import run_batch
-
-
-@pytest.fixture(scope="module")
-def fmu3(tmp_path_factory) -> Path:
-    """An FMI 3.0 FMU built from non-identity coefficients and non-default settings."""
-    return build_fmu(trained_coefficients(), TRAINED_SETTINGS, tmp_path_factory.mktemp("fmi3") / "ImuFusion.fmu",
-                     provenance="test coefficients", fmi_version=3)
 
 
 @pytest.fixture(scope="module")
@@ -38,28 +28,18 @@ def recording():
     return t, raw, step_sizes(t, 0.01)
 
 
-def test_fmpy_and_full_validation_find_no_problems(fmu3):
-    assert fmpy_validate_fmu(str(fmu3)) == []
-    assert validate_fmu(fmu3) == []  # symbols, fmutool -check, smoke run, shipped reference result
-
-
-def test_binary_exports_exactly_the_75_fmi3_functions(fmu3):
-    assert len(FMI3_FUNCTIONS) == 75
-    assert exported_symbols(fmu3) == FMI3_FUNCTIONS
-
-
-def test_build_description_lists_the_fmi3_sources(fmu3):
-    with zipfile.ZipFile(fmu3) as zf:
+def test_build_description_lists_the_fmi3_sources(trained_fmu3):
+    with zipfile.ZipFile(trained_fmu3) as zf:
         assert BUILD_DESCRIPTION in zf.namelist()
-    configuration = read_build_description(str(fmu3))[0]
+    configuration = read_build_description(str(trained_fmu3))[0]
     assert configuration.modelIdentifier == "ImuFusion"
     files = configuration.sourceFileSets[0].sourceFiles
     assert sorted(files) == sorted(p.name for p in fmu_source_files(fmi_version=3) if p.suffix == ".c")
     assert "fmi3Functions.c" in files and "fmi2Functions.c" not in files
 
 
-def test_model_description_follows_the_table(fmu3):
-    md = read_model_description(str(fmu3))
+def test_model_description_follows_the_table(trained_fmu3):
+    md = read_model_description(str(trained_fmu3))
     assert md.fmiVersion == "3.0"
     cs = md.coSimulation
     assert cs.canHandleVariableCommunicationStepSize and cs.canGetAndSetFMUstate and cs.canSerializeFMUstate
@@ -70,19 +50,19 @@ def test_model_description_follows_the_table(fmu3):
     assert all(v.description for v in md.modelVariables)
 
 
-def test_fmu_equals_batch_runtime(fmu3, recording):
+def test_fmu_equals_batch_runtime(trained_fmu3, recording):
     t, raw, _ = recording
-    fmu_out = run_fmu(fmu3, t, raw)
+    fmu_out = run_fmu(trained_fmu3, t, raw)
     batch_out = run_batch(trained_coefficients(), settings_array(TRAINED_SETTINGS), t, raw)
     np.testing.assert_allclose(fmu_out, batch_out, rtol=0, atol=GOLDEN_TOLERANCE)
     assert np.all(np.isfinite(fmu_out))
 
 
 @pytest.mark.parametrize("split", [0, 1, 75, 150, 151, 299])
-def test_state_restore_at_any_step_is_bit_identical(fmu3, recording, split):
+def test_state_restore_at_any_step_is_bit_identical(trained_fmu3, recording, split):
     t, raw, h = recording
-    uninterrupted = run_fmu(fmu3, t, raw, parameters=TRAINED_SETTINGS)
-    with initialised_fmu(fmu3, t[0], TRAINED_SETTINGS) as fmu:
+    uninterrupted = run_fmu(trained_fmu3, t, raw, parameters=TRAINED_SETTINGS)
+    with initialised_fmu(trained_fmu3, t[0], TRAINED_SETTINGS) as fmu:
         head = step_samples(fmu, t[:split], raw[:split], h[:split])
         state = fmu.getFMUState()
         first = step_samples(fmu, t[split:], raw[split:], h[split:])
@@ -108,30 +88,30 @@ with initialised_fmu(fmu_path, 0.0) as fmu:
 """
 
 
-def test_serialized_state_restores_in_another_process(fmu3, recording, tmp_path):
+def test_serialized_state_restores_in_another_process(trained_fmu3, recording, tmp_path):
     t, raw, h = recording
     split = 170
-    uninterrupted = run_fmu(fmu3, t, raw, parameters=TRAINED_SETTINGS)
-    with initialised_fmu(fmu3, t[0], TRAINED_SETTINGS) as fmu:
+    uninterrupted = run_fmu(trained_fmu3, t, raw, parameters=TRAINED_SETTINGS)
+    with initialised_fmu(trained_fmu3, t[0], TRAINED_SETTINGS) as fmu:
         step_samples(fmu, t[:split], raw[:split], h[:split])
         state = fmu.getFMUState()
         (tmp_path / "state.bin").write_bytes(bytes(fmu.serializeFMUState(state)))
         fmu.freeFMUState(state)
     np.savez(tmp_path / "data.npz", t=t[split:], raw=raw[split:], h=h[split:])
-    subprocess.run([sys.executable, "-c", _RESTORE_SCRIPT, str(fmu3), str(tmp_path / "state.bin"),
+    subprocess.run([sys.executable, "-c", _RESTORE_SCRIPT, str(trained_fmu3), str(tmp_path / "state.bin"),
                     str(tmp_path / "data.npz"), str(tmp_path / "out.npy")], check=True, cwd=Path(__file__).parent.parent)
     np.testing.assert_array_equal(np.load(tmp_path / "out.npy"), uninterrupted[split:])
 
 
-def test_interleaved_instances_equal_each_alone(fmu3, recording):
+def test_interleaved_instances_equal_each_alone(trained_fmu3, recording):
     t, raw, h = recording
     other = raw.copy()
     other[:, 6:9] *= 1.1  # a different field for the second instance
-    alone_a = run_fmu(fmu3, t, raw, parameters=TRAINED_SETTINGS)
-    alone_b = run_fmu(fmu3, t, other, parameters={"declination": -0.2})
+    alone_a = run_fmu(trained_fmu3, t, raw, parameters=TRAINED_SETTINGS)
+    alone_b = run_fmu(trained_fmu3, t, other, parameters={"declination": -0.2})
     together_a, together_b = np.empty_like(alone_a), np.empty_like(alone_b)
-    with initialised_fmu(fmu3, t[0], TRAINED_SETTINGS, instance_name="a") as a, \
-            initialised_fmu(fmu3, t[0], {"declination": -0.2}, instance_name="b") as b:
+    with initialised_fmu(trained_fmu3, t[0], TRAINED_SETTINGS, instance_name="a") as a, \
+            initialised_fmu(trained_fmu3, t[0], {"declination": -0.2}, instance_name="b") as b:
         sa, sb = Stepper(a), Stepper(b)
         for k in range(len(t)):
             sa.set_inputs(raw[k])
@@ -144,19 +124,12 @@ def test_interleaved_instances_equal_each_alone(fmu3, recording):
     assert not np.array_equal(alone_a, alone_b)
 
 
-def test_reset_returns_to_the_initial_state(fmu3, recording):
+def test_reset_returns_to_the_initial_state(trained_fmu3, recording):
     t, raw, h = recording
-    with initialised_fmu(fmu3, t[0], TRAINED_SETTINGS) as fmu:
+    with initialised_fmu(trained_fmu3, t[0], TRAINED_SETTINGS) as fmu:
         first = step_samples(fmu, t, raw, h)
         fmu.reset()
         fmu.enterInitializationMode(startTime=t[0])
         fmu.exitInitializationMode()
         second = step_samples(fmu, t, raw, h)
     np.testing.assert_array_equal(first, second)
-
-
-def test_invalid_parameter_fails_initialisation_naming_it(fmu3):
-    t, raw = synthetic_recording(5)
-    with pytest.raises(FmuError, match="fmi3ExitInitializationMode") as info:
-        run_fmu(fmu3, t, raw, parameters={"gyro_noise": -1.0})
-    assert "gyro_noise must be finite and within [0, 0.1]" in str(info.value)

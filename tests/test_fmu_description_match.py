@@ -12,24 +12,14 @@ import zipfile
 from collections.abc import Callable
 from pathlib import Path
 
-import pytest
 
 from fmu.description_check import CONFIG_MEMBER, behaviour_problems, description_problems
 from fmu.validator import reference_problems, validate_fmu
-from training.fmu_build import build_fmu
-from test_fmu import TRAINED_SETTINGS, trained_coefficients
+from fmu_cases import TRAINED_SETTINGS
 from training.cli import main
 
 MD = "modelDescription.xml"
 TABLE = "the variable table (contract/variables.py)"
-
-
-@pytest.fixture(scope="module", params=[2, 3], ids=["fmi2", "fmi3"])
-def fmu(request, tmp_path_factory) -> Path:
-    """An FMU of each FMI version built from non-identity coefficients and non-default settings."""
-    out = tmp_path_factory.mktemp(f"md{request.param}") / "ImuFusion.fmu"
-    return build_fmu(trained_coefficients(), TRAINED_SETTINGS, out, provenance="test coefficients",
-                     fmi_version=request.param)
 
 
 def _rewritten(fmu: Path, out: Path, edit: Callable[[str], str] | None = None, drop: str | None = None) -> Path:
@@ -79,14 +69,14 @@ def _vr_line(name: str, declared: int, true: int) -> str:
     return f"{name}: {MD} says valueReference {declared}; {TABLE} says {true}; {CONFIG_MEMBER} says {true}"
 
 
-def test_the_untouched_fmu_validates_with_every_check(fmu):
+def test_the_untouched_fmu_validates_with_every_check(trained_fmu):
     checks: list[tuple[str, int]] = []
-    assert validate_fmu(fmu, checks) == []
+    assert validate_fmu(trained_fmu, checks) == []
     assert ("description matches sources", 0) in checks and ("description matches binary", 0) in checks
 
 
-def test_swapped_input_references_are_named(fmu, tmp_path, capsys):
-    swapped = _rewritten(fmu, tmp_path / "swapped.fmu", _swap("gyr_x", "gyr_y"))
+def test_swapped_input_references_are_named(trained_fmu, tmp_path, capsys):
+    swapped = _rewritten(trained_fmu, tmp_path / "swapped.fmu", _swap("gyr_x", "gyr_y"))
     checks: list[tuple[str, int]] = []
     assert validate_fmu(swapped, checks) == [_vr_line("gyr_x", 1, 0), _vr_line("gyr_y", 0, 1)]
     assert ("description matches sources", 2) in checks
@@ -96,25 +86,25 @@ def test_swapped_input_references_are_named(fmu, tmp_path, capsys):
     assert f"problem: {_vr_line('gyr_y', 0, 1)}" in captured.out.splitlines()
 
 
-def test_the_binary_and_the_reference_result_catch_the_swap_without_the_sources(fmu, tmp_path):
+def test_the_binary_and_the_reference_result_catch_the_swap_without_the_sources(trained_fmu, tmp_path):
     """Binary-only or edited sources: the binary's behaviour and the reference run still tell."""
-    swapped = _rewritten(fmu, tmp_path / "swapped.fmu", _swap("gyr_x", "gyr_y"))
+    swapped = _rewritten(trained_fmu, tmp_path / "swapped.fmu", _swap("gyr_x", "gyr_y"))
     problems = behaviour_problems(swapped)
     assert [p.split(":")[0] for p in problems] == ["gyr_x", "gyr_y"]
     assert "gyr_x: stepping it (valueReference 1) should move rate_x most" in problems[0]
     assert reference_problems(swapped)[0].startswith("the FMU does not reproduce its reference output")
 
 
-def test_swapped_output_references_are_named(fmu, tmp_path):
-    swapped = _rewritten(fmu, tmp_path / "swapped.fmu", _swap("rate_x", "rate_y"))
+def test_swapped_output_references_are_named(trained_fmu, tmp_path):
+    swapped = _rewritten(trained_fmu, tmp_path / "swapped.fmu", _swap("rate_x", "rate_y"))
     assert validate_fmu(swapped) == [_vr_line("rate_x", 11, 10), _vr_line("rate_y", 10, 11)]
     # The binary moves what the description calls rate_y when gyr_x steps.
     assert [p.split(":")[0] for p in behaviour_problems(swapped)] == ["gyr_x", "gyr_y"]
     assert reference_problems(swapped)[0].startswith("the FMU does not reproduce its reference output")
 
 
-def test_a_changed_parameter_start_is_named(fmu, tmp_path):
-    changed = _rewritten(fmu, tmp_path / "start.fmu", _set("field_norm", "start", "49.0"))
+def test_a_changed_parameter_start_is_named(trained_fmu, tmp_path):
+    changed = _rewritten(trained_fmu, tmp_path / "start.fmu", _set("field_norm", "start", "49.0"))
     compiled = TRAINED_SETTINGS["field_norm"]
     assert validate_fmu(changed) == [
         f"field_norm: {MD} says start 49.0; sources/ImuCoefficientsData.h says {compiled!r}"]
@@ -122,13 +112,13 @@ def test_a_changed_parameter_start_is_named(fmu, tmp_path):
         f"field_norm (valueReference 38, Real): {MD} says start 49.0; the binary holds {compiled!r}"]
 
 
-def test_a_changed_causality_is_named(fmu, tmp_path):
+def test_a_changed_causality_is_named(trained_fmu, tmp_path):
     # input -> local passes fmpy's schema checks when the start value stays exact
-    changed = _rewritten(fmu, tmp_path / "causality.fmu", _set("gyr_x", "causality", 'local" initial="exact'))
+    changed = _rewritten(trained_fmu, tmp_path / "causality.fmu", _set("gyr_x", "causality", 'local" initial="exact'))
     assert validate_fmu(changed) == [f"gyr_x: {MD} says causality local; {TABLE} says input"]
 
 
-def test_missing_sources_are_a_problem(fmu, tmp_path):
-    stripped = _rewritten(fmu, tmp_path / "nosources.fmu", drop=CONFIG_MEMBER)
+def test_missing_sources_are_a_problem(trained_fmu, tmp_path):
+    stripped = _rewritten(trained_fmu, tmp_path / "nosources.fmu", drop=CONFIG_MEMBER)
     assert description_problems(stripped) == [
         f"{stripped}: the FMU has no {CONFIG_MEMBER}: its model description cannot be checked against its sources"]

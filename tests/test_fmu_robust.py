@@ -21,7 +21,6 @@ from fmu.compiler import FMPY_C_CODE as FMI_HEADERS, SOURCE_DIR, binary_path, fm
 from fmu.cosim import DISCARD, OK, WARNING, FmuError, Stepper, initialised_fmu, run_fmu
 from fmu.header import HEADER_NAME, coefficient_header
 from fmu.packer import reference_recording
-from training.fmu_build import build_fmu
 
 C_TESTS = Path(__file__).parent / "c"
 STRICT = ["-std=c99", "-Wall", "-Wextra", "-Wpedantic", "-Werror"]
@@ -46,13 +45,6 @@ BAD_INPUTS = [
 
 
 @pytest.fixture(scope="module")
-def fmu_path(tmp_path_factory) -> Path:
-    """An FMI 3 FMU with identity coefficients and default settings."""
-    return build_fmu(np.array(identity_coefficients()), {}, tmp_path_factory.mktemp("robust") / "ImuFusion.fmu",
-                     fmi_version=3)
-
-
-@pytest.fixture(scope="module")
 def header_dir(tmp_path_factory) -> Path:
     """A folder with a generated ImuCoefficientsData.h (identity coefficients) for direct C builds."""
     folder = tmp_path_factory.mktemp("header")
@@ -68,7 +60,7 @@ def _compile(command: list[str]) -> None:
 
 
 @pytest.mark.parametrize("name, where, value, expected", BAD_INPUTS, ids=[b[0] for b in BAD_INPUTS])
-def test_bad_input_is_held_with_one_warning_per_episode(fmu_path, name, where, value, expected):
+def test_bad_input_is_held_with_one_warning_per_episode(identity_fmu3, name, where, value, expected):
     t, raw = reference_recording()
     h = np.full(t.size, t[1] - t[0])
     bad = slice(80, 120)
@@ -78,7 +70,7 @@ def test_bad_input_is_held_with_one_warning_per_episode(fmu_path, name, where, v
         raw[bad, 6:9] = value
     else:
         raw[bad, INPUTS.index(where)] = value
-    with initialised_fmu(fmu_path) as fmu:
+    with initialised_fmu(identity_fmu3) as fmu:
         stepper, statuses, outputs = Stepper(fmu), [], []
         for k in range(t.size):
             stepper.set_inputs(raw[k])
@@ -102,10 +94,10 @@ def test_bad_input_is_held_with_one_warning_per_episode(fmu_path, name, where, v
     ("angle_noise", np.nan, "angle_noise must be finite and within (0, 3.141593] rad"),
     ("declination", np.inf, "declination must be finite"),
 ])
-def test_invalid_parameter_is_an_initialisation_error_naming_it(fmu_path, name, value, expected):
+def test_invalid_parameter_is_an_initialisation_error_naming_it(identity_fmu3, name, value, expected):
     t, raw = reference_recording()
     with pytest.raises(FmuError, match="fmi3ExitInitializationMode: invalid parameter") as info:
-        run_fmu(fmu_path, t[:3], raw[:3], parameters={name: value})
+        run_fmu(identity_fmu3, t[:3], raw[:3], parameters={name: value})
     assert expected in str(info.value)
 
 
@@ -161,15 +153,15 @@ def test_c_glue_suite_under_address_and_undefined_behaviour_sanitizers(header_di
     assert result.stdout.strip().endswith(" 0 failed"), result.stdout
 
 
-def test_cosimulation_under_valgrind_has_no_errors_or_leaks(fmu_path, tmp_path):
+def test_cosimulation_under_valgrind_has_no_errors_or_leaks(identity_fmu3, tmp_path):
     valgrind, cc = debian_tool("valgrind"), debian_tool("gcc")
     driver = tmp_path / "cosim_driver"
     _compile([cc, *STRICT, "-g", f"-I{FMI_HEADERS}", f"-I{SOURCE_DIR}", str(C_TESTS / "cosim_driver.c"),
               "-o", str(driver), "-ldl", "-lm"])
     member = binary_path(Path(), "ImuFusion", 3).as_posix()
-    with zipfile.ZipFile(fmu_path) as zf:
+    with zipfile.ZipFile(identity_fmu3) as zf:
         library = zf.extract(member, tmp_path)
-    token = fmpy.read_model_description(str(fmu_path)).guid
+    token = fmpy.read_model_description(str(identity_fmu3)).guid
     result = subprocess.run([valgrind, "-q", "--leak-check=full", "--show-leak-kinds=all",
                              "--errors-for-leak-kinds=all", "--error-exitcode=3", str(driver), library, token],
                             stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, timeout=600)

@@ -11,12 +11,9 @@ import sys
 from pathlib import Path
 
 import numpy as np
-import pytest
 
 from fmu.cosim import run_fmu
 from fmu.packer import reference_recording
-from training.fmu_build import build_fmu
-from test_fmu import TRAINED_SETTINGS, trained_coefficients
 
 #: Both importers run the same binary on the same samples; ecospy computes its communication
 #: points as multiples of the step size, fmpy takes them from the recording, which may differ in
@@ -50,22 +47,16 @@ np.save(out_path, np.array(rows))
 """
 
 
-@pytest.fixture(scope="module")
-def fmu2(tmp_path_factory) -> Path:
-    """An FMI 2.0 FMU with trained coefficients and non-default parameter start values."""
-    return build_fmu(trained_coefficients(), TRAINED_SETTINGS, tmp_path_factory.mktemp("importers") / "ImuFusion.fmu")
-
-
-def test_ecospy_and_fmpy_give_the_same_outputs(fmu2, tmp_path):
+def test_ecospy_and_fmpy_give_the_same_outputs(trained_fmu2, tmp_path):
     t, raw = reference_recording()
     env = dict(os.environ)
     env["LD_LIBRARY_PATH"] = os.pathsep.join(filter(None, [str(Path(sys.prefix) / "lib"), env.get("LD_LIBRARY_PATH")]))
-    result = subprocess.run([sys.executable, "-c", _ECOSPY_SCRIPT, str(fmu2), str(tmp_path / "ecos.npy")],
+    result = subprocess.run([sys.executable, "-c", _ECOSPY_SCRIPT, str(trained_fmu2), str(tmp_path / "ecos.npy")],
                             cwd=Path(__file__).parent.parent, env=env, stdout=subprocess.PIPE,
                             stderr=subprocess.STDOUT, text=True, timeout=300)
     assert result.returncode == 0, result.stdout
     ecos = np.load(tmp_path / "ecos.npy")
-    fmpy_out = run_fmu(fmu2, t, raw)
+    fmpy_out = run_fmu(trained_fmu2, t, raw)
     assert ecos.shape == fmpy_out.shape and np.all(np.isfinite(ecos))
     np.testing.assert_allclose(ecos, fmpy_out, rtol=0, atol=IMPORTER_TOLERANCE)
     assert np.ptp(fmpy_out[:, 11]) > 1.0  # the yaw turns: the comparison covers a moving sensor

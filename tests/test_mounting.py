@@ -6,7 +6,6 @@ import argparse
 import re
 import itertools
 from dataclasses import replace
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -17,13 +16,13 @@ from training.bench.bench import run_xio_fusion
 from training.cli import _param
 from training.data.io import read_imu_csv
 from training.evaluate import compute_metrics, tilt_from_level, tilt_heading_between
+from training.main_job import SCENARIO_DIR
 from training.mounting import body_attitude, body_references, recommended_mounting
 from training.runtime import run_batch
 from training.simulator import load_scenario, simulate
 from training.train import train
 
-XIO = Path(__file__).resolve().parents[2] / "shared" / "data" / "xio_handheld" / "xio_handheld.csv.gz"
-SCENARIO = Path(__file__).resolve().parents[1] / "scenarios" / "eval_handheld.toml"
+SCENARIO = SCENARIO_DIR / "eval_handheld.toml"
 #: The acceptance bound of issue 16: with the mounting set, the inclination agrees with x-io
 #: Fusion's (its README settings, training.bench.bench.run_xio_fusion) within 1° median on its own log.
 XIO_INCLINATION_MEDIAN_DEG = 1.0
@@ -118,13 +117,12 @@ def test_cli_refuses_a_code_that_is_no_axis():
         _param("mount_x=0")
 
 
-@pytest.mark.skipif(not XIO.is_file(), reason=f"x-io handheld log not found at {XIO}")
-def test_xio_log_trained_at_the_defaults_agrees_with_xio_fusion():
+def test_xio_log_trained_at_the_defaults_agrees_with_xio_fusion(xio_log):
     """The acceptance figure of issue 16 item 5: train sets the mounting of x-io's z-up board, and
     the trained runtime's inclination agrees with x-io Fusion's within 1° median (benchmarks/
     xio_mounting.py prints the table; FMU = batch runtime bit for bit, tests/test_fmu.py)."""
     from training.artefact import coefficients_array, settings_dict
-    data = read_imu_csv(XIO)
+    data = read_imu_csv(xio_log)
     artefact = train([data], seed=0, progress=False)
     settings = settings_dict(artefact)
     codes = tuple(int(settings[name]) for name in MOUNT_SETTINGS)

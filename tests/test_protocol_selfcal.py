@@ -8,7 +8,6 @@ The runtime is the batch library (the same C code as the FMU; tests/test_fmu.py 
 from __future__ import annotations
 
 from dataclasses import replace
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -18,12 +17,11 @@ from training.artefact import coefficients_array, settings_dict
 from training.data.reference import reference_quaternion_magnetic
 from training.evaluate import compute_metrics
 from training.frames import quat_multiply
-from training.main_job import recording_parameters, settings_with
+from training.main_job import SCENARIO_DIR, recording_parameters, settings_with
 from training.runtime import run_batch
 from training.simulator import load_scenario, simulate
 from training.train import train
 
-SCENARIOS = Path(__file__).resolve().parents[1] / "scenarios"
 EVALUATIONS = ("eval_handheld.toml", "eval_figure8.toml")
 #: Product bounds of the issue on held-out recordings: corrected rate 0.05 °/s (white noise
 #: alone is 0.03 °/s per sample), corrected field 1 µT, attitude total error 2°.
@@ -71,12 +69,12 @@ def _figures(artefact, data, overrides=None) -> dict[str, float]:
 def _campaign(sensor=lambda scenario: scenario) -> tuple:
     """(self-calibrated artefact, {evaluation: {"blind" | "referenced": figures}}) for the protocol
     trained without and with its references, the evaluations simulated with the pipeline's seeds."""
-    protocol = simulate(sensor(load_scenario(SCENARIOS / "protocol.toml")), seed=0)
+    protocol = simulate(sensor(load_scenario(SCENARIO_DIR / "protocol.toml")), seed=0)
     blind = train([_strip(protocol)], seed=0, progress=False)
     referenced = train([protocol], seed=0, progress=False)
     out = {}
     for k, name in enumerate(EVALUATIONS):
-        data = simulate(sensor(load_scenario(SCENARIOS / name)), seed=1 + k)
+        data = simulate(sensor(load_scenario(SCENARIO_DIR / name)), seed=1 + k)
         out[name] = {"blind": _figures(blind, data), "referenced": _figures(referenced, data)}
     return blind, out
 

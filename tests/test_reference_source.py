@@ -2,7 +2,6 @@
 from __future__ import annotations
 
 import json
-from pathlib import Path
 from dataclasses import replace
 
 import numpy as np
@@ -132,15 +131,14 @@ def test_sidecar_site_gives_the_field_through_igrf():
         sidecar_values([bad], "norm_ut")
 
 
-BROAD_09 = Path(__file__).resolve().parents[2] / "shared" / "data" / "broad" / "09_undisturbed_fast_rotation_with_breaks_B.csv.gz"
+BROAD_09 = "09_undisturbed_fast_rotation_with_breaks_B.csv.gz"
 #: A self-calibration of a log without reference may only help: 0.05° of BROAD total error is
 #: what the gyro bias alone moves on this trial (measured +0.01°); the magnetometer fit that cost
 #: 0.2-0.9° on such trials (a non-uniform lab field read as hard iron) must be refused.
 NO_HARM_DEG = 0.05
 
 
-@pytest.mark.skipif(not BROAD_09.is_file(), reason=f"BROAD trial not found at {BROAD_09}")
-def test_self_calibration_of_a_real_log_does_no_harm():
+def test_self_calibration_of_a_real_log_does_no_harm(broad_trial):
     from contract import layout
     from training.artefact import coefficients_array, settings_dict
     from training.bench import bench
@@ -148,7 +146,7 @@ def test_self_calibration_of_a_real_log_does_no_harm():
     from training.main_job import recording_parameters, settings_with
     from training.runtime import run_batch
     from training.train import train
-    data = read_imu_csv(BROAD_09)
+    data = read_imu_csv(broad_trial(BROAD_09))
     user = replace(data, ref_q=None, ref_gyr=None, ref_acc=None, ref_mag=None, eval_mask=None,
                    meta={**data.meta, "reference": "none"})
     artefact = train([user], seed=0, progress=False)  # it moves: no refusal

@@ -4,13 +4,13 @@ from __future__ import annotations
 
 import dataclasses
 import json
-from pathlib import Path
 
 import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
 from training.data.dataset import ImuData
+from training.main_job import SCENARIO_DIR
 from training.models.thermal import apply_thermal
 from training.selfcal import SelfCalResult, self_calibrate
 from training.selfcal.accel import fit_accelerometer
@@ -18,9 +18,6 @@ from training.selfcal.magnet import fit_alignment, fit_magnetometer
 from training.selfcal.rest import RestWindow, detect_rest, group_poses
 from training.simulator import load_scenario, simulate
 
-ROOT = Path(__file__).resolve().parents[1]
-SHARED_DATA = Path(__file__).resolve().parents[2] / "shared" / "data"
-XIO = SHARED_DATA / "xio_handheld" / "xio_handheld.csv.gz"
 G = 9.80665
 
 # ----------------------------------------------------------------------------- bounds
@@ -380,7 +377,7 @@ def test_static_gyro_log_gets_a_temperature_bias_only():
 @pytest.fixture(scope="module")
 def simulated() -> tuple[ImuData, SelfCalResult]:
     """The default calibration set (5 soaks, -10..50 °C, ~10 min at 100 Hz), references stripped."""
-    truth = simulate(load_scenario(ROOT / "scenarios" / "calibration.toml"), seed=0)
+    truth = simulate(load_scenario(SCENARIO_DIR / "calibration.toml"), seed=0)
     blind = dataclasses.replace(truth, ref_gyr=None, ref_acc=None, ref_mag=None, ref_q=None)
     return truth, self_calibrate([blind], field_norm=truth.field_norm_ut, progress=False)
 
@@ -437,10 +434,9 @@ def test_report_is_json_and_rest_masks_cover_the_recording(simulated):
 XIO_DIP_RANGE_DEG = (67.5, 70.5)
 
 
-@pytest.mark.skipif(not XIO.is_file(), reason=f"x-io handheld log not found at {XIO}")
-def test_real_handheld_log_improves_invariants():
+def test_real_handheld_log_improves_invariants(xio_log):
     from training.data.io import read_imu_csv
-    data = read_imu_csv(XIO)
+    data = read_imu_csv(xio_log)
     result = self_calibrate([data], field_norm=None, progress=False)
     report = result.report
     assert report["rest"]["rests"] >= XIO_MIN_RESTS and report["rest"]["poses"] >= XIO_MIN_POSES

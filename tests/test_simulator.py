@@ -12,9 +12,9 @@ from training.data.earth import GRAVITY_NED, STANDARD_GRAVITY
 from training.data.io import read_imu_csv, write_imu_csv
 from training.frames import (quat_conjugate, quat_from_rotvec, quat_multiply, quat_to_matrix, quat_to_rotvec,
                              rotate_to_body)
+from training.main_job import SCENARIO_DIR
 from training.simulator import load_scenario, simulate, simulate_to_dir
 
-SCENARIO_DIR = Path(__file__).resolve().parents[1] / "scenarios"
 SCENARIO_FILES = sorted(SCENARIO_DIR.glob("*.toml"))
 DPS = np.pi / 180.0
 

@@ -20,7 +20,6 @@ from fmu.compiler import SOURCE_DIR
 from fmu.cosim import OK, WARNING, Stepper, initialised_fmu
 from fmu.packer import reference_recording
 from training import runtime
-from training.fmu_build import build_fmu
 
 #: s, the communication step of the importer, and the far clock of the issue.
 STEP_S, FAR_START_S = 0.01, 1e14
@@ -40,11 +39,6 @@ def gap_steps() -> float:
     return float(re.search(r"#define IMU_GUARD_GAP_STEPS ([0-9.eE+-]+)", text).group(1))
 
 
-@pytest.fixture(scope="module")
-def fmu_path(tmp_path_factory):
-    return build_fmu(np.array(layout.identity_coefficients()), {}, tmp_path_factory.mktemp("step") / "ImuFusion.fmu")
-
-
 def run_with_clock(fmu_path, start: float, inputs: np.ndarray, h: np.ndarray) -> tuple[np.ndarray, list[int], list[str]]:
     """(outputs, statuses, log) of the FMU stepped like an importer that accumulates t += h from `start` [s]."""
     outputs, statuses = [], []
@@ -59,12 +53,12 @@ def run_with_clock(fmu_path, start: float, inputs: np.ndarray, h: np.ndarray) ->
     return np.array(outputs), statuses, log
 
 
-def test_a_far_importer_clock_gives_the_attitude_of_a_clock_at_zero(fmu_path):
+def test_a_far_importer_clock_gives_the_attitude_of_a_clock_at_zero(identity_fmu2):
     _, x = reference_recording()  # 2 s rocking and turning at 0.8 rad/s, 100 Hz
     h = np.full(len(x), STEP_S)
     assert FAR_START_S + STEP_S - FAR_START_S != STEP_S  # the clock cannot represent the step there
-    near, _, _ = run_with_clock(fmu_path, 0.0, x, h)
-    far, statuses, _ = run_with_clock(fmu_path, FAR_START_S, x, h)
+    near, _, _ = run_with_clock(identity_fmu2, 0.0, x, h)
+    far, statuses, _ = run_with_clock(identity_fmu2, FAR_START_S, x, h)
     assert set(statuses) == {OK}
     difference = np.degrees(np.abs(np.angle(np.exp(1j * (far[:, EULER] - near[:, EULER])))))
     assert float(difference.max()) <= FAR_CLOCK_BOUND_DEG
@@ -95,17 +89,17 @@ def test_a_step_beyond_the_gap_threshold_is_not_integrated(factor, integrated):
     assert advance == pytest.approx(np.angle(np.exp(1j * expected)), abs=1e-9)
 
 
-def test_the_fmu_warns_once_for_a_gap_and_equals_the_batch_runtime(fmu_path):
+def test_the_fmu_warns_once_for_a_gap_and_equals_the_batch_runtime(identity_fmu2):
     # Steps of 2^-7 s and a gap of 2^12 s (an hour and a bit): the batch's sample times are then
     # exact sums, so their differences are the FMU's step sizes to the bit.
     n, k = 200, 100
     h = np.full(n, 2.0 ** -7)
     h[k - 1] = 4096.0  # the sample after doStep k-1 comes 4096 s later
     x = turning_without_field(n)
-    out, statuses, log = run_with_clock(fmu_path, 0.0, x, h)
+    out, statuses, log = run_with_clock(identity_fmu2, 0.0, x, h)
     assert statuses[k] == WARNING and statuses[:k] + statuses[k + 1:] == [OK] * (n - 1)
     gaps = [m for m in log if "a gap of 4096 s" in m]
     assert len(gaps) == 1 and gaps[0].startswith("[WARNING]")
     t = np.concatenate([[0.0], np.cumsum(h[:-1])])
     batch = runtime.run_batch(np.array(layout.identity_coefficients()), np.array(layout.settings_array()), t, x)
-    np.testing.assert_allclose(out, batch, rtol=0, atol=1e-12, equal_nan=True)  # tests/test_fmu.py GOLDEN_TOLERANCE
+    np.testing.assert_allclose(out, batch, rtol=0, atol=1e-12, equal_nan=True)  # tests/fmu_cases.py GOLDEN_TOLERANCE
