@@ -59,14 +59,25 @@ REFERENCE_OUTLIER_SIGMAS = 5.0
 
 @contextmanager
 def _deterministic(seed: int):
-    """Seed torch and force deterministic kernels; restore the previous mode afterwards."""
-    previous = torch.are_deterministic_algorithms_enabled()
+    """Seed torch, force deterministic kernels and run it on TORCH_THREADS threads; restore the
+    previous mode and thread count afterwards."""
+    previous, threads = torch.are_deterministic_algorithms_enabled(), torch.get_num_threads()
     torch.use_deterministic_algorithms(True)
     torch.manual_seed(seed)
+    torch.set_num_threads(TORCH_THREADS)
     try:
         yield
     finally:
         torch.use_deterministic_algorithms(previous)
+        torch.set_num_threads(threads)
+
+
+#: Torch threads of every fit. One, on any machine: the reductions' order, so the trained numbers,
+#: depend on the thread count (2 threads move the main job's coefficients by up to 2.8e-10), and the
+#: fits' tensors are small enough that a second thread buys nothing (benchmarks/train_time.py: 16.0 s
+#: wall on one thread against 18.2 s on torch's default of two; beside a busy process the default
+#: took 66.8 s, its threads waiting for each other).
+TORCH_THREADS = 1
 
 
 def _stack(datasets: list[ImuData], name: str) -> np.ndarray:
