@@ -72,8 +72,6 @@ def _deterministic(seed: int):
         torch.set_num_threads(threads)
 
 
-#: The stages after the gain/bias fits, shown by one progress bar (silent for 11 s before it).
-STAGES = ("ELM", "PSO-BP", "held-out scores")
 #: Torch threads of every fit. One, on any machine: the reductions' order, so the trained numbers,
 #: depend on the thread count (2 threads move the main job's coefficients by up to 2.8e-10), and the
 #: fits' tensors are small enough that a second thread buys nothing (benchmarks/train_time.py: 16.0 s
@@ -427,17 +425,12 @@ def train(datasets: list[ImuData], seed: int = 0, degree: int | str = AUTO,
         for triad in TRIAD_ORDER:
             stats.setdefault(triad, {})["reference"] = refs[triad].source
         prepared = _prepared_datasets(datasets, refs)
-        stages = tqdm(total=len(STAGES), desc=", ".join(STAGES), unit="stage", disable=not progress)
         elm_model, elm_on, stats["elm"] = _elm_stage(prepared, thermal, seed, notes)
-        stages.update()
         psobp_model, psobp_on, stats["psobp"] = _psobp_stage(prepared, thermal, seed, notes)
-        stages.update()
     if not allow_identity:
         _refuse_identity(thermal, refs, selfcal, notes)
     for triad, score in _held_out(datasets, refs, degree, seed, selfcal, notes).items():
         stats[triad]["held_out"] = score
-    stages.update()
-    stages.close()
     for triad in _worse_than_raw(thermal, stats, notes):
         thermal[triad] = ThermalModel.identity(enabled=False)
         elm_on, psobp_on = elm_on and triad != "mag", psobp_on and triad != "gyr"
