@@ -57,6 +57,12 @@ MIN_EXCITATION = {"gyr": 0.01, "acc": 0.1, "mag": 1.0}
 REFERENCE_OUTLIER_SIGMAS = 5.0
 
 
+def _stage(name: str, steps: int, progress: bool) -> tqdm:
+    """The progress bar of one training stage of `steps` steps (a context manager: it is closed, so
+    its line is finished, before an error of the stage is printed)."""
+    return tqdm(total=steps, desc=name, unit="step", disable=not progress)
+
+
 @contextmanager
 def _deterministic(seed: int):
     """Seed torch, force deterministic kernels and run it on TORCH_THREADS threads; restore the
@@ -174,7 +180,7 @@ def _elm_holdout(sets: list) -> list[tuple[np.ndarray, np.ndarray, np.ndarray, n
 
 
 def _elm_stage(datasets: list[ImuData], thermal: dict[str, ThermalModel], seed: int,
-               notes: list[str]) -> tuple[ElmModel | None, bool, dict]:
+               notes: list[str], progress: bool) -> tuple[ElmModel | None, bool, dict]:
     """Fit the field-form ELM on the thermally compensated field against ref_mag.
 
     Returns (the model or None, enabled, stats). Enabled only when the ELM lowers the field
@@ -189,14 +195,17 @@ def _elm_stage(datasets: list[ImuData], thermal: dict[str, ThermalModel], seed: 
         return None, False, {}
     prep = elm.CompassPrep(stride=ELM_STRIDE)
     sets = [elm.prepare_compass(_compensated(d, thermal), None, prep, seed) for d in usable]
-    errors = []
-    for train_x, train_y, test_x, test_y in _elm_holdout(sets):
-        fold = elm.ElmFitter(**ELM_FITTER).fit(train_x, train_y, seed)
-        errors.append(((test_x - test_y) ** 2, (elm.elm_apply(fold, test_x) - test_y) ** 2))
+    errors, folds = [], _elm_holdout(sets)
+    with _stage("ELM (held-out folds, final fit)", len(folds) + 1, progress) as bar:
+        for train_x, train_y, test_x, test_y in folds:
+            fold = elm.ElmFitter(**ELM_FITTER).fit(train_x, train_y, seed)
+            errors.append(((test_x - test_y) ** 2, (elm.elm_apply(fold, test_x) - test_y) ** 2))
+            bar.update()
+        model = elm.ElmFitter(**ELM_FITTER).fit(np.concatenate([s.field for s in sets]),
+                                               np.concatenate([s.reference for s in sets]), seed)
+        bar.update()
     before = float(np.sqrt(np.mean(np.concatenate([e for e, _ in errors]))))
     after = float(np.sqrt(np.mean(np.concatenate([e for _, e in errors]))))
-    model = elm.ElmFitter(**ELM_FITTER).fit(np.concatenate([s.field for s in sets]),
-                                           np.concatenate([s.reference for s in sets]), seed)
     enabled = after <= (1.0 - ELM_MIN_GAIN) * before
     if not enabled:
         notes.append(f"elm: held-out field error {before:.3g} -> {after:.3g} µT is not a "
@@ -209,7 +218,7 @@ def _elm_stage(datasets: list[ImuData], thermal: dict[str, ThermalModel], seed: 
 
 
 def _psobp_stage(datasets: list[ImuData], thermal: dict[str, ThermalModel], seed: int,
-                 notes: list[str]) -> tuple[PsoBpModel | None, bool, dict]:
+                 notes: list[str], progress: bool) -> tuple[PsoBpModel | None, bool, dict]:
     """Fit the residual PSO-BP gyro bias network on the longest recording with a gyro reference
     and temperature (networks see one continuous series: the temperature rate needs it).
 
@@ -224,8 +233,11 @@ def _psobp_stage(datasets: list[ImuData], thermal: dict[str, ThermalModel], seed
     d = max(usable, key=len)
     gyr = apply_thermal(thermal["gyr"], d.gyr, d.temp)
     try:
-        decision = psobp.residual_psobp_wins(d.t, gyr, d.ref_gyr, d.temp, seed)
-        fit = psobp.fit_gyro_residual_psobp(d.t, gyr, d.ref_gyr, d.temp, seed)
+        with _stage("PSO-BP (held-out decision, final fit)", 2, progress) as bar:
+            decision = psobp.residual_psobp_wins(d.t, gyr, d.ref_gyr, d.temp, seed)
+            bar.update()
+            fit = psobp.fit_gyro_residual_psobp(d.t, gyr, d.ref_gyr, d.temp, seed)
+            bar.update()
     except ValueError as e:  # too few static windows with temperature to fit a network
         notes.append(f"psobp: {e}; PSO-BP stage off")
         return None, False, {}
@@ -321,7 +333,7 @@ def _prepared_datasets(datasets: list[ImuData], refs: dict[str, TriadReference])
 
 
 def _held_out(datasets: list[ImuData], refs: dict[str, TriadReference], degree, seed: int,
-              selfcal, notes: list[str]) -> dict[str, dict]:
+              selfcal, notes: list[str], progress: bool) -> dict[str, dict]:
     """Held-out error per triad (training.models.holdout): the same procedure refitted without the last
     quarter of every recording, scored on it; {} with a note when the recordings are too short."""
     from training.data.earth import STANDARD_GRAVITY
@@ -332,9 +344,9 @@ def _held_out(datasets: list[ImuData], refs: dict[str, TriadReference], degree, 
     def fit_selfcal(parts):
         return self_calibrate(parts, field_norm=norm, degree=ceiling(degree), progress=False).thermal
     try:
-        with _deterministic(seed):
+        with _deterministic(seed), _stage("held-out refit", len(refs) + 1, progress) as bar:
             return held_out(datasets, refs, lambda r: _fit_with_reference(r, degree, seed)[0], fit_selfcal,
-                            norm, STANDARD_GRAVITY)
+                            norm, STANDARD_GRAVITY, step=bar.update)
     except ValueError as e:
         notes.append(f"held-out error not computed: {e}")
         return {}
@@ -383,6 +395,16 @@ def _refuse_identity(thermal: dict[str, ThermalModel], refs: dict[str, TriadRefe
                          "\"reference\": \"static\" in its sidecar" + hint)
 
 
+def _reference_fits(refs: dict[str, TriadReference], degree, seed: int, progress: bool,
+                    thermal: dict, stats: dict, notes: list[str]) -> None:
+    """Fit every triad that has a reference (`_fit_with_reference`), with a progress bar; fills
+    thermal, stats and notes."""
+    referenced = [t for t in TRIAD_ORDER if refs[t].source != "none"]
+    for triad in tqdm(referenced, desc="reference fit", disable=not progress or not referenced):
+        thermal[triad], stats[triad], fit_notes = _fit_with_reference(refs[triad], degree, seed)
+        notes += list(refs[triad].notes) + fit_notes
+
+
 def _moved(report: dict) -> bool:
     """True when the self-calibration saw motion: two poses or more, field directions over at least
     MOTION_COVERAGE of the sphere, or a rotation between two rests."""
@@ -413,10 +435,7 @@ def train(datasets: list[ImuData], seed: int = 0, degree: int | str = AUTO,
     refs = {triad: choose_reference(datasets, triad) for triad in TRIAD_ORDER}
     thermal, stats, notes = {}, {}, []
     with _deterministic(seed):
-        referenced = [t for t in TRIAD_ORDER if refs[t].source != "none"]
-        for triad in tqdm(referenced, desc="reference fit", disable=not progress or not referenced):
-            thermal[triad], stats[triad], fit_notes = _fit_with_reference(refs[triad], degree, seed)
-            notes += list(refs[triad].notes) + fit_notes
+        _reference_fits(refs, degree, seed, progress, thermal, stats, notes)
         blind = [t for t in TRIAD_ORDER if refs[t].source == "none"]
         selfcal = _self_calibrated(datasets, blind, ceiling(degree), progress, notes) if blind else None
         for triad in blind:
@@ -425,11 +444,11 @@ def train(datasets: list[ImuData], seed: int = 0, degree: int | str = AUTO,
         for triad in TRIAD_ORDER:
             stats.setdefault(triad, {})["reference"] = refs[triad].source
         prepared = _prepared_datasets(datasets, refs)
-        elm_model, elm_on, stats["elm"] = _elm_stage(prepared, thermal, seed, notes)
-        psobp_model, psobp_on, stats["psobp"] = _psobp_stage(prepared, thermal, seed, notes)
+        elm_model, elm_on, stats["elm"] = _elm_stage(prepared, thermal, seed, notes, progress)
+        psobp_model, psobp_on, stats["psobp"] = _psobp_stage(prepared, thermal, seed, notes, progress)
     if not allow_identity:
         _refuse_identity(thermal, refs, selfcal, notes)
-    for triad, score in _held_out(datasets, refs, degree, seed, selfcal, notes).items():
+    for triad, score in _held_out(datasets, refs, degree, seed, selfcal, notes, progress).items():
         stats[triad]["held_out"] = score
     for triad in _worse_than_raw(thermal, stats, notes):
         thermal[triad] = ThermalModel.identity(enabled=False)

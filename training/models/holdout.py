@@ -81,14 +81,16 @@ def invariant_error(model: ThermalModel, tails: list[ImuData], triad: str, field
 
 
 def held_out(datasets: list[ImuData], refs: dict[str, TriadReference], fit_reference, fit_selfcal,
-             field_norm: float | None, gravity: float) -> dict[str, dict]:
+             field_norm: float | None, gravity: float, step=lambda: None) -> dict[str, dict]:
     """Per triad {'holdout', 'metric', 'before', 'after'} on the last HOLDOUT_FRACTION of every
     recording, for a calibration fitted on the rest. fit_reference(TriadReference) -> ThermalModel
-    refits a referenced triad; fit_selfcal(list[ImuData]) -> {triad: ThermalModel} self-calibrates."""
+    refits a referenced triad; fit_selfcal(list[ImuData]) -> {triad: ThermalModel} self-calibrates;
+    step() is called after the self-calibration (if any) and after each triad (len(refs) + 1 calls)."""
     out = {}
     blind = [t for t, r in refs.items() if r.source == "none"]
     heads_tails = [split(d) for d in datasets]
     selfcal = fit_selfcal([h for h, _ in heads_tails]) if blind else {}
+    step()
     for triad, ref in refs.items():
         if ref.source == "none":
             score = invariant_error(selfcal[triad], [t for _, t in heads_tails], triad, field_norm, gravity)
@@ -98,4 +100,5 @@ def held_out(datasets: list[ImuData], refs: dict[str, TriadReference], fit_refer
             score = reference_error(model, [t for _, t in parts], triad)
         out[triad] = {"holdout": f"last {HOLDOUT_FRACTION:.0%} of each recording, calibration fitted on the rest",
                       **score}
+        step()
     return out
