@@ -29,7 +29,7 @@ LAYERS = (
     ("training.models", "training.selfcal"),                    # models, twins, self-calibration
     ("training.artefact", "training.evaluate", "training.mounting", "training.recommend",
      "training.train", "training.fmu_build", "training.reports", "training.main_job"),  # workflows
-    ("training.diagnosis", "training.bench"),                   # diagnosis and benchmarks
+    ("training.diagnosis", "training.bench", "training.fleet"),  # diagnosis, benchmarks, fleets
     ("training.cli",),                                          # the command line
 )
 #: The issue-17 bound on modules directly in training/ (its __init__.py not counted).

@@ -58,6 +58,13 @@ def cmd_simulate(args) -> None:
     print(f"wrote {path}")
 
 
+def cmd_simulate_fleet(args) -> None:
+    """imufmu simulate-fleet FLEET.toml --devices N --out DIR [--seed S]."""
+    from training.fleet.simulate import simulate_fleet
+    summary = simulate_fleet(args.fleet, args.devices, args.out, seed=args.seed)
+    print(f"wrote {args.devices} unit folder(s) and {summary}")
+
+
 def cmd_train(args) -> None:
     """imufmu train DATA... --out DIR [--seed N] [--degree auto|P] [--allow-identity]."""
     from training.train import train_to_folder
@@ -163,6 +170,7 @@ def cmd_pipeline(args) -> None:
 #: One example command per verb, shown at the end of its --help.
 EXAMPLES = {
     "simulate": "imufmu simulate scenarios/calibration.toml --out data --seed 1",
+    "simulate-fleet": "imufmu simulate-fleet scenarios/fleet/mems_grade.toml --devices 200 --out fleet --seed 0",
     "train": "imufmu train data/calibration.csv.gz --out model",
     "build-fmu": "imufmu build-fmu --model model/model.json --out ImuFusion.fmu --fmi 3",
     "validate": "imufmu validate ImuFusion.fmu",
@@ -193,6 +201,12 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--out", required=True, help="output folder")
     s.add_argument("--seed", type=int, default=None, help="random seed (default: the scenario's)")
     s.set_defaults(func=cmd_simulate)
+    s = _add_verb(sub, "simulate-fleet", "simulate N units of one sensor type, each with its own errors")
+    s.add_argument("fleet", help="fleet file (TOML): the unit type and its calibration and test scenarios")
+    s.add_argument("--devices", type=int, required=True, help="number of units")
+    s.add_argument("--out", required=True, help="output folder: one folder per unit")
+    s.add_argument("--seed", type=int, default=0, help="random seed of the fleet (default 0)")
+    s.set_defaults(func=cmd_simulate_fleet)
     s = _add_verb(sub, "train", "train the models on calibration recordings")
     s.add_argument("data", nargs="+", help="imu-csv/1 files (.csv or .csv.gz); reference columns, an "
                    "attitude reference or a static sidecar are used when present, else self-calibration")

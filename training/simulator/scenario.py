@@ -21,6 +21,7 @@ import numpy as np
 
 from contract.errors import ScenarioError
 from training.data.earth import EarthField
+from training.simulator.population import nominal
 from training.simulator.segments import AXIS_VECTORS, Figure8, Handheld, Hold, Positions, Rotations, Segment
 from training.simulator.sensors import MagDistortion, SensorModel, TriadErrors
 from training.simulator.temperature import TemperatureProfile
@@ -83,7 +84,7 @@ class Scenario:
 def load_scenario(path: str | Path) -> Scenario:
     """Read and validate a scenario file; ScenarioError names the file and the key."""
     path = Path(path)
-    top = TomlTable(_read_toml(path), path, "top level")
+    top = TomlTable(read_toml(path), path, "top level")
     head = top.table("scenario")
     name = head.string("name")
     if not NAME_PATTERN.match(name):
@@ -115,7 +116,7 @@ def _check_sample_count(path: Path, duration_s: float, rate_hz: float) -> None:
                             f"{count:.3g} samples; a scenario has 2..{MAX_SAMPLES} samples")
 
 
-def _read_toml(path: Path) -> dict:
+def read_toml(path: Path) -> dict:
     """Parse a TOML file (a regular file of at most MAX_TOML_BYTES); ScenarioError when missing,
     not a file, too large or malformed."""
     if not path.exists():
@@ -146,11 +147,18 @@ def _earth_field(t: TomlTable) -> EarthField:
 # ----------------------------------------------------------------------------- sensor
 
 def _sensor(top: TomlTable, scenario_path: Path) -> SensorModel:
-    """`sensor` is a path relative to the scenario file or an inline table."""
+    """`sensor` is a path relative to the scenario file or an inline table; a sensor that declares a
+    population spread (training.simulator.population) is simulated as its nominal unit."""
     if isinstance(top.raw.get("sensor"), str):
         file = scenario_path.parent / top.string("sensor")
-        return _sensor_from_table(TomlTable(_read_toml(file), file, "top level"))
-    return _sensor_from_table(top.table("sensor"))
+        return sensor_from_raw(read_toml(file), file)
+    return sensor_from_raw(top.table("sensor").raw, scenario_path, "sensor")
+
+
+def sensor_from_raw(raw: dict, path: Path, where: str = "top level") -> SensorModel:
+    """The sensor unit of a parsed sensor table `raw` (from `path`, at table `where`), its spread
+    tables ignored; ScenarioError names the file and the key of a bad value."""
+    return _sensor_from_table(TomlTable(nominal(raw), path, where))
 
 
 def _sensor_from_table(t: TomlTable) -> SensorModel:

@@ -97,12 +97,13 @@ class TomlTable:
                                    f"got {value!r}")
         return array
 
-    def strings(self, key: str, choices: tuple[str, ...]) -> tuple[str, ...]:
-        """A non-empty list of strings, each one of `choices`."""
+    def strings(self, key: str, choices: tuple[str, ...] | None = None) -> tuple[str, ...]:
+        """A non-empty list of non-empty strings, each one of `choices` (None: any)."""
         value = self._get(key, REQUIRED)
-        if not isinstance(value, list) or not value or any(v not in choices for v in value):
-            raise self._error(key, f"expected a non-empty list of {', '.join(choices)}, "
-                                   f"got {value!r}")
+        allowed = (lambda v: v in choices) if choices is not None else (lambda v: isinstance(v, str) and v)
+        if not isinstance(value, list) or not value or not all(allowed(v) for v in value):
+            wanted = ", ".join(choices) if choices is not None else "strings"
+            raise self._error(key, f"expected a non-empty list of {wanted}, got {value!r}")
         return tuple(value)
 
     def table(self, key: str) -> "TomlTable":
