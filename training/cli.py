@@ -65,6 +65,22 @@ def cmd_simulate_fleet(args) -> None:
     print(f"wrote {args.devices} unit folder(s) and {summary}")
 
 
+def cmd_fleet_train(args) -> None:
+    """imufmu fleet train FLEET_DIR --out OUT [--workers K | --scheduler ADDRESS] [--seed N]."""
+    from training.fleet.report import write_fleet_report
+    from training.fleet.train import train_fleet
+    results = train_fleet(args.fleet_dir, args.out, seed=args.seed, workers=args.workers, scheduler=args.scheduler)
+    json_path, md_path, doc = write_fleet_report(results, args.out)
+    print(f"trained {doc['trained']} of {len(results)} units; {len(doc['failed'])} failed, "
+          f"{len({o['unit'] for o in doc['outliers']})} outlier unit(s)")
+    for failure in doc["failed"]:
+        print(f"  failed: {failure['unit']}: {failure['reason']}")
+    for o in doc["outliers"]:
+        print(f"  outlier: {o['unit']}: {o['parameter']} = {o['value']:.4g} {o['unit_of_value']} "
+              f"({o['distance']:.1f} robust σ from the median {o['median']:.4g})")
+    print(f"wrote {json_path} and {md_path}")
+
+
 def cmd_train(args) -> None:
     """imufmu train DATA... --out DIR [--seed N] [--degree auto|P] [--allow-identity]."""
     from training.train import train_to_folder
@@ -172,6 +188,7 @@ EXAMPLES = {
     "simulate": "imufmu simulate scenarios/calibration.toml --out data --seed 1",
     "simulate-fleet": "imufmu simulate-fleet scenarios/fleet/mems_grade.toml --devices 200 --out fleet --seed 0",
     "train": "imufmu train data/calibration.csv.gz --out model",
+    "fleet": "imufmu fleet train fleet --out fleet_models --workers 2",
     "build-fmu": "imufmu build-fmu --model model/model.json --out ImuFusion.fmu --fmi 3",
     "validate": "imufmu validate ImuFusion.fmu",
     "run": "imufmu run ImuFusion.fmu data/eval_handheld.csv.gz --out outputs.csv --param declination=0.05",
@@ -222,6 +239,18 @@ def build_parser() -> argparse.ArgumentParser:
                    help="write the model anyway when nothing can be calibrated (identity) or a log without "
                         "reference shows no motion (gyro bias only), instead of failing")
     s.set_defaults(func=cmd_train)
+    s = _add_verb(sub, "fleet", "calibrate every unit of a fleet on Dask and describe the population")
+    s.add_argument("action", choices=("train",))
+    s.add_argument("fleet_dir", help="folder of unit folders (each with a calibration/ folder of recordings, "
+                   "as simulate-fleet writes, or with its own recordings)")
+    s.add_argument("--out", required=True, help="output folder: OUT/<unit>/model.json, fleet.json, fleet.md")
+    s.add_argument("--seed", type=int, default=0)
+    where = s.add_mutually_exclusive_group()
+    where.add_argument("--workers", type=int, default=None,
+                       help="worker processes of the local Dask cluster (default: the cores available)")
+    where.add_argument("--scheduler", default=None, metavar="ADDRESS",
+                       help="address of a running Dask scheduler (tcp://host:8786) instead of a local cluster")
+    s.set_defaults(func=cmd_fleet_train)
     s = _add_verb(sub, "build-fmu", "write the trained model into the FMU sources and build it")
     s.add_argument("--model", required=True, help="model.json from 'imufmu train'")
     s.add_argument("--out", required=True, help="FMU file to write")

@@ -476,13 +476,13 @@ class TrainedFolder:
 
 
 def train_to_folder(paths: list[Path], out_dir: str | Path, seed: int = 0, degree: int | str = AUTO,
-                    allow_identity: bool = False) -> TrainedFolder:
+                    allow_identity: bool = False, progress: bool = True) -> TrainedFolder:
     """`imufmu train`: read the recordings at `paths`, `train` on them, write OUT/model.json and the
-    calibration report OUT/calibration.md."""
+    calibration report OUT/calibration.md; progress: the stages' progress bars."""
     from training.data.io import read_imu_csv
     from training.reports.calibration_report import summary_text, write_calibration_report
     datasets = [read_imu_csv(p) for p in paths]
-    artefact = train(datasets, seed=seed, degree=degree, allow_identity=allow_identity)
+    artefact = train(datasets, seed=seed, degree=degree, allow_identity=allow_identity, progress=progress)
     model = Path(out_dir) / "model.json"
     artefact.save(model)
     report = write_calibration_report(artefact, datasets, out_dir)

@@ -1,0 +1,89 @@
+"""`imufmu fleet train`: every unit trained on a Dask local cluster as `imufmu train` trains it alone;
+a failing unit named with its reason while the others finish; outliers of the population named."""
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from training.cli import main
+from training.fleet import engine
+from training.fleet.population import MIN_UNITS_FOR_OUTLIERS, OUTLIER_SIGMAS, outliers, population
+from training.fleet.simulate import simulate_fleet
+from training.train import train_to_folder
+
+ROOT = Path(__file__).resolve().parent.parent
+FLEET = ROOT / "scenarios" / "fleet" / "mems_grade.toml"
+#: Fields of model.json that record when and how long, not what was fitted.
+CLOCK_FIELDS = ("created", "train_time_s")
+
+
+def _without_clock(doc):
+    """model.json content with the CLOCK_FIELDS removed at any depth."""
+    if isinstance(doc, dict):
+        return {k: _without_clock(v) for k, v in doc.items() if k not in CLOCK_FIELDS}
+    if isinstance(doc, list):
+        return [_without_clock(v) for v in doc]
+    return doc
+
+
+def test_fleet_train_equals_serial_train_and_names_a_corrupt_unit(tmp_path, capsys):
+    fleet = tmp_path / "fleet"
+    simulate_fleet(FLEET, 2, fleet, seed=0, progress=False)
+    broken = fleet / "unit_0001" / "calibration" / "calibration.csv.gz"
+    broken.write_bytes(broken.read_bytes()[:3000])  # a recording cut short in transfer
+    assert main(["fleet", "train", str(fleet), "--out", str(tmp_path / "out"), "--workers", "2"]) == 0
+    printed = capsys.readouterr().out
+    assert "trained 1 of 2 units; 1 failed" in printed and "failed: unit_0001:" in printed
+    doc = json.loads((tmp_path / "out" / "fleet.json").read_text())
+    assert [f["unit"] for f in doc["failed"]] == ["unit_0001"] and "cannot read" in doc["failed"][0]["reason"]
+    serial = train_to_folder([fleet / "unit_0000" / "calibration" / "calibration.csv.gz"], tmp_path / "serial",
+                             progress=False)
+    fleet_model = json.loads((tmp_path / "out" / "unit_0000" / "model.json").read_text())
+    assert _without_clock(fleet_model) == _without_clock(json.loads(serial.model.read_text()))
+    assert (tmp_path / "out" / "fleet.md").read_text().startswith("# Fleet calibration: 2 units, 1 trained, 1 failed")
+
+
+def _normal_population(units: int, seed: int) -> dict:
+    """{unit: {parameter: (value, unit)}}: 36 parameters drawn N(0, 1) per unit."""
+    rng = np.random.default_rng(seed)
+    return {f"unit_{k:04d}": {f"p{j}": (float(v), "1") for j, v in enumerate(rng.standard_normal(36))}
+            for k in range(units)}
+
+
+def test_a_unit_ten_times_off_is_the_only_outlier():
+    params = _normal_population(200, seed=1)
+    params["unit_0042"]["p3"] = (params["unit_0042"]["p3"][0] + 10.0 * 3.0, "1")  # 30 σ off
+    found = outliers(population(params))
+    assert [(o["unit"], o["parameter"]) for o in found] == [("unit_0042", "p3")]
+    assert found[0]["distance"] > 20.0
+    # a clean normal population has none: 200 × 36 values, P(|z| > 6) ≈ 2e-9 each
+    assert outliers(population(_normal_population(200, seed=2))) == []
+    assert OUTLIER_SIGMAS == 6.0
+
+
+def test_too_few_units_name_no_outlier():
+    params = _normal_population(MIN_UNITS_FOR_OUTLIERS - 1, seed=3)
+    params["unit_0000"]["p0"] = (1e3, "1")
+    assert outliers(population(params)) == []
+
+
+def test_an_unreachable_scheduler_is_one_line(tmp_path, capsys, monkeypatch):
+    monkeypatch.setattr(engine, "CONNECT_TIMEOUT_S", 2)
+    simulate_fleet(FLEET, 1, tmp_path / "fleet", seed=0, progress=False)
+    assert main(["fleet", "train", str(tmp_path / "fleet"), "--out", str(tmp_path / "out"),
+                 "--scheduler", "tcp://127.0.0.1:9"]) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "cannot reach the Dask scheduler at tcp://127.0.0.1:9" in err[0]
+
+
+@pytest.mark.parametrize("argv, problem", [(["--workers", "0"], "--workers must be ≥ 1"),
+                                           ([], "no unit folder with recordings")])
+def test_bad_fleet_arguments_are_one_line(tmp_path, capsys, argv, problem):
+    (tmp_path / "empty").mkdir()
+    folder = tmp_path / ("fleet" if argv else "empty")
+    if argv:
+        simulate_fleet(FLEET, 1, folder, seed=0, progress=False)
+    assert main(["fleet", "train", str(folder), "--out", str(tmp_path / "out"), *argv]) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and problem in err[0]

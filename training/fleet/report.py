@@ -1,0 +1,90 @@
+"""OUT/fleet.json and OUT/fleet.md: the population of a fleet's calibrations, its outliers and the
+units whose calibration failed (training.fleet.population)."""
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+
+from contract.layout import TRIAD_ORDER
+from training.artefact import load_artefact
+from training.fleet.population import (MIN_UNITS_FOR_OUTLIERS, OUTLIER_SIGMAS, POPULATION_TEMP_C, outliers,
+                                       population, unit_parameters)
+from training.fleet.train import UnitResult
+
+#: Parameter kinds drawn as histograms, one figure per triad.
+HISTOGRAM_KINDS = ("bias", "scale")
+#: Format version of fleet.json.
+FLEET_FORMAT = 1
+
+
+def fleet_document(results: list[UnitResult]) -> dict:
+    """The content of fleet.json: per-unit status, the population, outliers and failures."""
+    trained = {r.unit: unit_parameters(load_artefact(r.model)) for r in results if r.model}
+    stats = population(trained)
+    return {"format": "imufusion-fleet", "format_version": FLEET_FORMAT,
+            "population_temperature_c": POPULATION_TEMP_C, "outlier_sigmas": OUTLIER_SIGMAS,
+            "units": {r.unit: {"model": r.model, "reason": r.reason} for r in results},
+            "trained": len(trained), "failed": [{"unit": r.unit, "reason": r.reason} for r in results if not r.model],
+            "population": stats, "outliers": outliers(stats)}
+
+
+def _histograms(stats: dict, out_dir: Path) -> list[Path]:
+    """One PNG per triad: a histogram of each bias and scale parameter over the units."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    paths = []
+    for triad in TRIAD_ORDER:
+        names = [n for n in stats if n.startswith(f"{triad}.") and n.split(".")[1].split("_")[0] in HISTOGRAM_KINDS]
+        if not names:
+            continue
+        fig, axes = plt.subplots(2, 3, figsize=(11, 5.5))
+        for ax, name in zip(axes.ravel(), names):
+            s = stats[name]
+            ax.hist(list(s["values"].values()), bins=30, color="tab:blue")
+            ax.axvline(s["median"], color="k", lw=1)
+            ax.set_xlabel(f"{name} [{s['unit']}]")
+            ax.set_ylabel("units")
+        fig.tight_layout()
+        path = out_dir / f"fleet_{triad}.png"
+        fig.savefig(path, dpi=90)
+        plt.close(fig)
+        paths.append(path)
+    return paths
+
+
+def _markdown(doc: dict, plots: list[Path]) -> str:
+    """fleet.md from the fleet document."""
+    lines = [f"# Fleet calibration: {len(doc['units'])} units, {doc['trained']} trained, {len(doc['failed'])} failed",
+             "", f"Parameters of each unit's calibration at {doc['population_temperature_c']:g} °C (bias, scale "
+             "factor − 1, cross-axis angle of the linear map the thermal model applies there).", "",
+             "## Outliers", ""]
+    if doc["trained"] < MIN_UNITS_FOR_OUTLIERS:
+        lines.append(f"Not named: fewer than {MIN_UNITS_FOR_OUTLIERS} units trained.")
+    elif not doc["outliers"]:
+        lines.append(f"None: every parameter of every unit is within {doc['outlier_sigmas']:g} robust σ of the median.")
+    else:
+        lines += ["| unit | parameter | value | population median | distance [robust σ] |", "|---|---|---|---|---|"]
+        lines += [f"| {o['unit']} | {o['parameter']} | {o['value']:.4g} {o['unit_of_value']} | {o['median']:.4g} | "
+                  f"{o['distance']:.1f} |" for o in doc["outliers"]]
+    lines += ["", "## Failed units", ""]
+    lines += [f"- {f['unit']}: {f['reason']}" for f in doc["failed"]] or ["None."]
+    lines += ["", "## Population", "", "| parameter | unit | units | mean | std | median | robust σ | 5 % | 95 % |",
+              "|---|---|---|---|---|---|---|---|---|"]
+    lines += [f"| {n} | {s['unit']} | {s['units']} | {s['mean']:.4g} | {s['std']:.3g} | {s['median']:.4g} | "
+              f"{s['robust_sigma']:.3g} | {s['p05']:.4g} | {s['p95']:.4g} |" for n, s in doc["population"].items()]
+    lines += [""] + [f"![{p.stem}]({p.name})" for p in plots]
+    return "\n".join(lines) + "\n"
+
+
+def write_fleet_report(results: list[UnitResult], out_dir: str | Path) -> tuple[Path, Path, dict]:
+    """Write out_dir/fleet.json, fleet.md and the histograms; returns (json, md, document)."""
+    out_dir = Path(out_dir)
+    doc = fleet_document(results)
+    plots = _histograms(doc["population"], out_dir) if doc["trained"] else []
+    json_path, md_path = out_dir / "fleet.json", out_dir / "fleet.md"
+    json_path.write_text(json.dumps(doc, indent=1, default=lambda v: float(v) if isinstance(v, np.floating) else v) + "\n")
+    md_path.write_text(_markdown(doc, plots))
+    return json_path, md_path, doc

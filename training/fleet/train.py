@@ -1,0 +1,76 @@
+"""`imufmu fleet train FLEET_DIR --out OUT [--workers K | --scheduler ADDRESS]`: one model per unit.
+
+Every unit folder of FLEET_DIR (a folder with a `calibration/` sub-folder of recordings, as
+`simulate-fleet` writes, or with recordings of its own) is trained by the function behind
+`imufmu train` (training.train.train_to_folder) in one Dask task, into OUT/<unit>/: the same
+model.json and calibration.md as `imufmu train <its recordings> --out OUT/<unit>` gives. A unit that
+fails is recorded with its reason and the fleet goes on. Then OUT/fleet.json and OUT/fleet.md
+describe the population (training.fleet.population).
+"""
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+from pathlib import Path
+
+from contract.errors import DataError
+from training.fleet.engine import dask_client, run_tasks
+
+#: Recording file names `imufmu train` reads.
+RECORDING_PATTERNS = ("*.csv", "*.csv.gz")
+#: Sub-folder of a unit folder holding its calibration recordings (training.fleet.simulate).
+CALIBRATION_DIR = "calibration"
+
+
+@dataclass(frozen=True)
+class UnitResult:
+    """What training one unit gave: its model file, or the one-line reason it failed."""
+
+    unit: str
+    model: str | None
+    reason: str | None
+
+
+def unit_recordings(folder: Path) -> list[Path]:
+    """The calibration recordings of a unit folder: those in its calibration/ sub-folder when it
+    has one, else its own, sorted by name."""
+    where = folder / CALIBRATION_DIR if (folder / CALIBRATION_DIR).is_dir() else folder
+    return sorted(p for pattern in RECORDING_PATTERNS for p in where.glob(pattern))
+
+
+def unit_folders(fleet_dir: Path) -> list[Path]:
+    """Sub-folders of fleet_dir that hold recordings, sorted by name; DataError when none does."""
+    if not fleet_dir.is_dir():
+        raise DataError(fleet_dir, "fleet folder not found")
+    units = [p for p in sorted(fleet_dir.iterdir()) if p.is_dir() and unit_recordings(p)]
+    if not units:
+        raise DataError(fleet_dir, "no unit folder with recordings (*.csv, *.csv.gz, or a calibration/ "
+                                   "sub-folder of them)")
+    return units
+
+
+def train_unit(folder: Path, out_dir: Path, seed: int) -> UnitResult:
+    """Train one unit into out_dir/<unit> as `imufmu train` does; any failure becomes its reason
+    (one line), never an exception: one unit never stops the fleet."""
+    from training.train import train_to_folder
+    from contract.errors import one_line
+    try:
+        done = train_to_folder(unit_recordings(folder), out_dir / folder.name, seed=seed, progress=False)
+        return UnitResult(folder.name, str(done.model), None)
+    except Exception as e:  # noqa: BLE001 - the reason is reported per unit, the fleet goes on
+        return UnitResult(folder.name, None, one_line(f"{type(e).__name__}: {e}"))
+
+
+def train_fleet(fleet_dir: str | Path, out_dir: str | Path, seed: int = 0, workers: int | None = None,
+                scheduler: str | None = None, progress: bool = True) -> list[UnitResult]:
+    """Train every unit folder of fleet_dir on Dask into out_dir; returns the results sorted by unit
+    and writes out_dir/units.json."""
+    fleet_dir, out_dir = Path(fleet_dir), Path(out_dir)
+    units = unit_folders(fleet_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    with dask_client(workers, scheduler) as client:
+        results = [r for _, r in run_tasks(client, train_unit, units, "units", progress,
+                                           out_dir=out_dir.resolve(), seed=seed)]
+    results.sort(key=lambda r: r.unit)
+    (out_dir / "units.json").write_text(json.dumps([r.__dict__ for r in results], indent=1) + "\n")
+    return results
