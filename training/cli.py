@@ -85,7 +85,7 @@ def cmd_train(args) -> None:
     """imufmu train DATA... --out DIR [--seed N] [--degree auto|P] [--allow-identity]."""
     from training.train import train_to_folder
     done = train_to_folder([_existing_file(p, "data file") for p in args.data], args.out, seed=args.seed,
-                           degree=args.degree, allow_identity=args.allow_identity)
+                           degree=args.degree, allow_identity=args.allow_identity, prior_path=args.prior)
     for note in done.notes:
         print(f"note: {note}")
     print()
@@ -238,6 +238,10 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--allow-identity", action="store_true",
                    help="write the model anyway when nothing can be calibrated (identity) or a log without "
                         "reference shows no motion (gyro bias only), instead of failing")
+    s.add_argument("--prior", default=None, metavar="FLEET_JSON",
+                   help="fleet.json from 'imufmu fleet train': fit each triad with a reference as the population's "
+                        "most probable unit given this recording (a short recording then calibrates what it "
+                        "does not observe from the population)")
     s.set_defaults(func=cmd_train)
     s = _add_verb(sub, "fleet", "calibrate every unit of a fleet on Dask and describe the population")
     s.add_argument("action", choices=("train",))

@@ -18,6 +18,7 @@ from training.data.reference import matched_raw
 from training.data.reference_source import TriadReference, choose_reference
 from training.models.calibrated_range import range_notes
 from training.models.degree import AUTO, ceiling, choose_degree, parse_degree
+from training.models.prior import TriadPrior, load_prior
 from training.models.elm import ElmModel
 from training.models.fit_quality import fit_warnings
 from training.models.psobp import PsoBpModel
@@ -151,10 +152,12 @@ def _fit_stats(fit: ThermalFit) -> dict:
             "rms_after": fit.rms_after}
 
 
-def _calibrated_range(model: ThermalModel, datasets) -> ThermalModel:
-    """`model` with the temperature range [°C] of the recordings it was calibrated on: the runtime
-    clamps the temperature to it (ThermalModel.t_range)."""
-    return model.with_range(np.concatenate([d.temp for d in datasets]))
+def _calibrated_range(model: ThermalModel, datasets, prior: TriadPrior | None = None) -> ThermalModel:
+    """`model` with the temperature range [°C] of the recordings it was calibrated on, widened to
+    the fleet's when a fleet prior carried the temperature dependence: the runtime clamps the
+    temperature to it (ThermalModel.t_range)."""
+    temps = np.concatenate([d.temp for d in datasets] + ([np.asarray(prior.t_range)] if prior else []))
+    return model.with_range(temps)
 
 
 def _compensated(d: ImuData, thermal: dict[str, ThermalModel]) -> ImuData:
@@ -265,11 +268,13 @@ def gate_outliers(raw: np.ndarray, target: np.ndarray) -> tuple[np.ndarray, int]
     return out, int(bad.sum())
 
 
-def _fit_with_reference(ref: TriadReference, degree, seed: int) -> tuple[ThermalModel, dict, list[str]]:
+def _fit_with_reference(ref: TriadReference, degree, seed: int,
+                        prior: TriadPrior | None = None) -> tuple[ThermalModel, dict, list[str]]:
     """Fit one triad against the reference its recordings carry (columns, derived or static):
     the full gain/bias model when the reference moves along every axis, else the bias B(T) only.
     degree: 'auto' or the largest degree; the degree fitted is chosen from the data
-    (training.models.degree.choose_degree) and reported in the stats ('degree_choice') and the notes."""
+    (training.models.degree.choose_degree) and reported in the stats ('degree_choice') and the notes.
+    With a fleet prior the full model is fitted in the population's basis (`_fit_with_prior`)."""
     triad, datasets = ref.triad, list(ref.datasets)
     temp = np.concatenate([d.temp for d in datasets]).astype(np.float64)
     raw, target = _stack(datasets, triad), _stack(datasets, f"ref_{triad}")
@@ -283,6 +288,8 @@ def _fit_with_reference(ref: TriadReference, degree, seed: int) -> tuple[Thermal
     reason = _skip_reason(datasets, triad, raw, target, ceiling(degree))
     if reason:
         return ThermalModel.identity(enabled=False), {}, [f"{reason}; thermal model disabled"]
+    if prior is not None:
+        return _fit_with_prior(triad, raw, target, temp, seed, prior, notes)
     excitation = _weakest_excitation(target)
     gains = excitation >= MIN_EXCITATION[triad]
     if not gains and ref.source == "static" and triad != "gyr" and temperature_clusters(temp) < 2:
@@ -303,6 +310,18 @@ def _fit_with_reference(ref: TriadReference, degree, seed: int) -> tuple[Thermal
     return model, stats, notes + [f"{triad}: the reference hardly moves (weakest direction {excitation:.3g} "
                           f"{UNITS[triad]} RMS < {MIN_EXCITATION[triad]}): gains not identifiable, "
                           f"fitted {what} (A = I, G = 1)"]
+
+
+def _fit_with_prior(triad: str, raw: np.ndarray, target: np.ndarray, temp: np.ndarray, seed: int,
+                    prior: TriadPrior, notes: list[str]) -> tuple[ThermalModel, dict, list[str]]:
+    """The maximum a posteriori gain/bias model of one triad under the fleet prior: the data pin
+    down what they observe, the population the rest (training.models.prior)."""
+    fit = GainBiasFitter(degree=prior.degree, prior=prior).fit(raw, target, temp, seed, UNITS[triad])
+    stats = {**_fit_stats(fit), "fleet_prior_units": prior.units}
+    lo, hi = prior.t_range
+    return fit.model, stats, notes + _fit_notes(triad, fit, prior.degree) + [
+        f"{triad}: fitted with the fleet prior of {prior.units} units (degree {prior.degree}, calibrated over "
+        f"{lo:.1f} … {hi:.1f} °C): what this recording does not observe comes from the population"]
 
 
 def _self_calibrated(datasets: list[ImuData], triads: list[str], degree: int, progress: bool,
@@ -333,7 +352,7 @@ def _prepared_datasets(datasets: list[ImuData], refs: dict[str, TriadReference])
 
 
 def _held_out(datasets: list[ImuData], refs: dict[str, TriadReference], degree, seed: int,
-              selfcal, notes: list[str], progress: bool) -> dict[str, dict]:
+              selfcal, notes: list[str], progress: bool, prior: dict[str, TriadPrior]) -> dict[str, dict]:
     """Held-out error per triad (training.models.holdout): the same procedure refitted without the last
     quarter of every recording, scored on it; {} with a note when the recordings are too short."""
     from training.data.earth import STANDARD_GRAVITY
@@ -345,7 +364,7 @@ def _held_out(datasets: list[ImuData], refs: dict[str, TriadReference], degree, 
         return self_calibrate(parts, field_norm=norm, degree=ceiling(degree), progress=False).thermal
     try:
         with _deterministic(seed), _stage("held-out refit", len(refs) + 1, progress) as bar:
-            return held_out(datasets, refs, lambda r: _fit_with_reference(r, degree, seed)[0], fit_selfcal,
+            return held_out(datasets, refs, lambda r: _fit_with_reference(r, degree, seed, prior.get(r.triad))[0], fit_selfcal,
                             norm, STANDARD_GRAVITY, step=bar.update)
     except ValueError as e:
         notes.append(f"held-out error not computed: {e}")
@@ -396,12 +415,12 @@ def _refuse_identity(thermal: dict[str, ThermalModel], refs: dict[str, TriadRefe
 
 
 def _reference_fits(refs: dict[str, TriadReference], degree, seed: int, progress: bool,
-                    thermal: dict, stats: dict, notes: list[str]) -> None:
-    """Fit every triad that has a reference (`_fit_with_reference`), with a progress bar; fills
-    thermal, stats and notes."""
+                    thermal: dict, stats: dict, notes: list[str], prior: dict[str, TriadPrior]) -> None:
+    """Fit every triad that has a reference (`_fit_with_reference`, under its fleet prior if
+    any), with a progress bar; fills thermal, stats and notes."""
     referenced = [t for t in TRIAD_ORDER if refs[t].source != "none"]
     for triad in tqdm(referenced, desc="reference fit", disable=not progress or not referenced):
-        thermal[triad], stats[triad], fit_notes = _fit_with_reference(refs[triad], degree, seed)
+        thermal[triad], stats[triad], fit_notes = _fit_with_reference(refs[triad], degree, seed, prior.get(triad))
         notes += list(refs[triad].notes) + fit_notes
 
 
@@ -414,7 +433,8 @@ def _moved(report: dict) -> bool:
 
 
 def train(datasets: list[ImuData], seed: int = 0, degree: int | str = AUTO,
-          progress: bool = True, allow_identity: bool = False) -> ModelArtefact:
+          progress: bool = True, allow_identity: bool = False,
+          prior: dict[str, TriadPrior] | None = None) -> ModelArtefact:
     """Fit the gain/bias temperature model of every triad and return the model artefact.
 
     datasets: calibration recordings. Per triad the best reference any recording offers is used
@@ -423,6 +443,8 @@ def train(datasets: list[ImuData], seed: int = 0, degree: int | str = AUTO,
     the largest polynomial degree (0..MAX_DEGREE) of G(T) and B(T); the degree fitted per triad is
     chosen from the data (training.models.degree: no more than the distinct temperatures pin down, the
     simplest that holds on held-out data; self-calibrated triads cap it by their rest temperatures).
+    prior: {triad: TriadPrior} from a fleet (training.models.prior.load_prior): referenced triads
+    with a prior are fitted as the population's maximum a posteriori model.
     Deterministic given `seed`. Raises ModelError when `datasets` is empty,
     and when no triad can be calibrated unless allow_identity (then an identity model is returned).
     """
@@ -435,12 +457,14 @@ def train(datasets: list[ImuData], seed: int = 0, degree: int | str = AUTO,
     refs = {triad: choose_reference(datasets, triad) for triad in TRIAD_ORDER}
     thermal, stats, notes = {}, {}, []
     with _deterministic(seed):
-        _reference_fits(refs, degree, seed, progress, thermal, stats, notes)
+        _reference_fits(refs, degree, seed, progress, thermal, stats, notes, prior or {})
         blind = [t for t in TRIAD_ORDER if refs[t].source == "none"]
         selfcal = _self_calibrated(datasets, blind, ceiling(degree), progress, notes) if blind else None
         for triad in blind:
             thermal[triad], stats[triad] = selfcal.thermal[triad], selfcal.report.get(triad, {})
-        thermal = {triad: _calibrated_range(thermal[triad], refs[triad].datasets) for triad in TRIAD_ORDER}
+        thermal = {triad: _calibrated_range(thermal[triad], refs[triad].datasets,
+                                            (prior or {}).get(triad) if refs[triad].source != "none" else None)
+                   for triad in TRIAD_ORDER}
         for triad in TRIAD_ORDER:
             stats.setdefault(triad, {})["reference"] = refs[triad].source
         prepared = _prepared_datasets(datasets, refs)
@@ -448,7 +472,7 @@ def train(datasets: list[ImuData], seed: int = 0, degree: int | str = AUTO,
         psobp_model, psobp_on, stats["psobp"] = _psobp_stage(prepared, thermal, seed, notes, progress)
     if not allow_identity:
         _refuse_identity(thermal, refs, selfcal, notes)
-    for triad, score in _held_out(datasets, refs, degree, seed, selfcal, notes, progress).items():
+    for triad, score in _held_out(datasets, refs, degree, seed, selfcal, notes, progress, prior or {}).items():
         stats[triad]["held_out"] = score
     for triad in _worse_than_raw(thermal, stats, notes):
         thermal[triad] = ThermalModel.identity(enabled=False)
@@ -476,13 +500,17 @@ class TrainedFolder:
 
 
 def train_to_folder(paths: list[Path], out_dir: str | Path, seed: int = 0, degree: int | str = AUTO,
-                    allow_identity: bool = False, progress: bool = True) -> TrainedFolder:
-    """`imufmu train`: read the recordings at `paths`, `train` on them, write OUT/model.json and the
-    calibration report OUT/calibration.md; progress: the stages' progress bars."""
+                    allow_identity: bool = False, progress: bool = True,
+                    prior_path: str | Path | None = None) -> TrainedFolder:
+    """`imufmu train`: read the recordings at `paths`, `train` on them (under the fleet prior of
+    `prior_path`, a fleet.json, if given), write OUT/model.json and the calibration report
+    OUT/calibration.md; progress: the stages' progress bars."""
     from training.data.io import read_imu_csv
     from training.reports.calibration_report import summary_text, write_calibration_report
     datasets = [read_imu_csv(p) for p in paths]
-    artefact = train(datasets, seed=seed, degree=degree, allow_identity=allow_identity, progress=progress)
+    prior = load_prior(prior_path) if prior_path is not None else None
+    artefact = train(datasets, seed=seed, degree=degree, allow_identity=allow_identity, progress=progress,
+                     prior=prior)
     model = Path(out_dir) / "model.json"
     artefact.save(model)
     report = write_calibration_report(artefact, datasets, out_dir)

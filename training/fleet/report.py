@@ -8,10 +8,11 @@ from pathlib import Path
 import numpy as np
 
 from contract.layout import TRIAD_ORDER
-from training.artefact import load_artefact
+from training.artefact import ModelArtefact, load_artefact
 from training.fleet.population import (MIN_UNITS_FOR_OUTLIERS, OUTLIER_SIGMAS, POPULATION_TEMP_C, outliers,
                                        population, unit_parameters)
 from training.fleet.train import UnitResult
+from training.models.prior import build_prior
 
 #: Parameter kinds drawn as histograms, one figure per triad.
 HISTOGRAM_KINDS = ("bias", "scale")
@@ -19,15 +20,30 @@ HISTOGRAM_KINDS = ("bias", "scale")
 FLEET_FORMAT = 1
 
 
+def fleet_prior(artefacts: list[ModelArtefact]) -> dict[str, dict]:
+    """fleet.json 'prior': per triad, the population of the full gain/bias fits against a reference
+    (training.models.prior.build_prior), for `imufmu train --prior`."""
+    out = {}
+    for triad in TRIAD_ORDER:
+        fits = [(a.thermal[triad], a.fit_stats[triad]) for a in artefacts
+                if a.thermal[triad].enabled and a.fit_stats.get(triad, {}).get("reference", "none") != "none"
+                and "rms_after" in a.fit_stats[triad] and not a.fit_stats[triad].get("bias_only")]
+        prior = build_prior([m for m, _ in fits], [float(st["rms_after"]) for _, st in fits])
+        if prior is not None:
+            out[triad] = prior.to_json()
+    return out
+
+
 def fleet_document(results: list[UnitResult]) -> dict:
-    """The content of fleet.json: per-unit status, the population, outliers and failures."""
-    trained = {r.unit: unit_parameters(load_artefact(r.model)) for r in results if r.model}
+    """The content of fleet.json: per-unit status, the population, outliers, failures and the prior."""
+    artefacts = {r.unit: load_artefact(r.model) for r in results if r.model}
+    trained = {unit: unit_parameters(a) for unit, a in artefacts.items()}
     stats = population(trained)
     return {"format": "imufusion-fleet", "format_version": FLEET_FORMAT,
             "population_temperature_c": POPULATION_TEMP_C, "outlier_sigmas": OUTLIER_SIGMAS,
             "units": {r.unit: {"model": r.model, "reason": r.reason} for r in results},
             "trained": len(trained), "failed": [{"unit": r.unit, "reason": r.reason} for r in results if not r.model],
-            "population": stats, "outliers": outliers(stats)}
+            "population": stats, "outliers": outliers(stats), "prior": fleet_prior(list(artefacts.values()))}
 
 
 def _histograms(stats: dict, out_dir: Path) -> list[Path]:

@@ -270,13 +270,14 @@ class GainBiasFitter:
     """
 
     def __init__(self, degree: int = 2, iterations: int = 4000, lr: float = 1e-3,
-                 tolerance: float = 1e-12, optimizer: str = "rprop"):
+                 tolerance: float = 1e-12, optimizer: str = "rprop", prior=None):
         if not 0 <= degree <= MAX_DEGREE:
             raise ValueError(f"degree {degree} is outside 0..{MAX_DEGREE}")
         if optimizer not in OPTIMIZERS:
             raise ValueError(f"optimizer '{optimizer}' is not one of {OPTIMIZERS}")
         self.degree, self.iterations, self.lr = degree, iterations, lr
         self.tolerance, self.optimizer = tolerance, optimizer
+        self.prior = prior  # training.models.prior.TriadPrior: fit the maximum a posteriori model
 
     def fit(self, x_raw: np.ndarray, x_ref: np.ndarray, temp: np.ndarray, seed: int,
             unit: str) -> ThermalFit:
@@ -293,9 +294,12 @@ class GainBiasFitter:
         if not keep.any():
             raise ValueError("no row with finite raw and reference values")
         x_raw, x_ref, temp = x_raw[keep], x_ref[keep], temp[keep]
-        norm = temperature_normalisation(temp)
-        degree = self.degree if norm is not None else 0
-        t0, ts = norm if norm is not None else (DEFAULT_T0, DEFAULT_TS)
+        if self.prior is not None:  # the population's basis: it carries what the data do not
+            degree, t0, ts = self.prior.degree, self.prior.t0, self.prior.ts
+        else:
+            norm = temperature_normalisation(temp)
+            degree = self.degree if norm is not None else 0
+            t0, ts = norm if norm is not None else (DEFAULT_T0, DEFAULT_TS)
         model, history, converged = self._descend(x_raw, x_ref, temp, degree, t0, ts)
         return ThermalFit(
             model=model, loss_history=tuple(history), iterations=len(history),
@@ -314,11 +318,19 @@ class GainBiasFitter:
         vand = torch.stack([tn ** k for k in range(degree + 1)], dim=1)
         params = self._initial_parameters(x_raw, x_ref, s, degree)
         a6, g, beta = params
+        prior_loss = self._prior_loss(s, degree, u.shape[0])
+        if prior_loss is not None:  # start at the population mean
+            with torch.no_grad():
+                for p, start in zip(params, _unflatten(torch.from_numpy(self._normalised_prior(s)[0]), degree)):
+                    if p is not None:
+                        p.copy_(start)
         optimiser = self._optimiser([p for p in params if p is not None])
         history, converged = [], False
         for _ in range(self.iterations):
             optimiser.zero_grad()
             loss = torch.mean((_model_torch(a6, g, beta, u, vand) - v) ** 2)
+            if prior_loss is not None:
+                loss = loss + prior_loss(a6, g, beta)
             loss.backward()
             optimiser.step()
             history.append(loss.item())
@@ -329,6 +341,26 @@ class GainBiasFitter:
                 converged = True
                 break
         return _to_model(a6, g, beta, s, degree, t0, ts), history, converged
+
+    def _normalised_prior(self, s: float) -> tuple[np.ndarray, np.ndarray, float]:
+        """(mean, σ, noise σ_n) of the prior in the descent's units (b and σ_n divided by s)."""
+        mean, sigma = self.prior.mean.copy(), self.prior.sigma.copy()
+        b = slice(6 + 3 * self.prior.degree, None)
+        mean[b], sigma[b] = mean[b] / s, sigma[b] / s
+        return mean, sigma, self.prior.noise / s
+
+    def _prior_loss(self, s: float, degree: int, rows: int):
+        """The prior's term of the loss, a function of (a6, g, beta), or None without a prior:
+        σ_n² / (3N) · Σ ((θ − μ) / σ)² in the descent's units (module training.models.prior)."""
+        if self.prior is None:
+            return None
+        mean, sigma, noise = (torch.as_tensor(v) for v in self._normalised_prior(s))
+        weight = noise ** 2 / (3.0 * rows)
+
+        def loss(a6, g, beta):
+            parts = [a6] + ([g.reshape(-1)] if g is not None else []) + [beta.reshape(-1)]
+            return weight * torch.sum(((torch.cat(parts) - mean) / sigma) ** 2)
+        return loss
 
     @staticmethod
     def _initial_parameters(x_raw, x_ref, s, degree):
@@ -355,6 +387,12 @@ class GainBiasFitter:
             return False
         steps = [optimiser.state[p]["step_size"] for p in optimiser.param_groups[0]["params"]]
         return all(float(st.max()) < self.tolerance for st in steps)
+
+
+def _unflatten(flat: torch.Tensor, degree: int) -> tuple:
+    """(a6, g or None, beta) from θ in the order of training.models.prior (a6, g, b)."""
+    g = flat[6:6 + 3 * degree].reshape(3, degree) if degree else None
+    return flat[:6], g, flat[6 + 3 * degree:].reshape(3, degree + 1)
 
 
 def _to_model(a6, g, beta, s, degree, t0, ts) -> ThermalModel:

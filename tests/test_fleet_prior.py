@@ -1,0 +1,82 @@
+"""The fleet prior (training.models.prior): the maximum a posteriori gain/bias fit.
+
+Truth: a simulated triad with a known degree-1 model. Data at one temperature cannot show the
+temperature slope; the prior supplies it, and a vague prior leaves the data's own fit.
+"""
+import json
+
+import numpy as np
+import pytest
+
+from contract.errors import ModelError
+from training.models.prior import MIN_PRIOR_UNITS, TriadPrior, build_prior, load_prior, parameter_count, theta
+from training.models.thermal import GainBiasFitter, ThermalModel, apply_thermal
+
+#: The true model: gains ~1 %, bias 0.5 + 0.2 Tn (Tn = (T − 20) / 15) in the triad's unit.
+TRUE = ThermalModel(True, 20.0, 15.0, 1, np.eye(3) + np.diag([0.01, -0.01, 0.005]),
+                    np.array([[0.002], [0.001], [-0.001]]), np.array([[0.5, 0.2], [-0.3, 0.1], [0.4, -0.2]]))
+NOISE = 0.01
+
+
+def _data(temp_c: float, rows: int = 3000, seed: int = 0):
+    """(raw, reference, temperature) of TRUE at one temperature: references spread over directions."""
+    rng = np.random.default_rng(seed)
+    ref = rng.standard_normal((rows, 3)) * 2.0
+    temp = np.full(rows, temp_c)
+    # invert TRUE: raw = G⁻¹ ∘ (A⁻¹ ref) + B
+    tn = (temp_c - TRUE.t0) / TRUE.ts
+    gain = 1.0 + TRUE.g[:, 0] * tn
+    bias = TRUE.b[:, 0] + TRUE.b[:, 1] * tn
+    raw = (np.linalg.solve(TRUE.A, ref.T).T) / gain + bias + NOISE * rng.standard_normal((rows, 3))
+    return raw, ref, temp
+
+
+def _prior(scale: float) -> TriadPrior:
+    """A prior centred on TRUE with σ = scale × |θ| + 1e-3."""
+    mean = theta(TRUE, 1)
+    return TriadPrior(TRUE.t0, TRUE.ts, 1, mean, scale * np.abs(mean) + 1e-3, NOISE, (5.0, 35.0), 20)
+
+
+def test_the_prior_supplies_the_temperature_slope_a_one_temperature_recording_cannot_show():
+    raw, ref, temp = _data(10.0)
+    model = GainBiasFitter(prior=_prior(0.05)).fit(raw, ref, temp, 0, "u").model
+    hot = np.full(1000, 30.0)
+    x = np.random.default_rng(1).standard_normal((1000, 3))
+    truth = apply_thermal(TRUE, x, hot)
+    plain = GainBiasFitter().fit(raw, ref, temp, 0, "u").model  # degree 0: the bias at 10 °C
+    err_prior = np.abs(apply_thermal(model, x, hot) - truth).max()
+    err_plain = np.abs(apply_thermal(plain, x, hot) - truth).max()
+    # the plain fit misses the slope: 0.2 × (30 − 10) / 15 ≈ 0.27 on the x axis
+    assert err_plain > 0.2 and err_prior < 0.02, (err_plain, err_prior)
+
+
+def test_a_vague_prior_leaves_the_data_fit():
+    raw, ref, temp = _data(20.0)
+    vague = GainBiasFitter(prior=_prior(1e6)).fit(raw, ref, temp, 0, "u").model
+    data_only = GainBiasFitter(degree=0).fit(raw, ref, temp, 0, "u").model
+    x = np.random.default_rng(2).standard_normal((500, 3))
+    at = np.full(500, 20.0)
+    assert np.abs(apply_thermal(vague, x, at) - apply_thermal(data_only, x, at)).max() < 1e-3
+
+
+def test_build_prior_needs_enough_units_and_one_normalisation():
+    models = [TRUE] * (MIN_PRIOR_UNITS - 1)
+    assert build_prior(models, [NOISE] * len(models)) is None
+    rng = np.random.default_rng(3)
+    units = [ThermalModel(True, 20.0, 15.0, 1, TRUE.A, TRUE.g, TRUE.b + 0.01 * rng.standard_normal((3, 2)))
+             for _ in range(MIN_PRIOR_UNITS)]
+    odd = ThermalModel(True, 30.0, 5.0, 0, TRUE.A, np.zeros((3, 0)), TRUE.b[:, :1])  # another basis: left out
+    prior = build_prior(units + [odd], [NOISE] * (len(units) + 1))
+    assert prior.units == MIN_PRIOR_UNITS and prior.degree == 1 and prior.mean.shape == (parameter_count(1),)
+    assert np.all(prior.sigma > 0)
+
+
+def test_load_prior_names_the_file(tmp_path):
+    with pytest.raises(ModelError, match="fleet prior not found"):
+        load_prior(tmp_path / "nope.json")
+    (tmp_path / "f.json").write_text(json.dumps({"prior": {}}))
+    with pytest.raises(ModelError, match="has no prior"):
+        load_prior(tmp_path / "f.json")
+    (tmp_path / "g.json").write_text(json.dumps({"prior": {"gyr": {**_prior(0.1).to_json(), "mean": [1.0]}}}))
+    with pytest.raises(ModelError, match="not a fleet.json with a prior"):
+        load_prior(tmp_path / "g.json")
