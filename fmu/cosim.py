@@ -4,7 +4,7 @@ from __future__ import annotations
 import ctypes
 import shutil
 import tempfile
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
@@ -222,6 +222,52 @@ def _instantiate(fmu_path: str | Path, unzipdir: str, log: _Log, instance_name: 
     return fmu
 
 
+def _initialise(fmu: FMU2Slave | FMU3Slave, start_time: float, parameters: dict) -> None:
+    """Start the experiment at start_time [s], set the parameters by name and initialise."""
+    if isinstance(fmu, FMU3Slave):
+        _set_parameters(fmu, parameters)
+        fmu.enterInitializationMode(startTime=float(start_time))
+    else:
+        fmu.setupExperiment(startTime=float(start_time))
+        _set_parameters(fmu, parameters)
+        fmu.enterInitializationMode()
+    fmu.exitInitializationMode()
+
+
+@contextmanager
+def fmu_runner(fmu_path: str | Path, instance_name: str = "ImuFusion") -> Iterator[Callable]:
+    """Extract and instantiate the FMU once and yield run(t, inputs, parameters) -> outputs, which
+    co-simulates one recording as `run_fmu` does; every run after the first resets the instance
+    (fmi2Reset / fmi3Reset: every variable back to its start value) instead of instantiating
+    again, as fmpy's parameter-variation example does. FmuError with the FMU's log on failure."""
+    unzipdir = tempfile.mkdtemp(prefix="imufusion-fmu-")
+    log = _Log()
+    fmu = None
+    try:
+        extract_archive(fmu_path, unzipdir)
+        description = read_description(fmu_path, unzipdir)
+        fmu = _instantiate(fmu_path, unzipdir, log, instance_name)
+        runs = 0
+
+        def run(t: np.ndarray, inputs: np.ndarray, parameters: dict | None = None) -> np.ndarray:
+            nonlocal runs
+            t, inputs = _check_arrays(t, inputs)
+            try:
+                if runs:
+                    fmu.reset()
+                runs += 1
+                _initialise(fmu, float(t[0]), parameters or {})
+                return step_samples(fmu, t, inputs, description_step_sizes(description, t))
+            except FMICallException as e:
+                raise log.error(f"{fmu_path}: {e}") from e
+        yield run
+    finally:
+        if fmu is not None:
+            fmu.freeInstance()
+        log.close()
+        shutil.rmtree(unzipdir, ignore_errors=True)
+
+
 @contextmanager
 def initialised_fmu(fmu_path: str | Path, start_time: float = 0.0, parameters: dict | None = None,
                     instance_name: str = "ImuFusion") -> Iterator[FMU2Slave | FMU3Slave]:
@@ -240,14 +286,7 @@ def initialised_fmu(fmu_path: str | Path, start_time: float = 0.0, parameters: d
         fmu = _instantiate(fmu_path, unzipdir, log, instance_name)
         fmu.log_messages = log.messages
         try:
-            if isinstance(fmu, FMU3Slave):
-                _set_parameters(fmu, parameters or {})
-                fmu.enterInitializationMode(startTime=float(start_time))
-            else:
-                fmu.setupExperiment(startTime=float(start_time))
-                _set_parameters(fmu, parameters or {})
-                fmu.enterInitializationMode()
-            fmu.exitInitializationMode()
+            _initialise(fmu, start_time, parameters or {})
             yield fmu
             fmu.terminate()
         except FMICallException as e:

@@ -81,6 +81,19 @@ def cmd_fleet_train(args) -> None:
     print(f"wrote {json_path} and {md_path}")
 
 
+def cmd_campaign(args) -> None:
+    """imufmu campaign FMU DATA --runs N --vary NAME=DIST ... --out DIR [--workers K | --scheduler ADDRESS]."""
+    from training.fleet.campaign import campaign_runs, parse_variation
+    from training.fleet.campaign_report import write_campaign_report
+    variations = tuple(parse_variation(v) for v in args.vary or [])
+    fmu = _existing_file(args.fmu, "FMU")
+    data = _existing_file(args.data, "data file")
+    runs = campaign_runs(fmu, data, args.runs, variations, seed=args.seed, workers=args.workers,
+                         scheduler=args.scheduler)
+    md = write_campaign_report(runs, variations, fmu, data, args.seed, args.out)
+    print(f"ran {len(runs)} co-simulations of {fmu} on {data}; wrote {md}")
+
+
 def cmd_train(args) -> None:
     """imufmu train DATA... --out DIR [--seed N] [--degree auto|P] [--allow-identity]."""
     from training.train import train_to_folder
@@ -189,6 +202,8 @@ EXAMPLES = {
     "simulate-fleet": "imufmu simulate-fleet scenarios/fleet/mems_grade.toml --devices 200 --out fleet --seed 0",
     "train": "imufmu train data/calibration.csv.gz --out model",
     "fleet": "imufmu fleet train fleet --out fleet_models --workers 2",
+    "campaign": "imufmu campaign ImuFusion.fmu data/eval_handheld.csv.gz --runs 1000 --vary noise_gyr=uniform(0,0.01) "
+                "--vary declination=normal(0.05,0.01) --out campaign",
     "build-fmu": "imufmu build-fmu --model model/model.json --out ImuFusion.fmu --fmi 3",
     "validate": "imufmu validate ImuFusion.fmu",
     "run": "imufmu run ImuFusion.fmu data/eval_handheld.csv.gz --out outputs.csv --param declination=0.05",
@@ -255,6 +270,21 @@ def build_parser() -> argparse.ArgumentParser:
     where.add_argument("--scheduler", default=None, metavar="ADDRESS",
                        help="address of a running Dask scheduler (tcp://host:8786) instead of a local cluster")
     s.set_defaults(func=cmd_fleet_train)
+    s = _add_verb(sub, "campaign", "Monte-Carlo co-simulation of an FMU on Dask: parameter variations, noisy inputs")
+    s.add_argument("fmu")
+    s.add_argument("data", help="imu-csv/1 recording with truth (reference columns or ref_q)")
+    s.add_argument("--runs", type=int, required=True)
+    s.add_argument("--vary", action="append", metavar="NAME=DIST",
+                   help="NAME=normal(MEAN,SIGMA) | uniform(LOW,HIGH) | choice(A,B,...); NAME an FMU parameter or "
+                        "noise_gyr [rad/s], noise_acc [m/s²], noise_mag [µT] (σ of white noise added to that input). Repeatable")
+    s.add_argument("--out", required=True, help="output folder: campaign.md, campaign.json, runs.csv, campaign.png")
+    s.add_argument("--seed", type=int, default=0)
+    where = s.add_mutually_exclusive_group()
+    where.add_argument("--workers", type=int, default=None,
+                       help="worker processes of the local Dask cluster (default: the cores available)")
+    where.add_argument("--scheduler", default=None, metavar="ADDRESS",
+                       help="address of a running Dask scheduler (tcp://host:8786) instead of a local cluster")
+    s.set_defaults(func=cmd_campaign)
     s = _add_verb(sub, "build-fmu", "write the trained model into the FMU sources and build it")
     s.add_argument("--model", required=True, help="model.json from 'imufmu train'")
     s.add_argument("--out", required=True, help="FMU file to write")

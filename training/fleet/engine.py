@@ -55,7 +55,7 @@ def dask_client(workers: int | None = None, scheduler: str | None = None):
 
 
 def run_tasks(client, function: Callable, items: Iterable, description: str, progress: bool = True,
-              **kwargs) -> Iterator[tuple[object, object]]:
+              unit: str = "unit", **kwargs) -> Iterator[tuple[object, object]]:
     """Run function(item, **kwargs) for every item on the cluster, one task each; yields
     (item, result) as tasks finish, with a progress bar over the items. A task that raises is
     the caller's concern: `function` should return its failure instead."""
@@ -63,7 +63,7 @@ def run_tasks(client, function: Callable, items: Iterable, description: str, pro
     futures = client.map(function, items, pure=False, **kwargs)
     index = {f.key: item for f, item in zip(futures, items)}
     from distributed import as_completed
-    with tqdm(total=len(items), desc=description, unit="unit", disable=not progress) as bar:
+    with tqdm(total=len(items), desc=description, unit=unit, disable=not progress) as bar:
         for future in as_completed(futures):
             yield index[future.key], future.result()
             bar.update()

@@ -1,0 +1,182 @@
+"""`imufmu campaign FMU.fmu DATA --runs N --vary NAME=DIST … --out DIR`: Monte-Carlo co-simulation.
+
+Run r co-simulates the recording DATA through the FMU with its own draw of every variation, from
+numpy's SeedSequence(seed, spawn_key=(r,)), so run r is the same whatever N, the partitioning or
+the worker that runs it. A variation is
+
+    NAME=normal(MEAN,SIGMA) | uniform(LOW,HIGH) | choice(A,B,…)
+
+where NAME is an FMU parameter (set before initialisation) or an input perturbation
+`noise_gyr` [rad/s], `noise_acc` [m/s²], `noise_mag` [µT]: the σ of white noise added to that raw
+input triad in this run (its samples drawn after the variations, from the same stream).
+
+The runs are split into partitions, one Dask task each; a task instantiates the FMU once and
+resets it between its runs (fmu.cosim.fmu_runner). Each run's errors against the recording's truth
+are training.evaluate's (rate, field, roll, pitch, yaw, tilt, heading).
+"""
+from __future__ import annotations
+
+import functools
+import math
+import re
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from contract.errors import ImuFusionError
+from contract.layout import INPUTS
+from contract.mounting import MOUNT_SETTINGS, settings_codes
+from contract.variables import by_name
+from training.data.dataset import ImuData
+from training.data.io import read_imu_csv
+from training.evaluate import compute_metrics
+from training.main_job import recording_parameters
+from training.mounting import body_references
+
+#: Input perturbations a variation may name, with the INPUTS columns they add noise to.
+NOISE_INPUTS = {f"noise_{triad}": [INPUTS.index(f"{triad}_{axis}") for axis in "xyz"] for triad in ("gyr", "acc", "mag")}
+#: Distributions of a variation and their argument counts (None: any number ≥ 1).
+DISTRIBUTIONS = {"normal": 2, "uniform": 2, "choice": None}
+#: Metrics of each run (training.evaluate.Metrics.as_dict names, units in the name).
+CAMPAIGN_METRICS = ("rate_err_dps", "field_err_ut", "roll_err_deg", "pitch_err_deg", "yaw_err_deg",
+                    "tilt_err_deg", "heading_err_deg")
+#: Partitions per worker: enough to balance uneven runs, few enough that the FMU is instantiated rarely.
+PARTITIONS_PER_WORKER = 4
+_SPEC = re.compile(r"^\s*([A-Za-z_][A-Za-z0-9_]*)\s*=\s*([a-z]+)\s*\((.*)\)\s*$")
+
+
+class CampaignError(ImuFusionError):
+    """A variation or campaign argument is malformed."""
+
+
+@dataclass(frozen=True)
+class Variation:
+    """One --vary NAME=DIST."""
+
+    name: str
+    distribution: str
+    args: tuple[float, ...]
+
+    def draw(self, rng: np.random.Generator) -> float:
+        """One value of this variation."""
+        if self.distribution == "normal":
+            return float(rng.normal(self.args[0], self.args[1]))
+        if self.distribution == "uniform":
+            return float(rng.uniform(self.args[0], self.args[1]))
+        return float(self.args[int(rng.integers(len(self.args)))])
+
+    def text(self) -> str:
+        """The variation as the user wrote it (normalised)."""
+        return f"{self.name}={self.distribution}({', '.join(f'{a:g}' for a in self.args)})"
+
+
+def parse_variation(text: str) -> Variation:
+    """A Variation from NAME=DIST; CampaignError naming the problem."""
+    match = _SPEC.match(text)
+    if not match:
+        raise CampaignError(f"--vary {text!r}: expected NAME=normal(MEAN,SIGMA), NAME=uniform(LOW,HIGH) or "
+                            "NAME=choice(A,B,...)")
+    name, distribution, body = match.groups()
+    if distribution not in DISTRIBUTIONS:
+        raise CampaignError(f"--vary {text!r}: unknown distribution '{distribution}' (one of {', '.join(DISTRIBUTIONS)})")
+    try:
+        args = tuple(float(a) for a in body.split(","))
+    except ValueError:
+        raise CampaignError(f"--vary {text!r}: the arguments must be numbers") from None
+    wanted = DISTRIBUTIONS[distribution]
+    if (wanted is not None and len(args) != wanted) or not args or not all(math.isfinite(a) for a in args):
+        raise CampaignError(f"--vary {text!r}: {distribution} takes {wanted or 'one or more'} finite numbers")
+    if distribution == "normal" and args[1] < 0 or distribution == "uniform" and args[1] < args[0]:
+        raise CampaignError(f"--vary {text!r}: need SIGMA ≥ 0 / LOW ≤ HIGH")
+    _check_name(name, text)
+    return Variation(name, distribution, args)
+
+
+def _check_name(name: str, text: str) -> None:
+    """CampaignError unless name is an input perturbation or an FMU parameter."""
+    if name in NOISE_INPUTS:
+        return
+    try:
+        variable = by_name(name)
+    except KeyError:
+        raise CampaignError(f"--vary {text!r}: '{name}' is neither an FMU parameter nor one of "
+                            f"{', '.join(NOISE_INPUTS)}") from None
+    if variable.causality != "parameter":
+        raise CampaignError(f"--vary {text!r}: '{name}' is an {variable.causality}, not a parameter")
+
+
+def run_draws(variations: tuple[Variation, ...], seed: int, run: int,
+              samples: int) -> tuple[dict[str, float], dict[str, float], np.ndarray]:
+    """(FMU parameters, input-noise σ by name, additive input noise (samples, len(INPUTS))) of one run."""
+    rng = np.random.default_rng(np.random.SeedSequence(seed, spawn_key=(run,)))
+    values = {v.name: v.draw(rng) for v in variations}
+    parameters = {k: v for k, v in values.items() if k not in NOISE_INPUTS}
+    noise_sigma = {k: abs(v) for k, v in values.items() if k in NOISE_INPUTS}
+    noise = np.zeros((samples, len(INPUTS)))
+    for name, sigma in noise_sigma.items():
+        noise[:, NOISE_INPUTS[name]] = sigma * rng.standard_normal((samples, 3))
+    return parameters, noise_sigma, noise
+
+
+@functools.lru_cache(maxsize=2)
+def _recording(path: str) -> ImuData:
+    """The recording (read once per worker process)."""
+    return read_imu_csv(path)
+
+
+@functools.lru_cache(maxsize=2)
+def _mount_starts(fmu_path: str) -> dict[str, float]:
+    """The FMU's start values of the mounting parameters (its model description)."""
+    from fmu.archive import read_description
+    return {v.name: float(v.start) for v in read_description(fmu_path).modelVariables if v.name in MOUNT_SETTINGS}
+
+
+def _mounting(fmu_path: str, parameters: dict[str, float]) -> tuple[int, int, int]:
+    """The run's mounting codes: the FMU's start values of mount_x/y/z unless varied."""
+    return settings_codes({**_mount_starts(fmu_path), **parameters})
+
+
+def run_partition(runs: list[int], fmu_path: str, data_path: str, variations: tuple[Variation, ...],
+                  seed: int) -> list[dict]:
+    """Co-simulate `runs` with one FMU instance (reset between runs); one dict per run: run, the
+    drawn values and CAMPAIGN_METRICS."""
+    from fmu.cosim import fmu_runner
+    from fmu.packer import fmu_aux_columns
+    data = _recording(data_path)
+    inputs = data.inputs(fmu_aux_columns(fmu_path))
+    fixed = recording_parameters(data)
+    out = []
+    with fmu_runner(fmu_path) as simulate:
+        for r in runs:
+            parameters, noise_sigma, noise = run_draws(variations, seed, r, len(data))
+            run_parameters = {**fixed, **parameters}
+            outputs = simulate(data.t, inputs + noise, run_parameters)
+            body = body_references(data, _mounting(fmu_path, run_parameters))
+            metrics = compute_metrics(outputs, body).as_dict()
+            out.append({"run": r, **parameters, **noise_sigma, **{m: metrics[m] for m in CAMPAIGN_METRICS}})
+    return out
+
+
+def partitions(runs: int, workers: int) -> list[list[int]]:
+    """Runs 0..runs−1 in contiguous partitions, PARTITIONS_PER_WORKER per worker."""
+    count = max(1, min(runs, workers * PARTITIONS_PER_WORKER))
+    return [[int(r) for r in p] for p in np.array_split(np.arange(runs), count) if len(p)]
+
+
+def campaign_runs(fmu_path: str | Path, data_path: str | Path, runs: int, variations: tuple[Variation, ...],
+                  seed: int = 0, workers: int | None = None, scheduler: str | None = None,
+                  progress: bool = True) -> list[dict]:
+    """Every run's result (run_partition), sorted by run, computed on Dask (training.fleet.engine)."""
+    from training.fleet.engine import dask_client, default_workers, run_tasks
+    if runs < 1:
+        raise CampaignError(f"--runs must be ≥ 1, got {runs}")
+    fmu_path, data_path = str(Path(fmu_path).resolve()), str(Path(data_path).resolve())
+    _recording(data_path)  # a bad recording fails here, once, with its one-line error
+    results = []
+    with dask_client(workers, scheduler) as client:
+        parts = partitions(runs, workers or len(client.scheduler_info().get("workers", {})) or default_workers())
+        for _, rows in run_tasks(client, run_partition, parts, "partitions", progress, "partition", fmu_path=fmu_path,
+                                 data_path=data_path, variations=variations, seed=seed):
+            results.extend(rows)
+    return sorted(results, key=lambda row: row["run"])

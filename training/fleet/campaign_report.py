@@ -1,0 +1,71 @@
+"""DIR/campaign.json, DIR/runs.csv and DIR/campaign.md: a Monte-Carlo campaign's runs, the
+percentiles of every error and their histograms (training.fleet.campaign)."""
+from __future__ import annotations
+
+import csv
+import json
+from pathlib import Path
+
+import numpy as np
+
+from training.fleet.campaign import CAMPAIGN_METRICS, Variation
+
+#: Percentiles of the campaign table [%].
+PERCENTILES = (5, 50, 95, 99)
+
+
+def percentile_rows(runs: list[dict]) -> list[dict]:
+    """Per metric: name, runs with a value, the PERCENTILES and the maximum."""
+    rows = []
+    for metric in CAMPAIGN_METRICS:
+        values = np.array([r[metric] for r in runs], dtype=float)
+        values = values[np.isfinite(values)]
+        if values.size:
+            rows.append({"metric": metric, "runs": int(values.size),
+                         **{f"p{p}": float(np.percentile(values, p)) for p in PERCENTILES}, "max": float(values.max())})
+    return rows
+
+
+def _histograms(runs: list[dict], rows: list[dict], path: Path) -> Path:
+    """One PNG with a histogram per metric."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    fig, axes = plt.subplots(2, 4, figsize=(13, 5.5))
+    for ax, row in zip(axes.ravel(), rows):
+        ax.hist([r[row["metric"]] for r in runs if np.isfinite(r[row["metric"]])], bins=40, color="tab:blue")
+        ax.axvline(row["p95"], color="k", lw=1, ls="--")
+        ax.set_xlabel(row["metric"])
+        ax.set_ylabel("runs")
+    for ax in axes.ravel()[len(rows):]:
+        ax.axis("off")
+    fig.tight_layout()
+    fig.savefig(path, dpi=90)
+    plt.close(fig)
+    return path
+
+
+def write_campaign_report(runs: list[dict], variations: tuple[Variation, ...], fmu_path, data_path, seed: int,
+                          out_dir: str | Path) -> Path:
+    """Write the campaign's files into out_dir; returns the path of campaign.md."""
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    rows = percentile_rows(runs)
+    (out_dir / "campaign.json").write_text(json.dumps(
+        {"fmu": str(fmu_path), "data": str(data_path), "seed": seed, "runs": len(runs),
+         "variations": [v.text() for v in variations], "percentiles": rows, "results": runs}, indent=1) + "\n")
+    with open(out_dir / "runs.csv", "w", newline="") as f:
+        writer = csv.DictWriter(f, fieldnames=list(runs[0]))
+        writer.writeheader()
+        writer.writerows(runs)
+    plot = _histograms(runs, rows, out_dir / "campaign.png")
+    lines = [f"# Campaign: {len(runs)} runs of {Path(fmu_path).name} on {Path(data_path).name}", "",
+             f"Seed {seed}; variations: " + (", ".join(f"`{v.text()}`" for v in variations) or "none") + ".", "",
+             "| error | runs | " + " | ".join(f"{p} %" for p in PERCENTILES) + " | max |",
+             "|---|---|" + "---|" * (len(PERCENTILES) + 1)]
+    lines += [f"| {r['metric']} | {r['runs']} | " + " | ".join(f"{r[f'p{p}']:.4g}" for p in PERCENTILES)
+              + f" | {r['max']:.4g} |" for r in rows]
+    lines += ["", f"![histograms]({plot.name})", "", "Every run: runs.csv and campaign.json."]
+    md = out_dir / "campaign.md"
+    md.write_text("\n".join(lines) + "\n")
+    return md
