@@ -108,12 +108,17 @@ def test_systematic_resampling_counts():
     assert counts.tolist() == [1, 1, 1, 1, 1]
 
 
-@pytest.mark.parametrize("splitting, move, bins", [(1, 1, 2), (0, 1, 2), (1, 0, 0), (0, 0, 3)])
-def test_c_equals_numpy_twin_first_updates(splitting, move, bins):
+@pytest.mark.parametrize("base, splitting, move, bins", [
+    ("additions", 1, 1, 2), ("additions", 0, 1, 2), ("additions", 1, 0, 0), ("additions", 0, 0, 3),
+    ("source", 1, 0, 0), ("source", 0, 0, 0)])
+def test_c_equals_numpy_twin_first_updates(base, splitting, move, bins):
+    # "source": the method with every addition off (no tempering, plain copies at resampling, no
+    # buffer, no change test, inflation or clipping)
     d = magpf.simulate_tumbling(0, duration_s=0.6)
-    s = magpf.settings(60.0, pf_particles=32, pf_seed=5, enable_splitting=splitting, enable_move=move,
-                       pf_sphere_bins=bins, pf_decimation=1, **magpf.zero_prior(60.0),
-                       **magpf.METHOD_AS_DESCRIBED)
+    method = magpf.METHOD_WITH_ADDITIONS if base == "additions" else magpf.SOURCE_METHOD
+    s = magpf.settings(60.0, pf_particles=32, pf_seed=5, **magpf.zero_prior(60.0),
+                       **{**method, "enable_splitting": splitting, "enable_move": move,
+                          "pf_sphere_bins": bins, "pf_decimation": 1})
     c, py = magpf.run_c(d.mag, s), magpf.run_python(d.mag, s)
     for a, b in ((c.hard_iron, py.hard_iron), (c.soft_iron, py.soft_iron), (c.neff, py.neff),
                  (c.compensated, py.compensated)):
