@@ -15,7 +15,8 @@ Scenarios as in bench_magpf.simulated, all from the wide zero prior (magpf.zero_
 half the run, figures at the end (the ellipsoid is fitted on the samples after the jump). Figures
 (bench_magpf.figures): hard-iron error (largest axis) at the end [µT] and RMS of |h_c| − |h_0| on
 the noise-free distorted field over the last min(10 s, half the run) [%], mean / worst over the
-seeds. `--source-sweep` prints the same table for the source's method at other values of its own
+seeds, and the seeds on which the filter declared a change of environment (on the tumbling record a
+false one). `--source-sweep` prints the same table for the source's method at other values of its own
 parameters (SOURCE_SWEEP) instead. `--seeds 2 --seconds 10` is the small input of
 tests/test_magpf_ablation.py.
 """
@@ -76,9 +77,18 @@ def source_sweep() -> dict[str, dict]:
     return {label: {**magpf.SOURCE_METHOD, **over} for label, over in SOURCE_SWEEP.items()}
 
 
+def _run_filter(d: magpf.TumblingData, s: dict, end: int, tail_s: float) -> tuple[float, float, float, float]:
+    """bench_magpf.figures of the C filter, then the number of changes declared by sample `end`."""
+    r = magpf.run_c(d.mag, s)
+    est = np.column_stack([r.hard_iron, r.soft_iron])
+    fig = bench_magpf.figures(d, r.hard_iron[end - 1], lambda f, tail: magpf.apply(est[tail], f), end, tail_s)
+    return (*fig, float(r.changes[end - 1]))
+
+
 def ablation(seeds: int, seconds: float, rows: dict[str, dict | None] | None = None) -> dict[str, dict[str, np.ndarray]]:
-    """label -> scenario ("tumbling", "jump") -> (seeds, 3) figures of bench_magpf.figures
-    (hard-iron error [µT], norm RMS clean [%], norm RMS measured [%]) of the rows (label ->
+    """label -> scenario ("tumbling", "jump") -> (seeds, 4): the figures of bench_magpf.figures
+    (hard-iron error [µT], norm RMS clean [%], norm RMS measured [%]) and the changes of
+    environment declared (NaN for the ellipsoid fit) of the rows (label ->
     settings overrides, None: the ellipsoid fit; default `variants` and the ellipsoid fit)."""
     tail_s = min(bench_magpf.TAIL_S, 0.5 * seconds)
     rows = {**variants(), ELLIPSOID_LABEL: None} if rows is None else rows
@@ -92,20 +102,25 @@ def ablation(seeds: int, seconds: float, rows: dict[str, dict | None] | None = N
                 if over is None:
                     start = 0 if jump_at_s is None else int(round(jump_at_s * d.rate_hz))
                     fig = bench_magpf.run_ellipsoid(bench_magpf.after(d, start), end - start, tail_s)
+                    fig = (*fig, float("nan"))
                 else:
                     s = magpf.settings(FIELD_NORM_UT, pf_seed=seed, **{**magpf.zero_prior(FIELD_NORM_UT), **over})
-                    fig = bench_magpf.run_filter(d, s, end, tail_s)
+                    fig = _run_filter(d, s, end, tail_s)
                 out[label][scenario].append(fig)
     return {label: {k: np.array(v) for k, v in scen.items()} for label, scen in out.items()}
 
 
 def markdown(result: dict[str, dict[str, np.ndarray]]) -> str:
-    """The table: per scenario hard-iron error and clean norm RMS, mean / worst over the seeds."""
+    """The table: per scenario hard-iron error and clean norm RMS, mean / worst over the seeds,
+    and the seeds on which a change of environment was declared (tumbling: none happened)."""
     lines = ["| configuration | tumbling: hard-iron err mean / worst [µT] | tumbling: norm RMS clean mean / worst [%] "
-             "| jump: hard-iron err mean / worst [µT] | jump: norm RMS clean mean / worst [%] |",
-             "|---|---|---|---|---|"]
+             "| jump: hard-iron err mean / worst [µT] | jump: norm RMS clean mean / worst [%] "
+             "| seeds with a change declared: tumbling (false) / jump |",
+             "|---|---|---|---|---|---|"]
     for label, scen in result.items():
         cells = [f"{a[:, c].mean():.3f} / {a[:, c].max():.3f}" for a in (scen["tumbling"], scen["jump"]) for c in (0, 1)]
+        declared = [a[:, 3] for a in (scen["tumbling"], scen["jump"])]
+        cells.append("—" if np.isnan(declared[0]).all() else " / ".join(str(int(np.sum(c > 0))) for c in declared))
         lines.append(f"| {label} | " + " | ".join(cells) + " |")
     return "\n".join(lines)
 

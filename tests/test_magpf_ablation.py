@@ -27,9 +27,12 @@ def test_ablation_table_has_the_source_method_each_addition_and_the_baselines(ca
     assert [label.endswith(suffix) for label in labels].index(True) == len(magpf.ADDITIONS)
     assert labels[-2:] == [magpf_ablation.RB_LABEL, magpf_ablation.ELLIPSOID_LABEL]
     assert len(labels) == len(set(labels)) == 1 + len(additions) + 2 + 2
-    for line in lines[1:]:   # 4 cells "mean / worst", finite, mean <= worst
-        cells = [[float(v) for v in cell.split(" / ")] for cell in line.strip("| ").split(" | ")[1:]]
-        assert len(cells) == 4 and all(np.isfinite(m) and m <= w for m, w in cells)
+    for line in lines[1:]:   # 4 cells "mean / worst", finite, mean <= worst; then the declared changes
+        cells = line.strip("| ").split(" | ")[1:]
+        figures = [[float(v) for v in cell.split(" / ")] for cell in cells[:4]]
+        assert len(cells) == 5 and all(np.isfinite(m) and m <= w for m, w in figures)
+        assert cells[4] == "—" if line.startswith(f"| {magpf_ablation.ELLIPSOID_LABEL} |") else (
+            all(0 <= int(k) <= SEEDS for k in cells[4].split(" / ")))
 
 
 def test_the_source_method_is_not_the_method_with_additions():
