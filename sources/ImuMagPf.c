@@ -133,9 +133,14 @@ static const char *ImuMagPfCheckCounts(const ImuMagPfSettings *s)
     if (s->enableMove != 0 && s->enableMove != 1) {
         return "enable_move (enableMove) must be 0 or 1";
     }
-    if ((s->enableTempering != 0 && s->enableTempering != 1) || (s->resampleRoughening != 0 && s->resampleRoughening != 1)
-        || (s->glitchClipping != 0 && s->glitchClipping != 1)) {
-        return "enable_tempering, resample_roughening and glitch_clipping must be 0 or 1";
+    if (s->enableTempering != 0 && s->enableTempering != 1) {
+        return "enable_tempering (enableTempering) must be 0 or 1";
+    }
+    if (s->resampleRoughening != 0 && s->resampleRoughening != 1) {
+        return "resample_roughening (resampleRoughening) must be 0 or 1";
+    }
+    if (s->glitchClipping != 0 && s->glitchClipping != 1) {
+        return "glitch_clipping (glitchClipping) must be 0 or 1";
     }
     if (s->raoBlackwell != 0 && s->raoBlackwell != 1) {
         return "pf_rao_blackwell (raoBlackwell) must be 0 or 1";
