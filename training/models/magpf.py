@@ -66,7 +66,7 @@ _GATE_RAD = float(_FMU_DEFAULTS["pf_min_rotation"])
 #: (benchmarks/magpf_ablation.py). Decimation, particle count, noise levels and thresholds are the
 #: method's own parameters and stay at the defaults.
 ADDITIONS = (
-    Addition("roughening of the resampled cloud (K = 0.2)", {"resample_roughening": 0}, {"resample_roughening": 1}),
+    Addition("roughening of the resampled cloud", {"resample_roughening": 0}, {"resample_roughening": 1}),
     Addition("Metropolis resample-move", {"enable_move": 0}, {"enable_move": 1}),
     Addition("tempering to N_eff ≥ N/2", {"enable_tempering": 0}, {"enable_tempering": 1}),
     Addition(f"direction buffer ({6 * _BINS * _BINS} bins)", {"pf_sphere_bins": 0}, {"pf_sphere_bins": _BINS}),
