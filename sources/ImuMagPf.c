@@ -63,6 +63,9 @@ static const ImuMagPfInternalSetting ImuMagPfInternal[IMU_MAG_PF_INTERNAL_COUNT]
     {"change_spread_soft", "1", IMU_MAG_PF_FIELD(changeSpreadSoft), 0, 0.01},
     {"enable_move", "0/1", IMU_MAG_PF_FIELD(enableMove), 1, 1.0},
     {"norm_time_constant", "updates", IMU_MAG_PF_FIELD(normTimeConstant), 0, 300.0},
+    {"enable_tempering", "0/1", IMU_MAG_PF_FIELD(enableTempering), 1, 1.0},
+    {"resample_roughening", "0/1", IMU_MAG_PF_FIELD(resampleRoughening), 1, 1.0},
+    {"glitch_clipping", "0/1", IMU_MAG_PF_FIELD(glitchClipping), 1, 1.0},
 };
 
 int ImuMagPfInternalInfo(size_t index, const char **name, const char **unit, double *value)
@@ -129,6 +132,15 @@ static const char *ImuMagPfCheckCounts(const ImuMagPfSettings *s)
     }
     if (s->enableMove != 0 && s->enableMove != 1) {
         return "enable_move (enableMove) must be 0 or 1";
+    }
+    if (s->enableTempering != 0 && s->enableTempering != 1) {
+        return "enable_tempering (enableTempering) must be 0 or 1";
+    }
+    if (s->resampleRoughening != 0 && s->resampleRoughening != 1) {
+        return "resample_roughening (resampleRoughening) must be 0 or 1";
+    }
+    if (s->glitchClipping != 0 && s->glitchClipping != 1) {
+        return "glitch_clipping (glitchClipping) must be 0 or 1";
     }
     if (s->raoBlackwell != 0 && s->raoBlackwell != 1) {
         return "pf_rao_blackwell (raoBlackwell) must be 0 or 1";

@@ -30,7 +30,7 @@
 #define IMU_MAG_PF_MAX_TRAINING 64   /* high-weight particles used to train the network */
 #define IMU_MAG_PF_MAX_BIN_SIDE 4    /* largest sphereBins (cells per cube-face side) */
 #define IMU_MAG_PF_MAX_BINS (6 * IMU_MAG_PF_MAX_BIN_SIDE * IMU_MAG_PF_MAX_BIN_SIDE) /* 96 */
-#define IMU_MAG_PF_INTERNAL_COUNT 21 /* settings that are not FMU parameters (ImuMagPf.c ImuMagPfInternal) */
+#define IMU_MAG_PF_INTERNAL_COUNT 24 /* settings that are not FMU parameters (ImuMagPf.c ImuMagPfInternal) */
 
 /** User settings (units in the comments): the FMU parameters pf_* and field_norm, and the internal
  *  settings of ImuMagPf.c ImuMagPfInternal. */
@@ -56,6 +56,10 @@ typedef struct {
     int maxTries;                  /* diversity-restoration tries, 1..20 */
     int enableSplitting;           /* 1: steps 5-6; 0: plain SIR (baseline) */
     int enableMove;                /* 1: Metropolis acceptance of the roughening after resampling (resample-move) */
+    int enableTempering;           /* mode 0: 1: tempering exponent alpha = min(1, sqrt(ln 2 / var_w(l))); 0: alpha = 1 (the method) */
+    int resampleRoughening;        /* mode 0: 1: roughen the resampled cloud (the proposal of enableMove); 0: plain copies (the method) */
+    int glitchClipping;            /* 1: innovations enter the change test clipped at 2 x changeThreshold and readings beyond
+                                      4 x stay out of the buffer / sums; 0: neither */
     int sphereBins;                /* cells per cube-face side of the sample buffer (6 k^2 bins), 0..4; 0: current sample only */
     double changeThreshold;        /* 1, averaged normalised innovation declaring a change; 0: off, else [2, 1e6] */
     double changeSpreadHard;       /* uT, sigma of h_p drawn around the estimate after a change, >= 0 */

@@ -31,10 +31,11 @@ IMU_HIDDEN int ImuMagPfTurned(const ImuMagPf *pf, const double reference[3], con
 IMU_HIDDEN double ImuMagPfInnovation(const ImuMagPf *pf, const double mag[3]);
 /** @brief The same for a state x (hard [uT], soft [1]), the averaged residual of the estimate removed. */
 IMU_HIDDEN double ImuMagPfInnovationOf(const ImuMagPf *pf, const double x[IMU_MAG_PF_STATE_SIZE], const double mag[3]);
-/** @brief A normalised innovation clipped at IMU_MAG_PF_CLIP_FACTOR (ImuMagPfShared.c) x changeThreshold (as it enters the tests). */
+/** @brief A normalised innovation clipped at IMU_MAG_PF_CLIP_FACTOR (ImuMagPfShared.c) x changeThreshold (as it enters the tests);
+ *         z itself with glitchClipping 0. */
 IMU_HIDDEN double ImuMagPfClip(const ImuMagPf *pf, double z);
 /** @brief 1 if the change test is armed and the sample's normalised innovation exceeds
- *         IMU_MAG_PF_OUTLIER_FACTOR (ImuMagPfShared.c) x changeThreshold (a glitch: kept out of the power sums). */
+ *         IMU_MAG_PF_OUTLIER_FACTOR (ImuMagPfShared.c) x changeThreshold (a glitch: kept out of the power sums); 0 with glitchClipping 0. */
 IMU_HIDDEN int ImuMagPfOutlier(const ImuMagPf *pf, const double mag[3]);
 /** @brief Innovation average (inputs clipped at 2 x changeThreshold) and noise inflation from one sample [uT]. */
 IMU_HIDDEN void ImuMagPfAdapt(ImuMagPf *pf, const double mag[3]);

@@ -106,14 +106,14 @@ double ImuMagPfInnovation(const ImuMagPf *pf, const double mag[3])
 
 double ImuMagPfClip(const ImuMagPf *pf, double z)
 {
-    const double clip = IMU_MAG_PF_CLIP_FACTOR * pf->settings.changeThreshold;
+    const double clip = pf->settings.glitchClipping ? IMU_MAG_PF_CLIP_FACTOR * pf->settings.changeThreshold : 0.0;
     return clip > 0.0 && z > clip ? clip : z;
 }
 
 int ImuMagPfOutlier(const ImuMagPf *pf, const double mag[3])
 {
     const double threshold = pf->settings.changeThreshold;
-    return threshold > 0.0 && pf->changeArmed && ImuMagPfInnovation(pf, mag) > IMU_MAG_PF_OUTLIER_FACTOR * threshold;
+    return pf->settings.glitchClipping && threshold > 0.0 && pf->changeArmed && ImuMagPfInnovation(pf, mag) > IMU_MAG_PF_OUTLIER_FACTOR * threshold;
 }
 
 void ImuMagPfAdapt(ImuMagPf *pf, const double mag[3])

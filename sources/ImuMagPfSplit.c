@@ -1,9 +1,12 @@
 /**
  * @file ImuMagPfSplit.c
- * @brief Mode 0 of the particle filter (raoBlackwell = 0, the method, docs/magpf.md): the 9-state
- *        filter over a buffer of past samples binned over the sphere of directions; predict, weigh
- *        (tempered), double-threshold splitting with the restoration network (ImuMagPfNet.c) below
- *        N_eff 2N/3, then systematic resampling (with Metropolis moves) if N_eff is still below.
+ * @brief Mode 0 of the particle filter (raoBlackwell = 0, docs/magpf.md): the method's 9-state
+ *        filter — predict, weigh, double-threshold splitting with the restoration network
+ *        (ImuMagPfNet.c) below N_eff 2N/3, then systematic resampling if N_eff is still below —
+ *        and the project's additions, each with its switch (training.models.magpf.ADDITIONS): a
+ *        buffer of past samples binned over the sphere of directions (sphereBins), tempering
+ *        (enableTempering), roughening of the resampled cloud (resampleRoughening) with Metropolis
+ *        moves (enableMove), and the change test, inflation and gates of ImuMagPfShared.c.
  */
 #include <math.h>
 #include <string.h>
@@ -117,7 +120,8 @@ static double ImuMagPfLogLikelihood(const ImuMagPf *pf, const double x[IMU_MAG_P
     return -sum * c->halfInverseVariance;
 }
 
-/** @brief Weight update w *= p(buffer | x)^alpha; stores log p(buffer | x_i); returns alpha. */
+/** @brief Weight update w *= p(buffer | x)^alpha (alpha = 1 with enableTempering 0); stores
+ *         log p(buffer | x_i); returns alpha. */
 static double ImuMagPfWeigh(ImuMagPf *pf)
 {
     double alpha;
@@ -126,7 +130,7 @@ static double ImuMagPfWeigh(ImuMagPf *pf)
         pf->work.logLikelihood[i] = ImuMagPfLogLikelihood(pf, pf->particle[i]);
         pf->work.logWeight[i] = pf->work.logLikelihood[i];
     }
-    alpha = ImuMagPfTemper(pf);
+    alpha = pf->settings.enableTempering ? ImuMagPfTemper(pf) : 1.0;
     for (i = 0; i < pf->settings.particleCount; i++) {
         pf->work.logWeight[i] = (pf->weight[i] > 0.0 ? log(pf->weight[i]) : -HUGE_VAL) + alpha * pf->work.logWeight[i];
     }
@@ -153,9 +157,9 @@ static void ImuMagPfRedraw(ImuMagPf *pf)
 }
 
 /**
- * @brief Systematic resampling to equal weights, then roughening of the new cloud; with enableMove
- *        each roughened particle is a Metropolis proposal accepted with probability
- *        min(1, (p(buffer | x') / p(buffer | x))^alpha) (resample-move), else it keeps x.
+ * @brief Systematic resampling to equal weights; with resampleRoughening the new cloud is then
+ *        roughened, and with enableMove each roughened particle is a Metropolis proposal accepted with
+ *        probability min(1, (p(buffer | x') / p(buffer | x))^alpha) (resample-move), else it keeps x.
  */
 static void ImuMagPfResample(ImuMagPf *pf, double alpha)
 {
@@ -171,6 +175,8 @@ static void ImuMagPfResample(ImuMagPf *pf, double alpha)
     memcpy(pf->particle, pf->work.copy, (size_t)n * sizeof(pf->particle[0]));
     for (k = 0; k < n; k++) {
         pf->weight[k] = 1.0 / n;
+    }
+    for (k = 0; k < n && pf->settings.resampleRoughening; k++) {
         for (j = 0; j < IMU_MAG_PF_STATE_SIZE; j++) {
             proposal[j] = pf->particle[k][j] + sigma[j] * ImuRngNormal(&pf->rng);
         }

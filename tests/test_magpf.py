@@ -108,27 +108,34 @@ def test_systematic_resampling_counts():
     assert counts.tolist() == [1, 1, 1, 1, 1]
 
 
-@pytest.mark.parametrize("splitting, move, bins", [(1, 1, 2), (0, 1, 2), (1, 0, 0), (0, 0, 3)])
-def test_c_equals_numpy_twin_first_updates(splitting, move, bins):
+@pytest.mark.parametrize("base, splitting, move, bins", [
+    ("additions", 1, 1, 2), ("additions", 0, 1, 2), ("additions", 1, 0, 0), ("additions", 0, 0, 3),
+    ("source", 1, 0, 0), ("source", 0, 0, 0), ("unclipped", 1, 1, 2)])
+def test_c_equals_numpy_twin_first_updates(base, splitting, move, bins):
+    # "source": the method with every addition off (no tempering, plain copies at resampling, no
+    # buffer, no change test, inflation or clipping); "unclipped": the additions but glitch clipping
+    method = {"additions": magpf.METHOD_WITH_ADDITIONS, "source": magpf.SOURCE_METHOD,
+              "unclipped": {**magpf.METHOD_WITH_ADDITIONS, "glitch_clipping": 0}}[base]
     d = magpf.simulate_tumbling(0, duration_s=0.6)
-    s = magpf.settings(60.0, pf_particles=32, pf_seed=5, enable_splitting=splitting, enable_move=move,
-                       pf_sphere_bins=bins, pf_decimation=1, **magpf.zero_prior(60.0),
-                       **magpf.METHOD_AS_DESCRIBED)
+    s = magpf.settings(60.0, pf_particles=32, pf_seed=5, **magpf.zero_prior(60.0),
+                       **{**method, "enable_splitting": splitting, "enable_move": move,
+                          "pf_sphere_bins": bins, "pf_decimation": 1})
     c, py = magpf.run_c(d.mag, s), magpf.run_python(d.mag, s)
     for a, b in ((c.hard_iron, py.hard_iron), (c.soft_iron, py.soft_iron), (c.neff, py.neff),
                  (c.compensated, py.compensated)):
         np.testing.assert_allclose(a, b, rtol=TWIN_RTOL, atol=TWIN_RTOL * 60.0)
 
 
-@pytest.mark.parametrize("move, jump, prior", [(1, None, "zero"), (0, None, "zero"), (1, 1.5, "zero"),
-                                               (1, None, "held")])
-def test_c_equals_numpy_twin_rao_blackwell(move, jump, prior):
+@pytest.mark.parametrize("move, jump, prior, clipping", [(1, None, "zero", 1), (0, None, "zero", 1),
+                                                         (1, 1.5, "zero", 1), (1, 1.5, "zero", 0),
+                                                         (1, None, "held", 1)])
+def test_c_equals_numpy_twin_rao_blackwell(move, jump, prior, clipping):
     # 16 particles, an update every 4th sample: ~75 updates with bridging, resampling, moves and
     # (jump) a declared change of environment; "held": the default prior (3 µT around zero) is
     # held until the data contradict it, then a change restarts the filter. The twin follows the
     # C code operation by operation.
     d = magpf.simulate_tumbling(6, duration_s=3.0, jump_at_s=jump)
-    s = magpf.settings(60.0, pf_particles=16, pf_seed=9, pf_decimation=4, enable_move=move,
+    s = magpf.settings(60.0, pf_particles=16, pf_seed=9, pf_decimation=4, enable_move=move, glitch_clipping=clipping,
                        **(magpf.zero_prior(60.0) if prior == "zero" else {}))
     c, py = magpf.run_c(d.mag, s), magpf.run_python(d.mag, s)
     for a, b in ((c.hard_iron, py.hard_iron), (c.soft_iron, py.soft_iron), (c.neff, py.neff),
@@ -359,6 +366,9 @@ def test_invalid_samples_are_skipped():
     ({"pf_sphere_bins": magpf.MAX_BIN_SIDE + 1}, "pf_sphere_bins"),
     ({"change_threshold": 1.0}, "change_threshold"),
     ({"enable_move": 2}, "enable_move"),
+    ({"enable_tempering": 2}, "enable_tempering"),
+    ({"resample_roughening": 0.5}, "resample_roughening"),
+    ({"glitch_clipping": -1}, "glitch_clipping"),
     ({"pf_rao_blackwell": 2}, "pf_rao_blackwell"),
     ({"pf_hold_prior": 2}, "pf_hold_prior"),
     ({"pf_settle_spread": -1.0}, "pf_settle_spread"),

@@ -48,11 +48,51 @@ N_OUTPUTS = 14               # compensated (3), hard iron (3), soft iron (6), N_
 FMU_SETTINGS = ("field_norm",) + tuple(name for name, _ in layout.SETTINGS if name.startswith("pf_"))
 
 
-#: The method as its source describes it (docs/magpf.md, mode 0): the 9-state filter with the
-#: change test as tuned for it; the defaults are those of the Rao-Blackwellised mode.
-METHOD_AS_DESCRIBED = {"pf_rao_blackwell": 0, "innovation_time_constant": 50.0, "change_threshold": 100.0,
-                       "pf_change_spread_hard": 10.0, "change_spread_soft": 0.0, "pf_min_rotation": 0.0,
-                       "norm_time_constant": 0.0}
+@dataclass(frozen=True)
+class Addition:
+    """One of the project's additions to mode 0 (docs/magpf.md "Mode 0"): its label and the
+    settings that switch it off (the source's method) and on (as in `METHOD_WITH_ADDITIONS`)."""
+
+    label: str
+    off: dict
+    on: dict
+
+
+_FMU_DEFAULTS = layout.settings_defaults()
+_BINS = int(_FMU_DEFAULTS["pf_sphere_bins"])
+_GATE_RAD = float(_FMU_DEFAULTS["pf_min_rotation"])
+
+#: The project's additions to the method of mode 0, in the order the ablation adds them
+#: (benchmarks/magpf_ablation.py). Decimation, particle count, noise levels and thresholds are the
+#: method's own parameters and stay at the defaults.
+ADDITIONS = (
+    Addition("roughening of the resampled cloud", {"resample_roughening": 0}, {"resample_roughening": 1}),
+    Addition("Metropolis resample-move", {"enable_move": 0}, {"enable_move": 1}),
+    Addition("tempering to N_eff ≥ N/2", {"enable_tempering": 0}, {"enable_tempering": 1}),
+    Addition(f"direction buffer ({6 * _BINS * _BINS} bins)", {"pf_sphere_bins": 0}, {"pf_sphere_bins": _BINS}),
+    Addition("innovation-driven inflation (50 updates, ≤ 20×)", {"innovation_time_constant": 0.0, "max_inflation": 1.0},
+             {"innovation_time_constant": 50.0, "max_inflation": 20.0}),
+    Addition("change test (threshold 100, re-draw ± 10 µT / 0, re-test of the prior)", {"change_threshold": 0.0},
+             {"change_threshold": 100.0, "pf_change_spread_hard": 10.0, "change_spread_soft": 0.0}),
+    Addition("glitch clipping", {"glitch_clipping": 0}, {"glitch_clipping": 1}),
+)
+
+#: Additions `METHOD_WITH_ADDITIONS` leaves off (the product's mode-0 defaults have them on); the
+#: ablation adds them after it.
+LATER_ADDITIONS = (
+    Addition("ambient-norm mean (300 updates)", {"norm_time_constant": 0.0}, {"norm_time_constant": 300.0}),
+    Addition(f"rotation gate ({math.degrees(_GATE_RAD):.1f}°)", {"pf_min_rotation": 0.0}, {"pf_min_rotation": _GATE_RAD}),
+)
+
+#: The method of mode 0 as its source describes it (issue 3, docs/magpf.md "Mode 0", steps 1–8:
+#: random walk, observation ‖h_m‖² − ‖h_0‖² of the current sample, N_eff test at 2N/3,
+#: double-threshold splitting, back-propagation restoration network with the entropy test,
+#: systematic resampling), every addition off.
+SOURCE_METHOD = {"pf_rao_blackwell": 0, **{k: v for a in ADDITIONS + LATER_ADDITIONS for k, v in a.off.items()}}
+
+#: The method of mode 0 with the project's additions of `ADDITIONS` ("method + project additions",
+#: the stabilised 9-state filter of the tables); the defaults are those of the Rao-Blackwellised mode.
+METHOD_WITH_ADDITIONS = {**SOURCE_METHOD, **{k: v for a in ADDITIONS for k, v in a.on.items()}}
 
 
 @functools.cache
@@ -442,7 +482,7 @@ class MagPf:
         return 2.0 * self.half_inv_var * e * e
 
     def _clip(self, z: float) -> float:
-        clip = CLIP_FACTOR * float(self.s["change_threshold"])
+        clip = CLIP_FACTOR * float(self.s["change_threshold"]) if int(self.s["glitch_clipping"]) else 0.0
         return clip if clip > 0.0 and z > clip else z
 
     def _clear_evidence(self) -> None:
@@ -457,7 +497,8 @@ class MagPf:
 
     def _outlier(self, mag: np.ndarray) -> bool:
         threshold = float(self.s["change_threshold"])
-        return threshold > 0.0 and self.change_armed and self._innovation(mag) > OUTLIER_FACTOR * threshold
+        return (bool(int(self.s["glitch_clipping"])) and threshold > 0.0 and self.change_armed
+                and self._innovation(mag) > OUTLIER_FACTOR * threshold)
 
     def _adapt(self, mag: np.ndarray) -> None:
         if self.innovation_rate <= 0.0:
@@ -507,7 +548,7 @@ class MagPf:
         loglik = self.loglik
         mean = float(np.sum(self.weight * loglik))
         var = float(np.sum(self.weight * (loglik - mean) ** 2))
-        alpha = math.sqrt(math.log(2.0) / var) if var > math.log(2.0) else 1.0
+        alpha = math.sqrt(math.log(2.0) / var) if int(self.s["enable_tempering"]) and var > math.log(2.0) else 1.0
         with np.errstate(divide="ignore"):
             lw = np.where(self.weight > 0, np.log(np.where(self.weight > 0, self.weight, 1.0)),
                           -np.inf) + alpha * loglik
@@ -609,6 +650,8 @@ class MagPf:
         self.particle = self.particle[idx]
         parent_loglik = self.loglik[idx]
         self.weight = np.full(self.n, 1.0 / self.n)
+        if not int(self.s["resample_roughening"]):
+            return
         move = int(self.s["enable_move"])
         for k in range(self.n):
             proposal = self.particle[k] + sigma * self.rng.normals(STATE_SIZE)
