@@ -80,3 +80,17 @@ def test_load_prior_names_the_file(tmp_path):
     (tmp_path / "g.json").write_text(json.dumps({"prior": {"gyr": {**_prior(0.1).to_json(), "mean": [1.0]}}}))
     with pytest.raises(ModelError, match="not a fleet.json with a prior"):
         load_prior(tmp_path / "g.json")
+
+
+def test_the_posterior_is_tighter_than_the_prior_where_the_data_look():
+    """At one temperature the data pin the bias there (b0 at Tn = −2/3 mixes b0 and b1) far below
+    the prior's spread; the slope b1 alone stays near the prior's σ (the data cannot see it)."""
+    raw, ref, temp = _data(20.0)  # Tn = 0: the data see b0 directly
+    prior = _prior(0.5)
+    fit = GainBiasFitter(prior=prior).fit(raw, ref, temp, 0, "u")
+    post = fit.posterior_sigma
+    assert post.shape == prior.sigma.shape and np.all(post <= prior.sigma * (1 + 1e-9))
+    b = slice(6 + 3, None)
+    b0, b1 = post[b].reshape(3, 2).T
+    assert np.all(b0 < 0.01 * prior.sigma[b].reshape(3, 2)[:, 0])   # NOISE / √3000 ≈ 2e-4
+    assert np.all(b1 > 0.9 * prior.sigma[b].reshape(3, 2)[:, 1])

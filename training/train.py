@@ -317,11 +317,25 @@ def _fit_with_prior(triad: str, raw: np.ndarray, target: np.ndarray, temp: np.nd
     """The maximum a posteriori gain/bias model of one triad under the fleet prior: the data pin
     down what they observe, the population the rest (training.models.prior)."""
     fit = GainBiasFitter(degree=prior.degree, prior=prior).fit(raw, target, temp, seed, UNITS[triad])
-    stats = {**_fit_stats(fit), "fleet_prior_units": prior.units}
+    stats = {**_fit_stats(fit), "fleet_prior_units": prior.units,
+             "posterior_sigma": [float(v) for v in fit.posterior_sigma]}
     lo, hi = prior.t_range
     return fit.model, stats, notes + _fit_notes(triad, fit, prior.degree) + [
         f"{triad}: fitted with the fleet prior of {prior.units} units (degree {prior.degree}, calibrated over "
         f"{lo:.1f} … {hi:.1f} °C): what this recording does not observe comes from the population"]
+
+
+def _prior_pf_spreads(prior: TriadPrior, stats: dict, notes: list[str]) -> dict[str, float]:
+    """The particle filter's prior spreads from the fit under the fleet prior: the largest posterior
+    σ of the magnetometer bias at the population's centre temperature [µT] (pf_prior_spread_hard)
+    and of the calibration matrix's entries [1] (pf_prior_spread_soft) — how far this unit's
+    calibration may be from its truth, given its recording and the population."""
+    degree, sigma = prior.degree, np.asarray(stats["posterior_sigma"])
+    bias = sigma[6 + 3 * degree:].reshape(3, degree + 1)[:, 0]
+    spreads = {"pf_prior_spread_hard": float(bias.max()), "pf_prior_spread_soft": float(sigma[:6].max())}
+    notes.append(f"mag: particle filter prior spreads from the calibration's posterior under the fleet prior: "
+                 f"{spreads['pf_prior_spread_hard']:.3g} µT, {spreads['pf_prior_spread_soft']:.3g}")
+    return spreads
 
 
 def _self_calibrated(datasets: list[ImuData], triads: list[str], degree: int, progress: bool,
@@ -480,6 +494,8 @@ def train(datasets: list[ImuData], seed: int = 0, degree: int | str = AUTO,
         psobp_model = psobp_model if psobp_on else None
     stats = {k: v for k, v in stats.items() if v}
     settings = recommended_settings(datasets, refs, thermal, selfcal, notes)
+    if prior and "mag" in prior and "posterior_sigma" in stats.get("mag", {}):
+        settings.update(_prior_pf_spreads(prior["mag"], stats["mag"], notes))
     notes += fit_warnings(thermal, settings)
     settings["enable_elm"] = float(elm_on)
     settings["enable_psobp"] = float(psobp_on)
