@@ -220,6 +220,15 @@ def _add_verb(sub, verb: str, help_text: str) -> argparse.ArgumentParser:
                           formatter_class=argparse.RawDescriptionHelpFormatter)
 
 
+def _add_dask_options(s: argparse.ArgumentParser) -> None:
+    """--workers K | --scheduler ADDRESS: where a distributed verb runs (training.fleet.engine)."""
+    where = s.add_mutually_exclusive_group()
+    where.add_argument("--workers", type=int, default=None,
+                       help="worker processes of the local Dask cluster (default: the cores available)")
+    where.add_argument("--scheduler", default=None, metavar="ADDRESS",
+                       help="address of a running Dask scheduler (tcp://host:8786) instead of a local cluster")
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The one argparse parser with a subparser per verb; --version prints our distribution's
     name and version (contract.version)."""
@@ -264,11 +273,7 @@ def build_parser() -> argparse.ArgumentParser:
                    "as simulate-fleet writes, or with its own recordings)")
     s.add_argument("--out", required=True, help="output folder: OUT/<unit>/model.json, fleet.json, fleet.md")
     s.add_argument("--seed", type=int, default=0)
-    where = s.add_mutually_exclusive_group()
-    where.add_argument("--workers", type=int, default=None,
-                       help="worker processes of the local Dask cluster (default: the cores available)")
-    where.add_argument("--scheduler", default=None, metavar="ADDRESS",
-                       help="address of a running Dask scheduler (tcp://host:8786) instead of a local cluster")
+    _add_dask_options(s)
     s.set_defaults(func=cmd_fleet_train)
     s = _add_verb(sub, "campaign", "Monte-Carlo co-simulation of an FMU on Dask: parameter variations, noisy inputs")
     s.add_argument("fmu")
@@ -279,11 +284,7 @@ def build_parser() -> argparse.ArgumentParser:
                         "noise_gyr [rad/s], noise_acc [m/s²], noise_mag [µT] (σ of white noise added to that input). Repeatable")
     s.add_argument("--out", required=True, help="output folder: campaign.md, campaign.json, runs.csv, campaign.png")
     s.add_argument("--seed", type=int, default=0)
-    where = s.add_mutually_exclusive_group()
-    where.add_argument("--workers", type=int, default=None,
-                       help="worker processes of the local Dask cluster (default: the cores available)")
-    where.add_argument("--scheduler", default=None, metavar="ADDRESS",
-                       help="address of a running Dask scheduler (tcp://host:8786) instead of a local cluster")
+    _add_dask_options(s)
     s.set_defaults(func=cmd_campaign)
     s = _add_verb(sub, "build-fmu", "write the trained model into the FMU sources and build it")
     s.add_argument("--model", required=True, help="model.json from 'imufmu train'")
