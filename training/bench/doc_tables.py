@@ -138,17 +138,36 @@ GENERATORS = (
          "| enable_psobp |",),
         small=("benchmarks/bench_thermal.py", "verdict", "--out", "{tmp}", "--recordings", "rate",
                "--bp-epochs", "20")),
-    # PENDING (docs/magpf.md, benchmarks/bench_magpf.py: another branch owns them): the commands
-    # those tables name today; the lead fills in their headers and small forms at merge.
+    # PENDING (docs/magpf.md, benchmarks/bench_magpf.py: the particle-filter branch owns them). The
+    # commands its tables name today, with the headers as the doc has them; the lead fills in the
+    # small forms (and checks the headers against what the scripts print) at merge. Tables of
+    # docs/magpf.md that name no command today: the glitch table (line ~256, printed by
+    # `python -m pytest tests/test_pf_glitches.py`), the two settings tables (~284, ~309: FMU
+    # parameters from contract/variables.py, internal settings from ImuMagPf.c), the mode-0
+    # ablation (~388: a described script, no command) and the settings rules (~537, hand-written).
     TableGenerator(
-        "python benchmarks/bench_magpf.py", (),
+        "python benchmarks/bench_magpf.py",
+        ("| method | hard-iron err mean / worst [µT] | norm RMS clean mean / worst [%] "
+         "| norm RMS measured mean / worst [%] |",),
         why_not_small="pending: owned by the particle-filter work (PENDING_DOCS)"),
     TableGenerator(
-        "python -c \"import sys; sys.path.insert(0, 'benchmarks'); import bench_magpf; bench_magpf.cost()\"", (),
+        "python benchmarks/bench_magpf.py --no-sim",
+        ("| trial | spread raw | spread with filter | heading without filter | heading with filter | change "
+         "| changes declared | heading, filter adapting from the start (pf_hold_prior 0) "
+         "| heading, batch ellipsoid fitted on the eval phase |",),
         why_not_small="pending: owned by the particle-filter work (PENDING_DOCS)"),
-    # PENDING (docs/elm.md, benchmarks/bench_elm.py: another branch owns them), as above.
     TableGenerator(
-        "python benchmarks/bench_elm.py", (),
+        "python -c \"import sys; sys.path.insert(0, 'benchmarks'); import bench_magpf; bench_magpf.cost()\"",
+        ("| configuration | µs/sample |",),
+        why_not_small="pending: owned by the particle-filter work (PENDING_DOCS)"),
+    # PENDING (docs/elm.md, benchmarks/bench_elm.py: the ELM branch owns them), as above; its block
+    # layout table (~line 45) is a reference list (hand-written). The doc's headers differ from what
+    # bench_elm.py prints today ("train loss (norm. MSE)"; the BROAD table's columns).
+    TableGenerator(
+        "python benchmarks/bench_elm.py",
+        ("| model | hidden nodes | train loss | field error RMS [µT] | heading RMS [°] | train time [s] |",
+         "| nodes | plain incremental ELM | with back-tuning |",
+         "| trial | without [°] | ELM always on [°] | change | gate | gated change |"),
         why_not_small="pending: owned by the ELM work (PENDING_DOCS)"),
 )
 
