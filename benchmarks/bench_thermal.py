@@ -10,16 +10,26 @@ Recordings (one report folder each under OUT):
 Usage: python benchmarks/bench_thermal.py {plateaus,rate,pan} --out OUT [--runs N] [--seed N]
        [--bp-epochs N] [--pan-dir DIR]
 Each recording is a separate invocation so they can run in parallel on separate cores.
+
+       python benchmarks/bench_thermal.py verdict --out OUT [--recordings plateaus rate pan]
+       [--seeds 0 1 2] [--bp-epochs N] [--pan-dir DIR]
+The table of "Verdict for the chain": each whole recording as calibration data, the degree-2
+bias polynomial fitted on all its static rows, then the rule that sets `enable_psobp`
+(training.models.psobp.residual_psobp_wins: residual network fitted on the first 2/3, judged
+on the held-out last third) for each seed; the figures and the switch are the rule's own.
 """
 from __future__ import annotations
 
 import argparse
 from pathlib import Path
 
+import numpy as np
 import torch
 
-from training.bench.compare_thermal import compare_thermal
-from training.data.io import write_imu_csv
+from training.bench.compare_thermal import compare_thermal, fit_bias_polynomial
+from training.data.io import read_imu_csv, write_imu_csv
+from training.models.psobp import bias_targets, residual_psobp_wins
+from training.models.thermal import apply_thermal
 from training.simulator import load_scenario, simulate
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -30,27 +40,90 @@ PLATEAU_TRAIN_FRACTION = 2.0 / 3.0
 #: Training part of the measured PAN log (issue 4: the first 60 % by time).
 PAN_TRAIN_FRACTION = 0.6
 PAN_DIR = Path("/work/shared/data/pan_thermal")
+PAN_FILE = "pan_etu_cold_chamber.csv.gz"
+#: Names of the recordings in the verdict table.
+LABELS = {"plateaus": "shared sensor", "rate": "variant, 10× rate bias", "pan": "PAN log"}
+#: Degree of the chain's bias polynomial B(T) in the verdict (the single polynomial of the comparison).
+VERDICT_DEGREE = 2
+#: Bias targets of the polynomial: rate low-pass τ [s], window [s], rest threshold [rad/s]
+#: (the PSO-BP fitter's defaults, so both models see the same static windows).
+TARGETS = {"tau_s": 10.0, "window_s": 10.0, "rest_rad_s": 1e-3}
+DPS = np.pi / 180.0
+
+
+def recording_path(name: str, out: Path, pan_dir: Path) -> Path:
+    """The imu-csv/1 file of a recording: PAN from pan_dir, the simulated ones simulated into out."""
+    if name == "pan":
+        return pan_dir / PAN_FILE
+    scenario = load_scenario(SCENARIOS[name])
+    return write_imu_csv(simulate(scenario), out / f"{scenario.name}.csv.gz")
+
+
+def polynomial_compensated(t, gyr, ref_gyr, temp) -> np.ndarray:
+    """(N, 3) gyro [rad/s] after the degree-VERDICT_DEGREE bias polynomial fitted on every static
+    10 s window of the recording (as the chain's B(T) with A = I, G = 1)."""
+    tw, _, bw = bias_targets(t, gyr, ref_gyr, temp, TARGETS["tau_s"], TARGETS["window_s"], TARGETS["rest_rad_s"])
+    return apply_thermal(fit_bias_polynomial(tw, bw, VERDICT_DEGREE), gyr, temp)
+
+
+def verdict_rows(paths: dict[str, Path], seeds: list[int], bp_epochs: int) -> list[dict]:
+    """Per recording: held-out 10 s-mean RMS [°/s] of the polynomial alone, of the hybrid per
+    seed, the rule's switch per seed and the held-out window count (residual_psobp_wins)."""
+    rows = []
+    for name, path in paths.items():
+        d = read_imu_csv(path)
+        gyr = polynomial_compensated(d.t, d.gyr, d.ref_gyr, d.temp)
+        decisions = [residual_psobp_wins(d.t, gyr, d.ref_gyr, d.temp, seed, epochs=bp_epochs) for seed in seeds]
+        rows.append({"recording": name, "windows": decisions[0].windows,
+                     "polynomial_dps": decisions[0].rms_polynomial / DPS,
+                     "hybrid_dps": [x.rms_hybrid / DPS for x in decisions],
+                     "enable": [bool(x.enable) for x in decisions]})
+    return rows
+
+
+def _switch_text(enable: list[bool]) -> str:
+    """'on (all seeds)', 'off (all seeds)' or the per-seed list."""
+    if all(enable):
+        return "on (all seeds)"
+    if not any(enable):
+        return "off (all seeds)"
+    return " / ".join("on" if e else "off" for e in enable)
+
+
+def verdict_table(rows: list[dict], seeds: list[int]) -> str:
+    """The Markdown verdict table of docs/thermal_models.md."""
+    lines = ["| recording | 10 s-mean RMS, polynomial alone [°/s] | with residual PSO-BP [°/s] (seeds "
+             + "/".join(map(str, seeds)) + ") | enable_psobp |", "|---|---|---|---|"]
+    for r in rows:
+        lines.append(f"| {LABELS[r['recording']]} ({r['windows']} held-out windows) | {r['polynomial_dps']:.4f} | "
+                     + " / ".join(f"{x:.4f}" for x in r["hybrid_dps"]) + f" | {_switch_text(r['enable'])} |")
+    return "\n".join(lines) + "\n"
 
 
 def main() -> None:
-    """Simulate (or locate) the recording, run the comparison, print the Markdown table."""
+    """Simulate (or locate) the recording(s), run the comparison or the verdict, print the Markdown table."""
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("recording", choices=["plateaus", "rate", "pan"])
+    p.add_argument("recording", choices=["plateaus", "rate", "pan", "verdict"])
     p.add_argument("--out", type=Path, required=True)
     p.add_argument("--runs", type=int, default=50)
     p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2], help="verdict: the network's seeds")
+    p.add_argument("--recordings", nargs="+", choices=list(LABELS), default=list(LABELS),
+                   help="verdict: the recordings")
     p.add_argument("--bp-epochs", type=int, default=3000)
     p.add_argument("--pan-dir", type=Path, default=PAN_DIR)
     a = p.parse_args()
     torch.set_num_threads(1)
     out = a.out / a.recording
     out.mkdir(parents=True, exist_ok=True)
-    if a.recording == "pan":
-        path, fraction = a.pan_dir / "pan_etu_cold_chamber.csv.gz", PAN_TRAIN_FRACTION
-    else:
-        scenario = load_scenario(SCENARIOS[a.recording])
-        path = write_imu_csv(simulate(scenario), out / f"{scenario.name}.csv.gz")
-        fraction = PLATEAU_TRAIN_FRACTION
+    if a.recording == "verdict":
+        paths = {name: recording_path(name, out, a.pan_dir) for name in a.recordings}
+        text = verdict_table(verdict_rows(paths, a.seeds, a.bp_epochs), a.seeds)
+        (out / "verdict.md").write_text(text)
+        print(text)
+        return
+    path = recording_path(a.recording, out, a.pan_dir)
+    fraction = PAN_TRAIN_FRACTION if a.recording == "pan" else PLATEAU_TRAIN_FRACTION
     compare_thermal([path], out, runs=a.runs, seed=a.seed, train_fraction=fraction,
                     bp_epochs=a.bp_epochs, progress=False)
     print((out / "compare_thermal.md").read_text())

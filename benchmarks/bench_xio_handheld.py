@@ -27,10 +27,12 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from contract import layout  # noqa: E402
+from contract.mounting import mount_matrix, settings_codes  # noqa: E402
 from training.bench.bench import run_xio_fusion  # noqa: E402
 from training.data.io import read_imu_csv  # noqa: E402
 from training.frames import euler_from_quat, quat_multiply  # noqa: E402
 from training.models.thermal import apply_thermal  # noqa: E402
+from training.mounting import body_attitude  # noqa: E402
 
 DATA = ROOT.parent / "shared" / "data" / "xio_handheld" / "xio_handheld.csv.gz"
 #: A field whose calibrated norm leaves ±10 % of its median at rest is disturbed: the band the
@@ -127,8 +129,11 @@ def main() -> None:
     fmu = build_fmu(coefficients_array(artefact), settings_dict(artefact), out / "ImuFusion.fmu")
     t = data.t - data.t[0]
     res = run_fmu(fmu, t, data.inputs(), parameters=recording_parameters(data))
-    q_imu, q_xio = res[:, _Q], run_xio_fusion(data)
-    acc_c = apply_thermal(artefact.thermal["acc"], data.acc, data.temp)
+    # The FMU reports in the body axes of the mounting train set; x-io Fusion and the calibrated
+    # accelerometer are in the sensor's: both are turned into the body axes before any comparison.
+    codes = settings_codes(settings_dict(artefact))
+    q_imu, q_xio = res[:, _Q], body_attitude(run_xio_fusion(data), codes)
+    acc_c = apply_thermal(artefact.thermal["acc"], data.acc, data.temp) @ mount_matrix(codes).T
     rest = detect_rest(data).mask
     up_acc = acc_c / np.linalg.norm(acc_c, axis=1, keepdims=True)  # at rest f = −g points up
     settle = t > 5.0  # both filters start from their first sample; 5 s of convergence excluded

@@ -4,10 +4,11 @@ for FMI 2 and FMI 3 FMUs with identity coefficients and the default settings (pa
 and on). A Monte-Carlo campaign restores a state per run: this says what that costs in steps.
 Times are medians of 5 batches [µs per call] on this machine, fmpy's ctypes call included.
 
-Usage: OMP_NUM_THREADS=1 .venv/bin/python benchmarks/state_cost.py
+Usage: OMP_NUM_THREADS=1 .venv/bin/python benchmarks/state_cost.py [--calls N]
 """
 from __future__ import annotations
 
+import argparse
 import sys
 import tempfile
 import time
@@ -30,14 +31,14 @@ BATCHES = 5
 STEP_S = 0.01
 
 
-def _per_call_us(call) -> float:
-    """Median over BATCHES of the mean time of `call()` [µs] in a batch of CALLS."""
+def _per_call_us(call, calls: int) -> float:
+    """Median over BATCHES of the mean time of `call()` [µs] in a batch of `calls`."""
     times = []
     for _ in range(BATCHES):
         start = time.perf_counter()
-        for _ in range(CALLS):
+        for _ in range(calls):
             call()
-        times.append((time.perf_counter() - start) / CALLS * 1e6)
+        times.append((time.perf_counter() - start) / calls * 1e6)
     return float(np.median(times))
 
 
@@ -50,7 +51,8 @@ def _verbs(fmu) -> dict:
             "serialize": fmu.serializeFMUstate, "deserialize": fmu.deSerializeFMUstate}
 
 
-def _row(path: Path, label: str, parameters: dict) -> str:
+def _row(path: Path, label: str, parameters: dict, calls: int) -> str:
+    """The table row of one FMU and parameter set: state size and per-call times of `calls`-call batches."""
     with initialised_fmu(path, parameters=parameters) as fmu:
         step = fmu.doStep if not isinstance(fmu, FMU3Slave) else (lambda t, h: fmu.doStep(t, h))
         for k in range(200):
@@ -59,11 +61,11 @@ def _row(path: Path, label: str, parameters: dict) -> str:
         state = verbs["get"]()
         blob = verbs["serialize"](state)
         costs = {
-            "doStep": _per_call_us(lambda: step(2.0, STEP_S)),
-            "get + free": _per_call_us(lambda: verbs["free"](verbs["get"]())),
-            "set": _per_call_us(lambda: verbs["set"](state)),
-            "serialize": _per_call_us(lambda: verbs["serialize"](state)),
-            "deserialize + free": _per_call_us(lambda: verbs["free"](verbs["deserialize"](blob))),
+            "doStep": _per_call_us(lambda: step(2.0, STEP_S), calls),
+            "get + free": _per_call_us(lambda: verbs["free"](verbs["get"]()), calls),
+            "set": _per_call_us(lambda: verbs["set"](state), calls),
+            "serialize": _per_call_us(lambda: verbs["serialize"](state), calls),
+            "deserialize + free": _per_call_us(lambda: verbs["free"](verbs["deserialize"](blob)), calls),
         }
         verbs["free"](state)
     cells = " | ".join(f"{v:.1f}" for v in costs.values())
@@ -71,12 +73,16 @@ def _row(path: Path, label: str, parameters: dict) -> str:
 
 
 def main() -> None:
+    """Build the FMI 2 and FMI 3 FMUs, time the state verbs, print the table."""
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--calls", type=int, default=CALLS, help=f"calls per timed batch (default {CALLS})")
+    calls = parser.parse_args().calls
     rows = []
     with tempfile.TemporaryDirectory(prefix="imufusion-state-") as tmp:
         for fmi in (2, 3):
             path = build_fmu(np.asarray(identity_coefficients()), {}, Path(tmp) / f"fmi{fmi}.fmu", fmi_version=fmi)
             for label, parameters in (("particle filter off", {}), ("particle filter on", {"enable_pf": True})):
-                rows.append(_row(path, f"FMI {fmi}, {label}", parameters))
+                rows.append(_row(path, f"FMI {fmi}, {label}", parameters, calls))
     print("| FMU | state [KiB] | doStep [µs] | get + free [µs] | set [µs] | serialize [µs] | "
           "deserialize + free [µs] | set / doStep |")
     print("|---|---|---|---|---|---|---|---|")

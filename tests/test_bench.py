@@ -113,3 +113,29 @@ def test_bench_broad_writes_tables_and_fmu_equals_batch(tmp_path):
     for path in result["files"]:
         assert (tmp_path / "out" / path.split("/")[-1]).stat().st_size > 0
     assert "doi:10.3390/data6070072" in (tmp_path / "out" / "broad.md").read_text()
+
+
+def test_speed_rows_switch_one_stage_each():
+    # Every enable_* setting gets a row; its "on" and "off" runs differ in that stage's switch
+    # only (the rest is train's settings), so the difference is the stage's cost, not noise.
+    runs = bench._stage_runs()
+    switches = [n for n, _ in layout.SETTINGS if n.startswith("enable_")]
+    assert switches == list(runs)[:len(switches)]
+    for name, (on, off) in runs.items():
+        switch = name.split(",")[0]
+        assert on[switch] == 1.0 and off[switch] == 0.0
+        assert {k: v for k, v in on.items() if k != switch} == {k: v for k, v in off.items() if k != switch}
+
+
+def test_speed_refuses_a_model_without_stage_coefficients(tmp_path):
+    # A model without PSO-BP coefficients (no gyro reference): timing that stage on would time nothing.
+    from contract.errors import ModelError
+    from training.train import train
+    data = static_trial()
+    rng = np.random.default_rng(0)
+    data.gyr, data.acc, data.mag = (x + s * rng.standard_normal(x.shape)
+                                    for x, s in ((data.gyr, 1e-3), (data.acc, 1e-2), (data.mag, 0.3)))
+    artefact = train([data], seed=0, progress=False, allow_identity=True)
+    path = artefact.save(tmp_path / "model.json")
+    with pytest.raises(ModelError, match="the model has no .*psobp coefficients"):
+        bench.bench_speed(tmp_path, model=path, samples=100)

@@ -42,7 +42,7 @@ def broad_dir(data_dir: str | Path | None = None) -> Path:
     """Folder of the BROAD trials: data_dir, or <repo parent>/shared/data/broad."""
     if data_dir is not None:
         return Path(data_dir)
-    return Path(__file__).resolve().parent.parent.parent / "shared" / "data" / "broad"
+    return Path(__file__).resolve().parents[3] / "shared" / "data" / "broad"
 
 
 def trial_paths(trials: list[str] | None, data_dir: str | Path | None = None) -> list[Path]:
@@ -240,11 +240,13 @@ def _plot(rows: list[dict], out_dir: Path) -> Path:
     return path
 
 
-def bench_broad(trials: list[str] | None, out_dir: str | Path, data_dir: str | Path | None = None) -> dict:
+def bench_broad(trials: list[str] | None, out_dir: str | Path, data_dir: str | Path | None = None,
+                samples: int | None = None) -> dict:
     """Run ImuFusion (batch runtime, BROAD_SETTINGS), VQF 9D, x-io Fusion and Madgwick on BROAD trials.
 
     trials: name prefixes ('01', '28_disturbed', ...) or None for every trial in the folder;
-    data_dir: folder of the imu-csv/1 trials (default <repo parent>/shared/data/broad). Writes
+    data_dir: folder of the imu-csv/1 trials (default <repo parent>/shared/data/broad); samples: use
+    only the first `samples` samples of each trial (all when None: the benchmark). Writes
     broad.md, broad.csv and broad_total_rmse.png to out_dir and prints the Markdown table.
     Returns {"trials": [per-trial rows], "groups": {filter: {group: {total, heading, inclination,
     n_trials}}}, "ablation": {variant: {group: ...}}, "fmu": {trial: max |Δq|}, "files": [...]}.
@@ -252,6 +254,8 @@ def bench_broad(trials: list[str] | None, out_dir: str | Path, data_dir: str | P
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     datas = [read_imu_csv(p) for p in trial_paths(trials, data_dir)]
+    if samples is not None:
+        datas = [d.slice(slice(0, samples)) for d in datas]
     rows, ablation_rows = [], []
     for data in datas:
         for name, run in FILTERS.items():
@@ -276,63 +280,114 @@ def bench_broad(trials: list[str] | None, out_dir: str | Path, data_dir: str | P
             "files": [str(out_dir / "broad.md"), str(out_dir / "broad.csv"), str(plot)]}
 
 
-def _best_time(fn, repeats: int = 3) -> float:
-    """Shortest wall time [s] of `repeats` calls of fn()."""
-    best = float("inf")
+def _best_times(fns: dict, repeats: int = 3) -> dict[str, float]:
+    """Shortest wall time [s] of `repeats` calls of each fn, the calls interleaved (a, b, a, b, …)
+    so that a change of the machine's load hits every fn alike."""
+    best = dict.fromkeys(fns, float("inf"))
     for _ in range(repeats):
-        start = time.perf_counter()
-        fn()
-        best = min(best, time.perf_counter() - start)
+        for name, fn in fns.items():
+            start = time.perf_counter()
+            fn()
+            best[name] = min(best[name], time.perf_counter() - start)
     return best
 
 
-def _stage_switches() -> dict[str, dict[str, float]]:
-    """Settings that switch one stage of the default chain off: every enable_* setting."""
-    return {n: {n: 0.0} for n, _ in layout.SETTINGS if n.startswith("enable_")}
+def _stage_switches() -> list[str]:
+    """The settings that switch one stage of the chain on (1) or off (0): every enable_* setting."""
+    return [n for n, _ in layout.SETTINGS if n.startswith("enable_")]
 
 
-def bench_speed(out_dir: str | Path) -> dict:
-    """Per-sample cost of the runtime (whole chain at default settings, each stage off, quaternion
-    mode), VQF's batch cost in the same run and the ratio; FMU doStep cost through fmpy; memory of
-    the runtime structs; training time on the simulated calibration set. Writes speed.md to out_dir,
-    prints it and returns the numbers (µs per sample, bytes, s)."""
+#: Stage rows of the speed table beyond the enable_* switches: name -> settings of the "on" run
+#: (the "off" run is the same with enable_pf 0). At train's settings the particle filter holds the
+#: trained calibration until it declares a change (pf_hold_prior 1), so on an undisturbed recording
+#: it mostly runs its change test; this row times it adapting from the first sample.
+STAGE_VARIANTS = {"enable_pf, adapting from the start (pf_hold_prior 0)": {"enable_pf": 1.0, "pf_hold_prior": 0.0}}
+
+
+def _stage_runs() -> dict[str, tuple[dict, dict]]:
+    """Stage rows of the speed table: name -> (overrides with the stage on, with it off)."""
+    runs = {stage: ({stage: 1.0}, {stage: 0.0}) for stage in _stage_switches()}
+    runs.update({name: (on, {**on, "enable_pf": 0.0}) for name, on in STAGE_VARIANTS.items()})
+    return runs
+
+
+def _speed_model(model: str | Path | None, scenario_dir: Path, calibration: str):
+    """(artefact, training wall time [s] or None, training samples or None): the artefact at
+    `model`, else training.train.train on the simulated calibration set (seed 0), timed. The
+    artefact must carry ELM and PSO-BP coefficients: their stage-on timings need them."""
+    from training.artefact import load_artefact
+    from contract.errors import ModelError
+    from training.simulator import load_scenario, simulate
+    from training.train import train
+    if model is not None:
+        artefact, train_s, samples = load_artefact(model), None, None
+    else:
+        data = simulate(load_scenario(scenario_dir / calibration), seed=0)
+        start = time.perf_counter()
+        artefact = train([data], seed=0, progress=False)
+        train_s, samples = time.perf_counter() - start, len(data)
+    missing = [name for name in ("elm", "psobp") if getattr(artefact, name) is None]
+    if missing:
+        raise ModelError(f"bench speed: {model or calibration}: the model has no {' and no '.join(missing)} "
+                         "coefficients; timing a stage switched on needs them")
+    return artefact, train_s, samples
+
+
+def bench_speed(out_dir: str | Path, model: str | Path | None = None, samples: int | None = None,
+                fmu_samples: int = 20000) -> dict:
+    """Per-sample cost of the runtime [µs/sample] and VQF's batch cost in the same run: each stage
+    (every enable_* setting) switched on and off on a trained model (ELM and PSO-BP coefficients,
+    train's settings, the particle filter at train's noise settings), the whole chain with identity
+    coefficients at the defaults and at the BROAD set; FMU doStep cost through fmpy; memory of the
+    runtime structs; training time on the simulated calibration set.
+
+    model: a model.json to time instead of training one (then no training time is reported);
+    samples: use only the first `samples` samples of the recording (all when None); fmu_samples:
+    samples stepped through the FMU. Writes speed.md to out_dir, prints it and returns the numbers.
+    """
     from vqf import VQF
     from fmu.cosim import run_fmu
+    from training.artefact import coefficients_array, settings_dict
     from training.fmu_build import build_fmu
     from training.main_job import DEFAULT_CALIBRATION, SCENARIO_DIR
     from training.runtime import run_batch, runtime_sizes
     from training.simulator import load_scenario, simulate
-    from training.train import train
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
+    artefact, train_s, train_samples = _speed_model(model, SCENARIO_DIR, DEFAULT_CALIBRATION)
     data = simulate(load_scenario(SCENARIO_DIR / "eval_handheld.toml"), seed=1)
+    if samples is not None:
+        data = data.slice(slice(0, samples))
     t, x, n = data.t - data.t[0], _inputs(data), len(data)
-    coefficients = layout.identity_coefficients()
+    identity, trained = layout.identity_coefficients(), coefficients_array(artefact)
+    trained_settings = settings_dict(artefact)
 
-    def runtime_us(overrides: dict) -> float:
-        settings = layout.settings_array(overrides)
-        return 1e6 * _best_time(lambda: run_batch(coefficients, settings, t, x)) / n
-    runtime = {"whole chain (defaults)": runtime_us({})}
-    runtime.update({f"{name} off": runtime_us(o) for name, o in _stage_switches().items()})
-    runtime["attitude_mode 1 (quaternion, BROAD set)"] = runtime_us(BROAD_SETTINGS)
-    runtime["BROAD set, rest bias off"] = runtime_us({**BROAD_SETTINGS, "rest_gyro_threshold": 0.0})
-    runtime["BROAD set, field rejection off"] = runtime_us({**BROAD_SETTINGS, "mag_reject_time": 0.0})
+    def timed(coefficients, settings: dict):
+        array = layout.settings_array(settings)
+        return lambda: run_batch(coefficients, array, t, x)
     gyr, acc, mag = (np.ascontiguousarray(a) for a in (data.gyr, data.acc, data.mag))
     ts = float(np.median(np.diff(data.t)))
-    vqf_us = 1e6 * _best_time(lambda: VQF(ts).updateBatch(gyr, acc, mag)) / n
-    fmu_path = build_fmu(np.array(coefficients), {}, out_dir / "ImuFusion.fmu")
-    m = min(n, 20000)
-    fmu_us = 1e6 * _best_time(lambda: run_fmu(fmu_path, t[:m], x[:m]), repeats=1) / m
+    runs = {"VQF": lambda: VQF(ts).updateBatch(gyr, acc, mag)}
+    stages = _stage_runs()
+    for stage, (on, off) in stages.items():
+        runs[(stage, "on")] = timed(trained, {**trained_settings, **on})
+        runs[(stage, "off")] = timed(trained, {**trained_settings, **off})
+    chain = {"whole chain, identity coefficients (defaults)": {},
+             "identity coefficients, BROAD set (attitude_mode 1, rest bias)": BROAD_SETTINGS,
+             "identity coefficients, BROAD set, rest bias off": {**BROAD_SETTINGS, "rest_gyro_threshold": 0.0},
+             "identity coefficients, BROAD set, field rejection off": {**BROAD_SETTINGS, "mag_reject_time": 0.0}}
+    runs.update({name: timed(identity, overrides) for name, overrides in chain.items()})
+    us = {key: 1e6 * s / n for key, s in _best_times(runs).items()}
+    fmu_path = build_fmu(np.array(identity), {}, out_dir / "ImuFusion.fmu")
+    m = min(n, fmu_samples)
+    fmu_us = 1e6 * _best_times({"fmu": lambda: run_fmu(fmu_path, t[:m], x[:m])}, repeats=1)["fmu"] / m
     fmu_path.unlink()
-    calibration = simulate(load_scenario(SCENARIO_DIR / DEFAULT_CALIBRATION), seed=0)
-    start = time.perf_counter()
-    train([calibration], seed=0, progress=False)
-    train_s = time.perf_counter() - start
-    result = {"samples": n, "runtime_us": runtime, "vqf_batch_us": vqf_us,
-              "ratio_default_to_vqf": runtime["whole chain (defaults)"] / vqf_us,
-              "ratio_quaternion_to_vqf": runtime["attitude_mode 1 (quaternion, BROAD set)"] / vqf_us,
+    result = {"samples": n, "vqf_batch_us": us["VQF"],
+              "stages_us": {stage: {"on": us[(stage, "on")], "off": us[(stage, "off")]} for stage in stages},
+              "trained_settings_enabled": [s for s in _stage_switches() if trained_settings[s]],
+              "runtime_us": {name: us[name] for name in chain},
               "fmu_step_us": fmu_us, "sizes_bytes": runtime_sizes(),
-              "train_s": train_s, "train_samples": len(calibration)}
+              "train_s": train_s, "train_samples": train_samples}
     text = _speed_markdown(result)
     (out_dir / "speed.md").write_text(text)
     print(text)
@@ -341,15 +396,25 @@ def bench_speed(out_dir: str | Path) -> dict:
 
 def _speed_markdown(r: dict) -> str:
     """The Markdown report of bench_speed."""
-    lines = [f"Per-sample cost on the simulated handheld scenario ({r['samples']} samples, best of 3):", "",
-             "| what | µs/sample | × VQF batch |", "|---|---|---|"]
-    for name, us in r["runtime_us"].items():
-        lines.append(f"| ImuFusion runtime (batch), {name} | {us:.3f} | {us / r['vqf_batch_us']:.2f} |")
-    lines += [f"| VQF 9D (vqf.VQF.updateBatch) | {r['vqf_batch_us']:.3f} | 1.00 |",
+    vqf = r["vqf_batch_us"]
+    lines = [f"Per-sample cost on the simulated handheld scenario ({r['samples']} samples, best of 3, every row "
+             "and VQF timed in the same run, interleaved):", "",
+             "Each stage switched on and off on the trained model (its ELM and PSO-BP coefficients, train's "
+             f"settings otherwise: {', '.join(r['trained_settings_enabled']) or 'no stage'} on as trained; "
+             "the particle filter at train's noise settings):", "",
+             "| stage | on [µs/sample] | off [µs/sample] | on − off [µs/sample] | on × VQF | off × VQF |",
+             "|---|---|---|---|---|---|"]
+    for stage, v in r["stages_us"].items():
+        lines.append(f"| {stage} | {v['on']:.3f} | {v['off']:.3f} | {v['on'] - v['off']:+.3f} | "
+                     f"{v['on'] / vqf:.2f} | {v['off'] / vqf:.2f} |")
+    lines += ["", "| what | µs/sample | × VQF batch |", "|---|---|---|"]
+    lines += [f"| ImuFusion runtime (batch), {name} | {us:.3f} | {us / vqf:.2f} |" for name, us in r["runtime_us"].items()]
+    lines += [f"| VQF 9D (vqf.VQF.updateBatch) | {vqf:.3f} | 1.00 |",
               f"| ImuFusion FMU doStep through fmpy (set inputs, doStep, get outputs) | {r['fmu_step_us']:.1f} | "
-              f"{r['fmu_step_us'] / r['vqf_batch_us']:.0f} |", "",
+              f"{r['fmu_step_us'] / vqf:.0f} |", "",
               "Memory (sizeof, from ImuBatchSizes() in the runtime library):", ""]
     lines += [f"- {k}: {v} bytes" for k, v in r["sizes_bytes"].items()]
-    lines += ["", f"Training (training.train.train on the simulated {r['train_samples']}-sample calibration set, "
-                  f"seed 0): {r['train_s']:.1f} s"]
+    if r["train_s"] is not None:
+        lines += ["", f"Training (training.train.train on the simulated {r['train_samples']}-sample calibration set, "
+                      f"seed 0): {r['train_s']:.1f} s"]
     return "\n".join(lines) + "\n"

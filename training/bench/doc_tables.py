@@ -1,0 +1,252 @@
+"""The one registry of the commands that write the tables of docs/*.md and README.md.
+
+Every Markdown table in those files is one of:
+
+- **measured**: a line `Command: `…`` in the paragraph just above or just below the table names
+  the command that prints it; the command is a `TableGenerator.command` below and the table's
+  header row is one of its `headers` (so running the command prints that table);
+- **generated** by `python -m contract.generate` (inside a `generated:begin` region);
+- **hand-written**: an HTML comment `<!-- hand-written: <why> -->` just above the table (reference
+  lists and rules: settings, layouts, protocols, what a check covers).
+
+tests/test_doc_tables.py holds the docs to this (`tables`, `coverage_problems`) and runs each
+generator on its small input (`TableGenerator.small`).
+"""
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[2]
+#: The shared measured data (read only); small forms that read it skip without it.
+SHARED = ROOT.parent / "shared" / "data"
+#: The files whose tables are covered.
+DOC_FILES = ("README.md", *sorted(str(p.relative_to(ROOT)) for p in (ROOT / "docs").glob("*.md")))
+#: Docs whose benchmark scripts other work owns: their tables are not checked yet (the lead
+#: empties this list when those branches merge and their small forms are filled in below).
+PENDING_DOCS = ("docs/elm.md", "docs/magpf.md")
+
+COMMAND_TAG = re.compile(r"Command: `([^`]+)`")
+HAND_WRITTEN_TAG = re.compile(r"<!-- hand-written: \S[^>]*-->")
+GENERATED_TAG = "python -m contract.generate"
+
+
+@dataclass(frozen=True)
+class TableGenerator:
+    """A command that prints tables of the docs.
+
+    command: as the docs name it (`Command: `…``); headers: the header row of each table it
+    prints, as printed; small: its small-input form, the arguments after the Python interpreter,
+    run from the repository root ("{tmp}" is a scratch folder), None while it has none (see
+    `why_not_small`); trains: the small form trains a model (each such run costs 10–30 s of CPU);
+    needs: paths under SHARED the small form reads (it is skipped when one is missing)."""
+    command: str
+    headers: tuple[str, ...]
+    small: tuple[str, ...] | None = None
+    trains: bool = False
+    needs: tuple[str, ...] = ()
+    why_not_small: str = ""
+
+
+def _call(statement: str) -> tuple[str, ...]:
+    """Small form that runs one Python statement (a generator function with small arguments)."""
+    return ("-c", statement)
+
+
+_THERMAL_HEADER = ("| model | residual RMS [°/s] | RMS x / y / z [°/s] | 100 s variance [(°/s)²] | "
+                   "bias stability [°/h] (vs uncomp.) | Allan min [°/h] (vs uncomp.) | "
+                   "training CPU [s] (CV) | BP epochs (CV) |")
+_BROAD_GROUPS = "| filter | undisturbed | disturbed | all |"
+
+GENERATORS = (
+    TableGenerator(
+        "imufmu bench broad-trained --out bench/broad-trained",
+        (_BROAD_GROUPS,
+         "| trial | VQF 9D (defaults) | ImuFusion FMU, no reference | ImuFusion FMU, no reference, enable_pf = 1 "
+         "| ImuFusion FMU, attitude reference | ImuFusion FMU, attitude reference, enable_pf = 1 |",
+         "| trial | training | spread raw | spread without filter | spread with filter | heading without | heading with |"),
+        small=_call("from training.bench.bench_trained import bench_broad_trained; "
+                    "bench_broad_trained('{tmp}', trials=['01'])"),
+        trains=True, needs=("broad",)),
+    TableGenerator(
+        "imufmu bench broad --out bench/broad",
+        (_BROAD_GROUPS, "| trial | ImuFusion | VQF 9D | x-io Fusion | Madgwick |",
+         "| variant | undisturbed | disturbed | all |"),
+        small=_call("from training.bench.bench import bench_broad; bench_broad(['01'], '{tmp}', samples=12000)"),
+        needs=("broad",)),
+    TableGenerator(
+        "imufmu bench speed --out bench/speed",
+        ("| stage | on [µs/sample] | off [µs/sample] | on − off [µs/sample] | on × VQF | off × VQF |",
+         "| what | µs/sample | × VQF batch |"),
+        small=_call("from training.bench.bench import bench_speed; bench_speed('{tmp}', samples=2000, fmu_samples=200)"),
+        trains=True),
+    TableGenerator(
+        "OMP_NUM_THREADS=1 .venv/bin/python benchmarks/two_soaks.py",
+        ("| T [°C] | triad | raw | corrected | corrected / raw (largest) |",),
+        small=("benchmarks/two_soaks.py",), trains=True),
+    TableGenerator(
+        "OMP_NUM_THREADS=1 .venv/bin/python benchmarks/calibrated_range.py",
+        ("| T [°C] | triad | raw | extrapolated | clamped |",),
+        small=("benchmarks/calibrated_range.py",), trains=True),
+    TableGenerator(
+        "python benchmarks/bench_protocol.py --seeds 0 --selfcal",
+        ("| evaluation | trained on | settings | rate [°/s] | field [µT] | roll [°] | pitch [°] | yaw [°] "
+         "| tilt [°] | heading [°] |",),
+        why_not_small="trains three models on the full protocol and calibration sets (about 1 min); "
+                      "no shorter input pins the sensor down"),
+    TableGenerator(
+        "python benchmarks/bench_xio_handheld.py --out bench/xio",
+        ("| quantity | value |",),
+        small=("benchmarks/bench_xio_handheld.py", "--out", "{tmp}"), trains=True,
+        needs=("xio_handheld/xio_handheld.csv.gz",)),
+    TableGenerator(
+        "OMP_NUM_THREADS=1 .venv/bin/python benchmarks/train_time.py",
+        ("| machine | wall [s], median of # | CPU [s], median of # | wall ≤ # s |",),
+        small=("benchmarks/train_time.py", "--runs", "1"), trains=True),
+    TableGenerator(
+        "OMP_NUM_THREADS=1 .venv/bin/python benchmarks/xio_mounting.py",
+        ("| FMU run | mount_x, mount_y, mount_z | median roll [°] | tilt from level − x-io Fusion's, median / p90 [°] "
+         "| inclination error against x-io Fusion, median / p90 [°] |",),
+        small=("benchmarks/xio_mounting.py",), trains=True, needs=("xio_handheld/xio_handheld.csv.gz",)),
+    TableGenerator(
+        "OMP_NUM_THREADS=1 .venv/bin/python benchmarks/state_cost.py",
+        ("| FMU | state [KiB] | doStep [µs] | get + free [µs] | set [µs] | serialize [µs] | deserialize + free [µs] "
+         "| set / doStep |",),
+        small=("benchmarks/state_cost.py", "--calls", "20")),
+    TableGenerator(
+        "imufmu pipeline --out out",
+        ("| scenario | metric | raw | ImuFusion FMU | bound | ok |",),
+        why_not_small="the main job itself (simulate, train, build, validate, co-simulate; about 30 s); "
+                      "tests/test_pipeline.py runs it and pins its numbers (the golden record)"),
+    TableGenerator(
+        "OMP_NUM_THREADS=1 python benchmarks/bench_thermal.py plateaus --out /tmp/bench_plateaus --runs 50 --seed 0",
+        (_THERMAL_HEADER,),
+        small=("benchmarks/bench_thermal.py", "plateaus", "--out", "{tmp}", "--runs", "1", "--bp-epochs", "20")),
+    TableGenerator(
+        "OMP_NUM_THREADS=1 python benchmarks/bench_thermal.py rate --out /tmp/bench_rate --runs 50 --seed 0",
+        (_THERMAL_HEADER,),
+        small=("benchmarks/bench_thermal.py", "rate", "--out", "{tmp}", "--runs", "1", "--bp-epochs", "20")),
+    TableGenerator(
+        "OMP_NUM_THREADS=1 python benchmarks/bench_thermal.py pan --out /tmp/bench_pan --runs 50 --seed 0",
+        (_THERMAL_HEADER,),
+        small=("benchmarks/bench_thermal.py", "pan", "--out", "{tmp}", "--runs", "1", "--bp-epochs", "20"),
+        needs=("pan_thermal/pan_etu_cold_chamber.csv.gz",)),
+    TableGenerator(
+        "OMP_NUM_THREADS=1 python benchmarks/bench_thermal.py verdict --out /tmp/bench_verdict",
+        ("| recording | 10 s-mean RMS, polynomial alone [°/s] | with residual PSO-BP [°/s] (seeds #/#/#) "
+         "| enable_psobp |",),
+        small=("benchmarks/bench_thermal.py", "verdict", "--out", "{tmp}", "--recordings", "rate",
+               "--bp-epochs", "20")),
+    # PENDING (docs/magpf.md, benchmarks/bench_magpf.py: the particle-filter branch owns them). The
+    # commands its tables name today, with the headers as the doc has them; the lead fills in the
+    # small forms (and checks the headers against what the scripts print) at merge. Tables of
+    # docs/magpf.md that name no command today: the glitch table (line ~256, printed by
+    # `python -m pytest tests/test_pf_glitches.py`), the two settings tables (~284, ~309: FMU
+    # parameters from contract/variables.py, internal settings from ImuMagPf.c), the mode-0
+    # ablation (~388: a described script, no command) and the settings rules (~537, hand-written).
+    TableGenerator(
+        "python benchmarks/bench_magpf.py",
+        ("| method | hard-iron err mean / worst [µT] | norm RMS clean mean / worst [%] "
+         "| norm RMS measured mean / worst [%] |",),
+        why_not_small="pending: owned by the particle-filter work (PENDING_DOCS)"),
+    TableGenerator(
+        "python benchmarks/bench_magpf.py --no-sim",
+        ("| trial | spread raw | spread with filter | heading without filter | heading with filter | change "
+         "| changes declared | heading, filter adapting from the start (pf_hold_prior 0) "
+         "| heading, batch ellipsoid fitted on the eval phase |",),
+        why_not_small="pending: owned by the particle-filter work (PENDING_DOCS)"),
+    TableGenerator(
+        "python -c \"import sys; sys.path.insert(0, 'benchmarks'); import bench_magpf; bench_magpf.cost()\"",
+        ("| configuration | µs/sample |",),
+        why_not_small="pending: owned by the particle-filter work (PENDING_DOCS)"),
+    # PENDING (docs/elm.md, benchmarks/bench_elm.py: the ELM branch owns them), as above; its block
+    # layout table (~line 45) is a reference list (hand-written). The doc's headers differ from what
+    # bench_elm.py prints today ("train loss (norm. MSE)"; the BROAD table's columns).
+    TableGenerator(
+        "python benchmarks/bench_elm.py",
+        ("| model | hidden nodes | train loss | field error RMS [µT] | heading RMS [°] | train time [s] |",
+         "| nodes | plain incremental ELM | with back-tuning |",
+         "| trial | without [°] | ELM always on [°] | change | gate | gated change |"),
+        why_not_small="pending: owned by the ELM work (PENDING_DOCS)"),
+)
+
+
+def generator(command: str) -> TableGenerator | None:
+    """The registered generator of `command` (as the docs name it), None when none is."""
+    return next((g for g in GENERATORS if g.command == command), None)
+
+
+def normalised_header(header: str) -> str:
+    """A header row with every number replaced by '#' (run counts and seeds vary with the input)."""
+    return re.sub(r"\d+(\.\d+)?", "#", header.strip())
+
+
+@dataclass(frozen=True)
+class DocTable:
+    """A Markdown table of a doc: file (relative to ROOT), line of its header row (1-based),
+    the header row, and the paragraphs just above and just below it (the text that names its source)."""
+    file: str
+    line: int
+    header: str
+    above: tuple[str, ...]
+    below: tuple[str, ...]
+
+
+def _paragraph(lines: list[str], start: int, step: int) -> tuple[str, ...]:
+    """The non-blank lines from `start` on in direction `step` (±1), after skipping blank lines."""
+    k = start
+    while 0 <= k < len(lines) and not lines[k].strip():
+        k += step
+    out = []
+    while 0 <= k < len(lines) and lines[k].strip() and not lines[k].startswith("|"):
+        out.append(lines[k])
+        k += step
+    return tuple(out[::step])
+
+
+def tables(file: str, text: str) -> list[DocTable]:
+    """Every Markdown table of `text` (runs of lines starting with '|' outside code fences)."""
+    lines, found, fenced, k = text.splitlines(), [], False, 0
+    while k < len(lines):
+        if lines[k].startswith("```"):
+            fenced = not fenced
+        if fenced or not lines[k].startswith("|"):
+            k += 1
+            continue
+        end = k
+        while end < len(lines) and lines[end].startswith("|"):
+            end += 1
+        found.append(DocTable(file, k + 1, lines[k].strip(), _paragraph(lines, k - 1, -1), _paragraph(lines, end, 1)))
+        k = end
+    return found
+
+
+def source_problem(table: DocTable) -> str | None:
+    """None when the table names its source as the module docstring says; else the problem."""
+    context = "\n".join(table.above + table.below)
+    if HAND_WRITTEN_TAG.search("\n".join(table.above)) or GENERATED_TAG in "\n".join(table.above):
+        return None
+    commands = COMMAND_TAG.findall(context)
+    if not commands:
+        return ("names no source: add `Command: `…`` (a command of training/bench/doc_tables.py GENERATORS) "
+                "or `<!-- hand-written: <why> -->` just above it")
+    known = [g for g in map(generator, commands) if g is not None]
+    if not known:
+        return f"names {', '.join(commands)}, which is not in training/bench/doc_tables.py GENERATORS"
+    if not any(normalised_header(table.header) == normalised_header(h) for g in known for h in g.headers):
+        return f"its header is not one that {', '.join(g.command for g in known)} prints (GENERATORS headers)"
+    return None
+
+
+def coverage_problems(root: Path = ROOT) -> list[str]:
+    """'file:line: problem' for every table of DOC_FILES (PENDING_DOCS left out) without its source."""
+    problems = []
+    for file in DOC_FILES:
+        if file in PENDING_DOCS:
+            continue
+        for table in tables(file, (root / file).read_text()):
+            problem = source_problem(table)
+            if problem:
+                problems.append(f"{file}:{table.line}: table '{table.header[:60]}' {problem}")
+    return problems
