@@ -4,8 +4,9 @@ their held-out test recording through the C runtime (training.fleet.heldout).
 
 Usage: OMP_NUM_THREADS=1 .venv/bin/python benchmarks/fleet_prior.py --prior FLEET_OUT/fleet.json
        [--fleet scenarios/fleet/mems_grade.toml] [--units 5] [--seconds 60]
-(FLEET_OUT from `imufmu simulate-fleet … --seed 0` then `imufmu fleet train`; the new units are units
-1000, 1001, … of the same fleet seed, so none was in a fleet of fewer than 1000.)
+or, building the prior first from a fleet of K units (simulate-fleet --seed 0, then fleet train):
+       OMP_NUM_THREADS=1 .venv/bin/python benchmarks/fleet_prior.py --fleet-units K [--units 5] [--seconds 60]
+The new units are units 1000, 1001, … of the fleet seed 0, so none was in a fleet of fewer than 1000.
 """
 from __future__ import annotations
 
@@ -47,9 +48,20 @@ def unit_rows(spec, k: int, prior: Path, seconds: float, work: Path) -> dict[str
     return rows
 
 
+def fleet_prior(fleet: Path, units: int, work: Path) -> Path:
+    """fleet.json of a fleet of `units` units (fleet seed 0) trained on the local cluster."""
+    from training.fleet.report import write_fleet_report
+    from training.fleet.simulate import simulate_fleet
+    from training.fleet.train import train_fleet
+    simulate_fleet(fleet, units, work / "fleet", seed=0)
+    return write_fleet_report(train_fleet(work / "fleet", work / "fleet_out"), work / "fleet_out")[0]
+
+
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("--prior", type=Path, required=True, help="fleet.json of `imufmu fleet train`")
+    source = p.add_mutually_exclusive_group(required=True)
+    source.add_argument("--prior", type=Path, help="fleet.json of `imufmu fleet train`")
+    source.add_argument("--fleet-units", type=int, help="build the prior from a fleet of this many units first")
     p.add_argument("--fleet", type=Path, default=ROOT / "scenarios" / "fleet" / "mems_grade.toml")
     p.add_argument("--units", type=int, default=5)
     p.add_argument("--seconds", type=float, default=60.0)
@@ -59,8 +71,9 @@ def main(argv: list[str] | None = None) -> int:
     print("|---|---|" + "---|" * len(HELD_OUT_METRICS))
     ratios = []
     with tempfile.TemporaryDirectory(prefix="imufusion-fleet-prior-") as tmp:
+        prior = a.prior or fleet_prior(a.fleet, a.fleet_units, Path(tmp))
         for k in range(FIRST_NEW_UNIT, FIRST_NEW_UNIT + a.units):
-            rows = unit_rows(spec, k, a.prior, a.seconds, Path(tmp))
+            rows = unit_rows(spec, k, prior, a.seconds, Path(tmp))
             for label, errors in rows.items():
                 print(f"| {k} | {label} | " + " | ".join(f"{errors[m]:.4f}" for m in HELD_OUT_METRICS) + " |", flush=True)
             full, short, prior = rows.values()

@@ -25,8 +25,9 @@ from training.fleet.spec import load_fleet  # noqa: E402
 from training.fleet.train import train_fleet  # noqa: E402
 
 FLEET = ROOT / "scenarios" / "fleet" / "mems_grade.toml"
-#: The faulty units: one with ten times its drawn gyro bias, one whose calibration recording is cut.
-BIASED_UNIT, CUT_UNIT = 17, 42
+#: The faulty units, as shares of the fleet: one with ten times its drawn gyro bias, one whose
+#: calibration recording is cut short.
+BIASED_SHARE, CUT_SHARE = 1 / 3, 2 / 3
 #: Bound of issue 19 on wall(2 workers) / wall(1 worker).
 RATIO_BOUND = 0.6
 
@@ -34,9 +35,11 @@ RATIO_BOUND = 0.6
 def simulate(devices: int, folder: Path) -> None:
     """The fleet with its two faulty units."""
     spec = load_fleet(FLEET)
+    biased, cut_unit = int(devices * BIASED_SHARE), int(devices * CUT_SHARE)
     for k in tqdm(range(devices), desc="simulate", unit="unit"):
-        simulate_unit(spec, k, 0, folder, {"gyr.bias_dps": 10.0} if k == BIASED_UNIT else None)
-    cut = folder / unit_name(CUT_UNIT) / "calibration" / "calibration.csv.gz"
+        simulate_unit(spec, k, 0, folder, {"gyr.bias_dps": 10.0} if k == biased else None)
+    print(f"{unit_name(biased)}: gyro bias × 10; {unit_name(cut_unit)}: calibration recording cut short")
+    cut = folder / unit_name(cut_unit) / "calibration" / "calibration.csv.gz"
     cut.write_bytes(cut.read_bytes()[:5000])
 
 

@@ -105,6 +105,18 @@ GENERATORS = (
         ("| machine | wall [s], median of # | CPU [s], median of # | wall ≤ # s |",),
         small=("benchmarks/train_time.py", "--runs", "1"), trains=True),
     TableGenerator(
+        "OMP_NUM_THREADS=1 .venv/bin/python benchmarks/train_time.py --profile",
+        ("| stage | time [s] | share |",),
+        small=("benchmarks/train_time.py", "--profile"), trains=True),
+    TableGenerator(
+        "OMP_NUM_THREADS=1 .venv/bin/python benchmarks/fleet_prior.py --prior FLEET_OUT/fleet.json --units 5",
+        ("| unit | calibration | rate_err_dps | field_err_ut |",),
+        small=("benchmarks/fleet_prior.py", "--fleet-units", "5", "--units", "1", "--seconds", "30"), trains=True),
+    TableGenerator(
+        "OMP_NUM_THREADS=1 .venv/bin/python benchmarks/fleet_speed.py --devices 200",
+        ("| units | wall, 1 worker [s] | wall, 2 workers [s] | ratio (bound 0.6) | models equal |",),
+        small=("benchmarks/fleet_speed.py", "--devices", "3"), trains=True),
+    TableGenerator(
         "OMP_NUM_THREADS=1 .venv/bin/python benchmarks/xio_mounting.py",
         ("| FMU run | mount_x, mount_y, mount_z | median roll [°] | tilt from level − x-io Fusion's, median / p90 [°] "
          "| inclination error against x-io Fusion, median / p90 [°] |",),
