@@ -63,6 +63,8 @@ static const ImuMagPfInternalSetting ImuMagPfInternal[IMU_MAG_PF_INTERNAL_COUNT]
     {"change_spread_soft", "1", IMU_MAG_PF_FIELD(changeSpreadSoft), 0, 0.01},
     {"enable_move", "0/1", IMU_MAG_PF_FIELD(enableMove), 1, 1.0},
     {"norm_time_constant", "updates", IMU_MAG_PF_FIELD(normTimeConstant), 0, 300.0},
+    {"update_growth", "1", IMU_MAG_PF_FIELD(updateGrowth), 0, 0.05},
+    {"update_innovation", "1", IMU_MAG_PF_FIELD(updateInnovation), 0, 2.0},
 };
 
 int ImuMagPfInternalInfo(size_t index, const char **name, const char **unit, double *value)
@@ -192,6 +194,12 @@ static const char *ImuMagPfCheckValues(const ImuMagPfSettings *s)
     }
     if (!(s->normTimeConstant >= 0.0 && s->normTimeConstant <= 1e6)) {
         return "norm_time_constant (normTimeConstant) must be in [0, 1e6] updates (0: off)";
+    }
+    if (!(s->updateGrowth >= 0.0 && s->updateGrowth <= 10.0)) {
+        return "update_growth (updateGrowth) must be in [0, 10] (0: an update whenever a sample was added)";
+    }
+    if (!(s->updateInnovation >= 1.0 && s->updateInnovation <= 1e6)) {
+        return "update_innovation (updateInnovation) must be in [1, 1e6]";
     }
     if (!(s->fieldNorm > 0.0 && s->fieldNorm <= 1e4)) {
         return "field_norm (fieldNorm) must be in (0, 1e4] uT";

@@ -25,6 +25,7 @@
 #define IMU_MAG_PF_BISECTIONS 40        /* bisection steps of the next bridging exponent */
 #define IMU_MAG_PF_MIN_BRIDGE_STEP 1e-6 /* smallest increase of g per step */
 #define IMU_MAG_PF_MOVE_SWEEPS 2        /* Metropolis sweeps after each resampling */
+#define IMU_MAG_PF_IDLE_SWEEPS 1        /* Metropolis sweeps of an update that did not resample */
 #define IMU_MAG_PF_MOVE_SCALE (2.38 * 2.38 / 3.0) /* random-walk scale for 3 dimensions (Gelman et al. 1996) */
 #define IMU_MAG_PF_MOVE_FLOOR 1e-10     /* uT^2 added to the proposal covariance diagonal */
 #define IMU_MAG_PF_MAX_SOFT 0.3         /* admissible |eigenvalue of B| */
@@ -253,11 +254,11 @@ static void ImuMagPfRbResample(ImuMagPf *pf)
 }
 
 /** @brief Metropolis sweeps with target pi_g (log: before + g (now - before)) and proposal x + F z. */
-static void ImuMagPfRbMove(ImuMagPf *pf, double g, double factor[3][3])
+static void ImuMagPfRbMove(ImuMagPf *pf, double g, double factor[3][3], int sweeps)
 {
     double proposal[3], soft[IMU_MAG_SOFT_COUNT], softBefore[IMU_MAG_SOFT_COUNT];
     int sweep, k, j;
-    for (sweep = 0; sweep < IMU_MAG_PF_MOVE_SWEEPS; sweep++) {
+    for (sweep = 0; sweep < sweeps; sweep++) {
         for (k = 0; k < pf->settings.particleCount; k++) {
             double z[3], before, now, accept, u;
             for (j = 0; j < 3; j++) {
@@ -288,11 +289,10 @@ static void ImuMagPfRbMove(ImuMagPf *pf, double g, double factor[3][3])
 static void ImuMagPfRbBridge(ImuMagPf *pf)
 {
     const double threshold = (2.0 / 3.0) * pf->settings.particleCount;
-    double g = 0.0;
-    int step, i;
+    double g = 0.0, factor[3][3];
+    int step, i, moved = 0;
     for (step = 1; g < 1.0; step++) {
         const double next = ImuMagPfRbNextExponent(pf, g, step);
-        double factor[3][3];
         for (i = 0; i < pf->settings.particleCount; i++) {
             pf->work.logWeight[i] = ImuMagPfRbLogWeight(pf, i, next - g);
         }
@@ -303,10 +303,30 @@ static void ImuMagPfRbBridge(ImuMagPf *pf)
             ImuMagPfRbProposal(pf, factor);
             ImuMagPfRbResample(pf);
             if (pf->settings.enableMove) {
-                ImuMagPfRbMove(pf, g, factor);
+                ImuMagPfRbMove(pf, g, factor, IMU_MAG_PF_MOVE_SWEEPS);
+                moved = 1;
             }
         }
     }
+    if (pf->settings.enableMove && !moved) { /* a cloud whose weights stayed even still explores pi_new */
+        ImuMagPfRbProposal(pf, factor);
+        ImuMagPfRbMove(pf, 1.0, factor, IMU_MAG_PF_IDLE_SWEEPS);
+    }
+}
+
+/** @brief 1 if the power sums hold new samples since the last move of the particles and either
+ *         they grew by updateGrowth x the samples they held then (moments[0] counts the samples) or
+ *         the estimate no longer explains the data (innovation average above updateInnovation).
+ *         Without a new sample the target is the one the cloud already represents, so skipping is
+ *         exact; the growth rule spaces the moves geometrically, as the information in the sums
+ *         grows; the innovation rule keeps the estimate, which the change test, the glitch gate and
+ *         the ambient-norm mean use, from lagging behind data that contradict it. */
+static int ImuMagPfRbInformative(const ImuMagPf *pf)
+{
+    const ImuMagPfSettings *s = &pf->settings;
+    const double added = pf->rb.moments[0] - pf->rb.previousMoments[0];
+    return added > 0.0 && (added >= s->updateGrowth * pf->rb.previousMoments[0] ||
+                           pf->innovationAverage > s->updateInnovation);
 }
 
 int ImuMagPfRbUpdate(ImuMagPf *pf, const double mag[3])
@@ -332,6 +352,9 @@ int ImuMagPfRbUpdate(ImuMagPf *pf, const double mag[3])
         return 0;
     } else if (ImuMagPfPriorExplains(pf, mag)) {
         ImuMagPfRbTakeBackPrior(pf);
+        return 0;
+    }
+    if (!ImuMagPfRbInformative(pf)) { /* the change test above ran; the cloud waits for information */
         return 0;
     }
     if (!ImuMagPfRbWeighNew(pf)) { /* no admissible particle left: a change the test did not see */
