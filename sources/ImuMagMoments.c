@@ -57,21 +57,45 @@ void ImuMagMomentsAdd(double sums[IMU_MAG_MOMENT_COUNT], const double u[3])
     }
 }
 
-/** @brief One axis of the shift: out[e] = sum_k C(e_axis, k) q^(e_axis - k) in[e with e_axis = k]. */
+/** @brief coefficient[a][k] = C(a, k) q^(a - k) for k <= a <= 4: the factors of one axis's shift. */
+static void ImuMagShiftCoefficients(const double q[IMU_MAG_MAX_DEGREE + 1],
+                                    double coefficient[IMU_MAG_MAX_DEGREE + 1][IMU_MAG_MAX_DEGREE + 1])
+{
+    int a, k;
+    for (a = 0; a <= IMU_MAG_MAX_DEGREE; a++) {
+        for (k = 0; k <= a; k++) {
+            coefficient[a][k] = ImuMagBinomial[a][k] * q[a - k];
+        }
+    }
+}
+
+/** @brief One axis of the shift: out[e] = sum_k C(e_axis, k) q^(e_axis - k) in[e with e_axis = k], one
+ *         chain of monomials at a time (the other two exponents fixed, e_axis = 0, 1, ...). */
 static void ImuMagShiftAxis(const double in[IMU_MAG_MOMENT_COUNT], int axis, const double q[IMU_MAG_MAX_DEGREE + 1],
                             double out[IMU_MAG_MOMENT_COUNT])
 {
-    int e[3], k;
-    for (e[0] = 0; e[0] <= IMU_MAG_MAX_DEGREE; e[0]++) {
-        for (e[1] = 0; e[0] + e[1] <= IMU_MAG_MAX_DEGREE; e[1]++) {
-            for (e[2] = 0; e[0] + e[1] + e[2] <= IMU_MAG_MAX_DEGREE; e[2]++) {
-                int source[3] = {e[0], e[1], e[2]};
+    double coefficient[IMU_MAG_MAX_DEGREE + 1][IMU_MAG_MAX_DEGREE + 1];
+    const int first = axis == 0 ? 1 : 0, second = axis == 2 ? 1 : 2; /* the two other axes */
+    int i, j, a, k;
+    ImuMagShiftCoefficients(q, coefficient);
+    for (i = 0; i <= IMU_MAG_MAX_DEGREE; i++) {
+        for (j = 0; i + j <= IMU_MAG_MAX_DEGREE; j++) {
+            const int length = IMU_MAG_MAX_DEGREE + 1 - i - j;
+            int e[3], index[IMU_MAG_MAX_DEGREE + 1];
+            double chain[IMU_MAG_MAX_DEGREE + 1];
+            e[first] = i;
+            e[second] = j;
+            for (a = 0; a < length; a++) {
+                e[axis] = a;
+                index[a] = ImuMagIndex[e[0]][e[1]][e[2]];
+                chain[a] = in[index[a]];
+            }
+            for (a = 0; a < length; a++) {
                 double total = 0.0;
-                for (k = 0; k <= e[axis]; k++) {
-                    source[axis] = k;
-                    total += ImuMagBinomial[e[axis]][k] * q[e[axis] - k] * in[ImuMagIndex[source[0]][source[1]][source[2]]];
+                for (k = 0; k <= a; k++) {
+                    total += coefficient[a][k] * chain[k];
                 }
-                out[ImuMagIndex[e[0]][e[1]][e[2]]] = total;
+                out[index[a]] = total;
             }
         }
     }
@@ -99,7 +123,7 @@ static double ImuMagPhiMoment(const double t[IMU_MAG_MOMENT_COUNT], int i, int j
                        [e[2] + ImuMagPhiExponent[j][2]]];
 }
 
-/** @brief Information matrix J = sum phi phi^T / var + I / s^2 and vector eta = sum phi z / var + m0 / s^2
+/** @brief Information matrix J = sum phi phi^T / var + I / s^2 (lower triangle) and vector eta = sum phi z / var + m0 / s^2
  *         with z = offset - |d|^2; returns sum z^2 / var. */
 static double ImuMagNormalEquations(const double t[IMU_MAG_MOMENT_COUNT], const ImuMagMarginalPrior *prior,
                                     double information[IMU_MAG_SOFT_COUNT][IMU_MAG_SOFT_COUNT],
@@ -110,7 +134,7 @@ static double ImuMagNormalEquations(const double t[IMU_MAG_MOMENT_COUNT], const 
     int i, j;
     for (i = 0; i < IMU_MAG_SOFT_COUNT; i++) {
         double sumSquares = 0.0;
-        for (j = 0; j < IMU_MAG_SOFT_COUNT; j++) {
+        for (j = 0; j <= i; j++) { /* the lower triangle: all the Cholesky factorisation reads */
             information[i][j] = ImuMagPhiFactor[i] * ImuMagPhiFactor[j] * ImuMagPhiMoment(t, i, j) / prior->variance;
         }
         information[i][i] += precision;

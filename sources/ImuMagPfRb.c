@@ -159,18 +159,34 @@ static double ImuMagPfRbLogWeight(const ImuMagPf *pf, int i, double step)
     return log(pf->weight[i]) + step * (now - before);
 }
 
-/** @brief N_eff the weights would have after raising the exponent by step [particles]. */
+/** @brief Log weight of every particle (work.logWeight) and its log-target increment (work.logSpare) such
+ *         that ImuMagPfRbLogWeight(pf, i, step) = logWeight[i] + step logSpare[i] (an inadmissible
+ *         particle: -inf and 0), so that the bisection takes no logarithm. */
+static void ImuMagPfRbIncrements(ImuMagPf *pf)
+{
+    int i;
+    for (i = 0; i < pf->settings.particleCount; i++) {
+        const double now = pf->work.logLikelihood[i], before = pf->rb.previousLog[i];
+        const int usable = pf->weight[i] > 0.0 && now > -HUGE_VAL && before > -HUGE_VAL;
+        pf->work.logWeight[i] = usable ? log(pf->weight[i]) : -HUGE_VAL;
+        pf->work.logSpare[i] = usable ? now - before : 0.0;
+    }
+}
+
+/** @brief N_eff the weights would have after raising the exponent by step [particles] (after
+ *         ImuMagPfRbIncrements). */
 static double ImuMagPfRbEssAfter(const ImuMagPf *pf, double step)
 {
     const int n = pf->settings.particleCount;
+    const double *base = pf->work.logWeight, *increment = pf->work.logSpare;
     double largest = -HUGE_VAL, sum = 0.0, squares = 0.0;
     int i;
     for (i = 0; i < n; i++) {
-        const double l = ImuMagPfRbLogWeight(pf, i, step);
+        const double l = base[i] + step * increment[i];
         largest = l > largest ? l : largest;
     }
     for (i = 0; i < n; i++) {
-        const double w = exp(ImuMagPfRbLogWeight(pf, i, step) - largest);
+        const double w = exp(base[i] + step * increment[i] - largest);
         sum += w;
         squares += w * w;
     }
@@ -179,12 +195,16 @@ static double ImuMagPfRbEssAfter(const ImuMagPf *pf, double step)
 
 /** @brief Next bridging exponent after g: 1 when N_eff stays >= N/2 (or on the last step), else the
  *         largest exponent that keeps N_eff >= N/2 (bisection). */
-static double ImuMagPfRbNextExponent(const ImuMagPf *pf, double g, int step)
+static double ImuMagPfRbNextExponent(ImuMagPf *pf, double g, int step)
 {
     const double half = 0.5 * pf->settings.particleCount;
     double low = g, high = 1.0;
     int k;
-    if (step >= IMU_MAG_PF_BRIDGE_STEPS || ImuMagPfRbEssAfter(pf, 1.0 - g) >= half) {
+    if (step >= IMU_MAG_PF_BRIDGE_STEPS) {
+        return 1.0;
+    }
+    ImuMagPfRbIncrements(pf);
+    if (ImuMagPfRbEssAfter(pf, 1.0 - g) >= half) {
         return 1.0;
     }
     for (k = 0; k < IMU_MAG_PF_BISECTIONS; k++) {
