@@ -20,6 +20,8 @@ same run (issue 18 item 4; docs/magpf.md, *Cost*): prints a Markdown table.
 from __future__ import annotations
 
 import argparse
+import os
+import shlex
 import subprocess
 import sys
 import tempfile
@@ -68,9 +70,10 @@ class Row:
 
 
 def compile_host(out_dir: Path) -> Path:
-    """Compile benchmarks/c/pf_cost_host.c into out_dir; RuntimeError with the compiler output."""
+    """Compile benchmarks/c/pf_cost_host.c into out_dir with env CC (default cc, as the runtime);
+    RuntimeError with the compiler output."""
     host = out_dir / "pf_cost_host"
-    cmd = ["cc", *HOST_FLAGS, f"-I{FMPY_C_CODE}", str(HOST_SOURCE), "-o", str(host), "-ldl"]
+    cmd = [*(shlex.split(os.environ.get("CC", "cc")) or ["cc"]), *HOST_FLAGS, f"-I{FMPY_C_CODE}", str(HOST_SOURCE), "-o", str(host), "-ldl"]
     result = subprocess.run(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
     if result.returncode != 0:
         raise RuntimeError(f"pf_cost: cannot compile {HOST_SOURCE.name}: {result.stdout.strip()}")
