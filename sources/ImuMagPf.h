@@ -63,7 +63,7 @@ typedef struct {
     double normTimeConstant;       /* updates, mean of the residual removed from the change test; 0: off */
     double updateGrowth;           /* 1, mode 1 moves the particles once the samples in the power sums grew by this
                                       fraction since its last move (and by at least one); 0: whenever one was added */
-    double updateInnovation;       /* 1, ... or whenever the innovation average exceeds this, >= 1 */
+    double updateInnovation;       /* 1, mode 1 also moves them (given a new sample) while the innovation average exceeds this, >= 1 */
     double settleSpread;           /* uT, the estimate counts as settled while the hard-iron cloud sigma is below it; 0: always */
     int holdPrior;                 /* 1: mode 1 holds the prior calibration until the first declared change; 0: adapts from the start */
     int raoBlackwell;              /* 1: hard iron sampled, soft iron integrated out (ImuMagPfRb.c); 0: the method's 9-state filter */

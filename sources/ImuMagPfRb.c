@@ -10,8 +10,11 @@
  * increment, N_eff < 2N/3 triggers systematic resampling and Metropolis moves (random walk with
  * the weighted cloud covariance x 2.38^2/3) that leave pi_g invariant; at most
  * IMU_MAG_PF_BRIDGE_STEPS steps per update, the last one with g = 1 (adaptive tempering of a
- * resample-move sequential Monte Carlo sampler). A change of environment restarts the sums with
- * a hard-iron prior around the estimate (changeSpreadHard) and a soft-iron prior at the estimate
+ * resample-move sequential Monte Carlo sampler); an update that did not resample makes one
+ * Metropolis sweep with pi_new. The cloud moves only when the sums gained information
+ * (ImuMagPfRbInformative: updateGrowth, updateInnovation); the change test runs every update.
+ * A change of environment restarts the sums with a hard-iron prior around the estimate
+ * (changeSpreadHard) and a soft-iron prior at the estimate
  * (changeSpreadSoft), as does an update in which no particle keeps an admissible soft iron (around
  * the prior calibration if none around the estimate does). After a change the prior calibration is
  * re-tested against the data and taken back once it explains them as well as the estimate
