@@ -304,25 +304,6 @@ def _best_us(fn, samples: int, repeats: int = 3) -> float:
     return 1e6 * best / samples
 
 
-def cost() -> None:
-    path = sorted(glob.glob(str(BROAD / "01_*.csv.gz")))[0]
-    d = read_imu_csv(path)
-    print(f"\n### Cost on BROAD 01 ({len(d)} samples at 285.7 Hz, µs per sample, best of 3)\n")
-    print("| configuration | µs/sample |\n|---|---|")
-    rows = (("whole runtime, filter off (BROAD attitude set)", {}),
-            ("whole runtime, filter on, BROAD filter settings: calibration held (no change declared)", BROAD_PF),
-            ("whole runtime, filter adapting (pf_hold_prior 0), BROAD filter settings (N = 128, decimation 4)",
-             {**BROAD_PF, "pf_hold_prior": 0.0}),
-            ("whole runtime, filter adapting (pf_hold_prior 0) at its defaults (N = 128, decimation 16)",
-             {"enable_pf": 1.0, "pf_hold_prior": 0.0}),
-            ("whole runtime, filter at its FMU defaults (held; the default σ 0.3 µT is below BROAD's "
-             "noise, so the held calibration is contradicted and it adapts)", {"enable_pf": 1.0}),
-            ("whole runtime, the method's 9-state filter (pf_rao_blackwell 0)",
-             {"enable_pf": 1.0, "pf_rao_blackwell": 0.0}))
-    for label, over in rows:
-        print(f"| {label} | {_best_us(lambda: _run_chain(d, over), len(d)):.2f} |", flush=True)
-
-
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     p.add_argument("--seeds", type=int, default=20)
@@ -342,7 +323,6 @@ def main(argv=None) -> int:
     if not a.no_broad and BROAD.is_dir():
         broad()
         broad_train(sensitivity_table=a.sensitivity)
-        cost()
     return 0
 
 

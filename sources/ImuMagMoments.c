@@ -4,6 +4,7 @@
  *        out (formulas: ImuMagMoments.h, docs/magpf.md).
  */
 #include <math.h>
+#include <string.h>
 #include "ImuMagMoments.h"
 
 #define IMU_MAG_MAX_DEGREE 4
@@ -15,9 +16,6 @@ static const int ImuMagPhiExponent[IMU_MAG_SOFT_COUNT][3] = {{2, 0, 0}, {1, 1, 0
 static const double ImuMagPhiFactor[IMU_MAG_SOFT_COUNT] = {1.0, 2.0, 2.0, 1.0, 2.0, 1.0};
 /** Entries of phi that are squares (d1^2, d2^2, d3^2): |d|^2 = sum of these. */
 static const int ImuMagSquareEntry[3] = {0, 3, 5};
-/** Binomial coefficients C(n, k) for n, k <= 4. */
-static const double ImuMagBinomial[5][5] = {
-    {1, 0, 0, 0, 0}, {1, 1, 0, 0, 0}, {1, 2, 1, 0, 0}, {1, 3, 3, 1, 0}, {1, 4, 6, 4, 1}};
 /** Row and column of the entries m11 m12 m13 m22 m23 m33 in the symmetric 3x3 matrix. */
 static const int ImuMagSoftRow[IMU_MAG_SOFT_COUNT] = {0, 0, 0, 1, 1, 2};
 static const int ImuMagSoftColumn[IMU_MAG_SOFT_COUNT] = {0, 1, 2, 1, 2, 2};
@@ -57,21 +55,28 @@ void ImuMagMomentsAdd(double sums[IMU_MAG_MOMENT_COUNT], const double u[3])
     }
 }
 
-/** @brief One axis of the shift: out[e] = sum_k C(e_axis, k) q^(e_axis - k) in[e with e_axis = k]. */
-static void ImuMagShiftAxis(const double in[IMU_MAG_MOMENT_COUNT], int axis, const double q[IMU_MAG_MAX_DEGREE + 1],
-                            double out[IMU_MAG_MOMENT_COUNT])
+/** @brief One axis of the shift, in place: t[e] <- sum_k C(e_axis, k) q^(e_axis - k) t[e with e_axis = k],
+ *         one chain of monomials at a time (the other two exponents fixed, e_axis = 0, 1, ...) by
+ *         repeated synthetic steps v[a] += q v[a - 1] (Taylor shift: L(L-1)/2 multiply-adds for a
+ *         chain of length L, 35 per axis). */
+static void ImuMagShiftAxis(double t[IMU_MAG_MOMENT_COUNT], int axis, double q)
 {
-    int e[3], k;
-    for (e[0] = 0; e[0] <= IMU_MAG_MAX_DEGREE; e[0]++) {
-        for (e[1] = 0; e[0] + e[1] <= IMU_MAG_MAX_DEGREE; e[1]++) {
-            for (e[2] = 0; e[0] + e[1] + e[2] <= IMU_MAG_MAX_DEGREE; e[2]++) {
-                int source[3] = {e[0], e[1], e[2]};
-                double total = 0.0;
-                for (k = 0; k <= e[axis]; k++) {
-                    source[axis] = k;
-                    total += ImuMagBinomial[e[axis]][k] * q[e[axis] - k] * in[ImuMagIndex[source[0]][source[1]][source[2]]];
+    const int first = axis == 0 ? 1 : 0, second = axis == 2 ? 1 : 2; /* the two other axes */
+    int i, j, a, step;
+    for (i = 0; i <= IMU_MAG_MAX_DEGREE; i++) {
+        for (j = 0; i + j <= IMU_MAG_MAX_DEGREE; j++) {
+            const int length = IMU_MAG_MAX_DEGREE + 1 - i - j;
+            int e[3], index[IMU_MAG_MAX_DEGREE + 1];
+            e[first] = i;
+            e[second] = j;
+            for (a = 0; a < length; a++) {
+                e[axis] = a;
+                index[a] = ImuMagIndex[e[0]][e[1]][e[2]];
+            }
+            for (step = 1; step < length; step++) {
+                for (a = length - 1; a >= step; a--) {
+                    t[index[a]] += q * t[index[a - 1]];
                 }
-                out[ImuMagIndex[e[0]][e[1]][e[2]]] = total;
             }
         }
     }
@@ -80,12 +85,11 @@ static void ImuMagShiftAxis(const double in[IMU_MAG_MOMENT_COUNT], int axis, con
 void ImuMagMomentsShift(const double sums[IMU_MAG_MOMENT_COUNT], const double p[3],
                         double shifted[IMU_MAG_MOMENT_COUNT])
 {
-    const double minus[3] = {-p[0], -p[1], -p[2]};
-    double q[3][IMU_MAG_MAX_DEGREE + 1], first[IMU_MAG_MOMENT_COUNT], second[IMU_MAG_MOMENT_COUNT];
-    ImuMagPowers(minus, q);
-    ImuMagShiftAxis(sums, 0, q[0], first); /* (u - p)^e expanded one axis at a time */
-    ImuMagShiftAxis(first, 1, q[1], second);
-    ImuMagShiftAxis(second, 2, q[2], shifted);
+    int axis;
+    memcpy(shifted, sums, IMU_MAG_MOMENT_COUNT * sizeof(double));
+    for (axis = 0; axis < 3; axis++) { /* (u - p)^e expanded one axis at a time */
+        ImuMagShiftAxis(shifted, axis, -p[axis]);
+    }
 }
 
 /** @brief Shifted sum of the product of phi entries i and j (degree 4) or of entry i alone (j < 0). */
@@ -99,25 +103,25 @@ static double ImuMagPhiMoment(const double t[IMU_MAG_MOMENT_COUNT], int i, int j
                        [e[2] + ImuMagPhiExponent[j][2]]];
 }
 
-/** @brief Information matrix J = sum phi phi^T / var + I / s^2 and vector eta = sum phi z / var + m0 / s^2
+/** @brief Information matrix J = sum phi phi^T / var + I / s^2 (lower triangle) and vector eta = sum phi z / var + m0 / s^2
  *         with z = offset - |d|^2; returns sum z^2 / var. */
 static double ImuMagNormalEquations(const double t[IMU_MAG_MOMENT_COUNT], const ImuMagMarginalPrior *prior,
                                     double information[IMU_MAG_SOFT_COUNT][IMU_MAG_SOFT_COUNT],
                                     double eta[IMU_MAG_SOFT_COUNT])
 {
-    const double precision = 1.0 / (prior->softSpread * prior->softSpread);
+    const double precision = 1.0 / (prior->softSpread * prior->softSpread), inverseVariance = 1.0 / prior->variance;
     double squares = 0.0, fourth = 0.0;
     int i, j;
     for (i = 0; i < IMU_MAG_SOFT_COUNT; i++) {
         double sumSquares = 0.0;
-        for (j = 0; j < IMU_MAG_SOFT_COUNT; j++) {
-            information[i][j] = ImuMagPhiFactor[i] * ImuMagPhiFactor[j] * ImuMagPhiMoment(t, i, j) / prior->variance;
+        for (j = 0; j <= i; j++) { /* the lower triangle: all the Cholesky factorisation reads */
+            information[i][j] = ImuMagPhiFactor[i] * ImuMagPhiFactor[j] * ImuMagPhiMoment(t, i, j) * inverseVariance;
         }
         information[i][i] += precision;
         for (j = 0; j < 3; j++) {
             sumSquares += ImuMagPhiMoment(t, i, ImuMagSquareEntry[j]);
         }
-        eta[i] = ImuMagPhiFactor[i] * (prior->offset * ImuMagPhiMoment(t, i, -1) - sumSquares) / prior->variance +
+        eta[i] = ImuMagPhiFactor[i] * (prior->offset * ImuMagPhiMoment(t, i, -1) - sumSquares) * inverseVariance +
                  prior->softMean[i] * precision;
     }
     for (i = 0; i < 3; i++) {
@@ -126,11 +130,12 @@ static double ImuMagNormalEquations(const double t[IMU_MAG_MOMENT_COUNT], const 
             fourth += ImuMagPhiMoment(t, ImuMagSquareEntry[i], ImuMagSquareEntry[j]);
         }
     }
-    return (prior->offset * prior->offset * t[0] - 2.0 * prior->offset * squares + fourth) / prior->variance;
+    return (prior->offset * prior->offset * t[0] - 2.0 * prior->offset * squares + fourth) * inverseVariance;
 }
 
-/** @brief In-place Cholesky factor (lower) of a 6x6 matrix; 0, or -1 if not positive definite. */
-static int ImuMagCholesky(double a[IMU_MAG_SOFT_COUNT][IMU_MAG_SOFT_COUNT])
+/** @brief In-place Cholesky factor (lower) of a 6x6 matrix and the reciprocals of its diagonal; 0, or -1
+ *         if not positive definite. */
+static int ImuMagCholesky(double a[IMU_MAG_SOFT_COUNT][IMU_MAG_SOFT_COUNT], double inverse[IMU_MAG_SOFT_COUNT])
 {
     int i, j, k;
     for (j = 0; j < IMU_MAG_SOFT_COUNT; j++) {
@@ -142,12 +147,13 @@ static int ImuMagCholesky(double a[IMU_MAG_SOFT_COUNT][IMU_MAG_SOFT_COUNT])
             return -1;
         }
         a[j][j] = sqrt(d);
+        inverse[j] = 1.0 / a[j][j];
         for (i = j + 1; i < IMU_MAG_SOFT_COUNT; i++) {
             double s = a[i][j];
             for (k = 0; k < j; k++) {
                 s -= a[i][k] * a[j][k];
             }
-            a[i][j] = s / a[j][j];
+            a[i][j] = s * inverse[j];
         }
     }
     return 0;
@@ -185,21 +191,21 @@ int ImuMagMarginal(const double sums[IMU_MAG_MOMENT_COUNT], const double p[3], c
                    double *logLikelihood, double soft[IMU_MAG_SOFT_COUNT])
 {
     double t[IMU_MAG_MOMENT_COUNT], l[IMU_MAG_SOFT_COUNT][IMU_MAG_SOFT_COUNT], y[IMU_MAG_SOFT_COUNT];
-    double residual, fit = 0.0, logDet = 0.0, priorFit = 0.0, hard = 0.0;
+    double inverse[IMU_MAG_SOFT_COUNT], residual, fit = 0.0, determinant = 1.0, priorFit = 0.0, hard = 0.0;
     int i, k;
     ImuMagMomentsShift(sums, p, t);
     residual = ImuMagNormalEquations(t, prior, l, y);
     *logLikelihood = -HUGE_VAL;
-    if (ImuMagCholesky(l) != 0) {
+    if (ImuMagCholesky(l, inverse) != 0) {
         return 0;
     }
     for (i = 0; i < IMU_MAG_SOFT_COUNT; i++) { /* forward: y = L^-1 eta */
         for (k = 0; k < i; k++) {
             y[i] -= l[i][k] * y[k];
         }
-        y[i] /= l[i][i];
+        y[i] *= inverse[i];
         fit += y[i] * y[i];
-        logDet += log(l[i][i]);
+        determinant *= l[i][i]; /* sqrt(det J): one logarithm below */
         priorFit += prior->softMean[i] * prior->softMean[i];
     }
     for (i = IMU_MAG_SOFT_COUNT - 1; i >= 0; i--) { /* backward: m = L^-T y */
@@ -207,7 +213,7 @@ int ImuMagMarginal(const double sums[IMU_MAG_MOMENT_COUNT], const double p[3], c
         for (k = i + 1; k < IMU_MAG_SOFT_COUNT; k++) {
             soft[i] -= l[k][i] * soft[k];
         }
-        soft[i] /= l[i][i];
+        soft[i] *= inverse[i];
     }
     if (!ImuMagAdmissible(soft, prior->minEigen, prior->maxEigen)) {
         return 0;
@@ -217,7 +223,7 @@ int ImuMagMarginal(const double sums[IMU_MAG_MOMENT_COUNT], const double p[3], c
         hard += d * d;
     }
     priorFit /= prior->softSpread * prior->softSpread;
-    *logLikelihood = -0.5 * (residual - fit + priorFit) - logDet - 0.5 * hard;
+    *logLikelihood = -0.5 * (residual - fit + priorFit) - log(determinant) - 0.5 * hard;
     return 1;
 }
 

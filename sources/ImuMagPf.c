@@ -66,6 +66,8 @@ static const ImuMagPfInternalSetting ImuMagPfInternal[IMU_MAG_PF_INTERNAL_COUNT]
     {"enable_tempering", "0/1", IMU_MAG_PF_FIELD(enableTempering), 1, 1.0},
     {"resample_roughening", "0/1", IMU_MAG_PF_FIELD(resampleRoughening), 1, 1.0},
     {"glitch_clipping", "0/1", IMU_MAG_PF_FIELD(glitchClipping), 1, 1.0},
+    {"update_growth", "1", IMU_MAG_PF_FIELD(updateGrowth), 0, 0.05},
+    {"update_innovation", "1", IMU_MAG_PF_FIELD(updateInnovation), 0, 2.0},
 };
 
 int ImuMagPfInternalInfo(size_t index, const char **name, const char **unit, double *value)
@@ -204,6 +206,12 @@ static const char *ImuMagPfCheckValues(const ImuMagPfSettings *s)
     }
     if (!(s->normTimeConstant >= 0.0 && s->normTimeConstant <= 1e6)) {
         return "norm_time_constant (normTimeConstant) must be in [0, 1e6] updates (0: off)";
+    }
+    if (!(s->updateGrowth >= 0.0 && s->updateGrowth <= 10.0)) {
+        return "update_growth (updateGrowth) must be in [0, 10] (0: an update whenever a sample was added)";
+    }
+    if (!(s->updateInnovation >= 1.0 && s->updateInnovation <= 1e6)) {
+        return "update_innovation (updateInnovation) must be in [1, 1e6]";
     }
     if (!(s->fieldNorm > 0.0 && s->fieldNorm <= 1e4)) {
         return "field_norm (fieldNorm) must be in (0, 1e4] uT";

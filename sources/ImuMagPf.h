@@ -30,7 +30,7 @@
 #define IMU_MAG_PF_MAX_TRAINING 64   /* high-weight particles used to train the network */
 #define IMU_MAG_PF_MAX_BIN_SIDE 4    /* largest sphereBins (cells per cube-face side) */
 #define IMU_MAG_PF_MAX_BINS (6 * IMU_MAG_PF_MAX_BIN_SIDE * IMU_MAG_PF_MAX_BIN_SIDE) /* 96 */
-#define IMU_MAG_PF_INTERNAL_COUNT 24 /* settings that are not FMU parameters (ImuMagPf.c ImuMagPfInternal) */
+#define IMU_MAG_PF_INTERNAL_COUNT 26 /* settings that are not FMU parameters (ImuMagPf.c ImuMagPfInternal) */
 
 /** User settings (units in the comments): the FMU parameters pf_* and field_norm, and the internal
  *  settings of ImuMagPf.c ImuMagPfInternal. */
@@ -65,6 +65,9 @@ typedef struct {
     double changeSpreadHard;       /* uT, sigma of h_p drawn around the estimate after a change, >= 0 */
     double changeSpreadSoft;       /* 1, sigma of b_ij drawn around the estimate after a change, >= 0 */
     double normTimeConstant;       /* updates, mean of the residual removed from the change test; 0: off */
+    double updateGrowth;           /* 1, mode 1 moves the particles once the samples in the power sums grew by this
+                                      fraction since its last move (and by at least one); 0: whenever one was added */
+    double updateInnovation;       /* 1, mode 1 also moves them (given a new sample) while the innovation average exceeds this, >= 1 */
     double settleSpread;           /* uT, the estimate counts as settled while the hard-iron cloud sigma is below it; 0: always */
     int holdPrior;                 /* 1: mode 1 holds the prior calibration until the first declared change; 0: adapts from the start */
     int raoBlackwell;              /* 1: hard iron sampled, soft iron integrated out (ImuMagPfRb.c); 0: the method's 9-state filter */

@@ -10,8 +10,11 @@
  * increment, N_eff < 2N/3 triggers systematic resampling and Metropolis moves (random walk with
  * the weighted cloud covariance x 2.38^2/3) that leave pi_g invariant; at most
  * IMU_MAG_PF_BRIDGE_STEPS steps per update, the last one with g = 1 (adaptive tempering of a
- * resample-move sequential Monte Carlo sampler). A change of environment restarts the sums with
- * a hard-iron prior around the estimate (changeSpreadHard) and a soft-iron prior at the estimate
+ * resample-move sequential Monte Carlo sampler); an update that did not resample makes one
+ * Metropolis sweep with pi_new. The cloud moves only when the sums gained information
+ * (ImuMagPfRbInformative: updateGrowth, updateInnovation); the change test runs every update.
+ * A change of environment restarts the sums with a hard-iron prior around the estimate
+ * (changeSpreadHard) and a soft-iron prior at the estimate
  * (changeSpreadSoft), as does an update in which no particle keeps an admissible soft iron (around
  * the prior calibration if none around the estimate does). After a change the prior calibration is
  * re-tested against the data and taken back once it explains them as well as the estimate
@@ -25,6 +28,7 @@
 #define IMU_MAG_PF_BISECTIONS 40        /* bisection steps of the next bridging exponent */
 #define IMU_MAG_PF_MIN_BRIDGE_STEP 1e-6 /* smallest increase of g per step */
 #define IMU_MAG_PF_MOVE_SWEEPS 2        /* Metropolis sweeps after each resampling */
+#define IMU_MAG_PF_IDLE_SWEEPS 1        /* Metropolis sweeps of an update that did not resample */
 #define IMU_MAG_PF_MOVE_SCALE (2.38 * 2.38 / 3.0) /* random-walk scale for 3 dimensions (Gelman et al. 1996) */
 #define IMU_MAG_PF_MOVE_FLOOR 1e-10     /* uT^2 added to the proposal covariance diagonal */
 #define IMU_MAG_PF_MAX_SOFT 0.3         /* admissible |eigenvalue of B| */
@@ -158,18 +162,34 @@ static double ImuMagPfRbLogWeight(const ImuMagPf *pf, int i, double step)
     return log(pf->weight[i]) + step * (now - before);
 }
 
-/** @brief N_eff the weights would have after raising the exponent by step [particles]. */
+/** @brief Log weight of every particle (work.logWeight) and its log-target increment (work.logSpare) such
+ *         that ImuMagPfRbLogWeight(pf, i, step) = logWeight[i] + step logSpare[i] (an inadmissible
+ *         particle: -inf and 0), so that the bisection takes no logarithm. */
+static void ImuMagPfRbIncrements(ImuMagPf *pf)
+{
+    int i;
+    for (i = 0; i < pf->settings.particleCount; i++) {
+        const double now = pf->work.logLikelihood[i], before = pf->rb.previousLog[i];
+        const int usable = pf->weight[i] > 0.0 && now > -HUGE_VAL && before > -HUGE_VAL;
+        pf->work.logWeight[i] = usable ? log(pf->weight[i]) : -HUGE_VAL;
+        pf->work.logSpare[i] = usable ? now - before : 0.0;
+    }
+}
+
+/** @brief N_eff the weights would have after raising the exponent by step [particles] (after
+ *         ImuMagPfRbIncrements). */
 static double ImuMagPfRbEssAfter(const ImuMagPf *pf, double step)
 {
     const int n = pf->settings.particleCount;
+    const double *base = pf->work.logWeight, *increment = pf->work.logSpare;
     double largest = -HUGE_VAL, sum = 0.0, squares = 0.0;
     int i;
     for (i = 0; i < n; i++) {
-        const double l = ImuMagPfRbLogWeight(pf, i, step);
+        const double l = base[i] + step * increment[i];
         largest = l > largest ? l : largest;
     }
     for (i = 0; i < n; i++) {
-        const double w = exp(ImuMagPfRbLogWeight(pf, i, step) - largest);
+        const double w = exp(base[i] + step * increment[i] - largest);
         sum += w;
         squares += w * w;
     }
@@ -178,12 +198,16 @@ static double ImuMagPfRbEssAfter(const ImuMagPf *pf, double step)
 
 /** @brief Next bridging exponent after g: 1 when N_eff stays >= N/2 (or on the last step), else the
  *         largest exponent that keeps N_eff >= N/2 (bisection). */
-static double ImuMagPfRbNextExponent(const ImuMagPf *pf, double g, int step)
+static double ImuMagPfRbNextExponent(ImuMagPf *pf, double g, int step)
 {
     const double half = 0.5 * pf->settings.particleCount;
     double low = g, high = 1.0;
     int k;
-    if (step >= IMU_MAG_PF_BRIDGE_STEPS || ImuMagPfRbEssAfter(pf, 1.0 - g) >= half) {
+    if (step >= IMU_MAG_PF_BRIDGE_STEPS) {
+        return 1.0;
+    }
+    ImuMagPfRbIncrements(pf);
+    if (ImuMagPfRbEssAfter(pf, 1.0 - g) >= half) {
         return 1.0;
     }
     for (k = 0; k < IMU_MAG_PF_BISECTIONS; k++) {
@@ -253,11 +277,11 @@ static void ImuMagPfRbResample(ImuMagPf *pf)
 }
 
 /** @brief Metropolis sweeps with target pi_g (log: before + g (now - before)) and proposal x + F z. */
-static void ImuMagPfRbMove(ImuMagPf *pf, double g, double factor[3][3])
+static void ImuMagPfRbMove(ImuMagPf *pf, double g, double factor[3][3], int sweeps)
 {
     double proposal[3], soft[IMU_MAG_SOFT_COUNT], softBefore[IMU_MAG_SOFT_COUNT];
     int sweep, k, j;
-    for (sweep = 0; sweep < IMU_MAG_PF_MOVE_SWEEPS; sweep++) {
+    for (sweep = 0; sweep < sweeps; sweep++) {
         for (k = 0; k < pf->settings.particleCount; k++) {
             double z[3], before, now, accept, u;
             for (j = 0; j < 3; j++) {
@@ -288,11 +312,10 @@ static void ImuMagPfRbMove(ImuMagPf *pf, double g, double factor[3][3])
 static void ImuMagPfRbBridge(ImuMagPf *pf)
 {
     const double threshold = (2.0 / 3.0) * pf->settings.particleCount;
-    double g = 0.0;
-    int step, i;
+    double g = 0.0, factor[3][3];
+    int step, i, moved = 0;
     for (step = 1; g < 1.0; step++) {
         const double next = ImuMagPfRbNextExponent(pf, g, step);
-        double factor[3][3];
         for (i = 0; i < pf->settings.particleCount; i++) {
             pf->work.logWeight[i] = ImuMagPfRbLogWeight(pf, i, next - g);
         }
@@ -303,10 +326,30 @@ static void ImuMagPfRbBridge(ImuMagPf *pf)
             ImuMagPfRbProposal(pf, factor);
             ImuMagPfRbResample(pf);
             if (pf->settings.enableMove) {
-                ImuMagPfRbMove(pf, g, factor);
+                ImuMagPfRbMove(pf, g, factor, IMU_MAG_PF_MOVE_SWEEPS);
+                moved = 1;
             }
         }
     }
+    if (pf->settings.enableMove && !moved) { /* a cloud whose weights stayed even still explores pi_new */
+        ImuMagPfRbProposal(pf, factor);
+        ImuMagPfRbMove(pf, 1.0, factor, IMU_MAG_PF_IDLE_SWEEPS);
+    }
+}
+
+/** @brief 1 if the power sums hold new samples since the last move of the particles and either
+ *         they grew by updateGrowth x the samples they held then (moments[0] counts the samples) or
+ *         the estimate no longer explains the data (innovation average above updateInnovation).
+ *         Without a new sample the target is the one the cloud already represents, so skipping is
+ *         exact; the growth rule spaces the moves geometrically, as the information in the sums
+ *         grows; the innovation rule keeps the estimate, which the change test, the glitch gate and
+ *         the ambient-norm mean use, from lagging behind data that contradict it. */
+static int ImuMagPfRbInformative(const ImuMagPf *pf)
+{
+    const ImuMagPfSettings *s = &pf->settings;
+    const double added = pf->rb.moments[0] - pf->rb.previousMoments[0];
+    return added > 0.0 && (added >= s->updateGrowth * pf->rb.previousMoments[0] ||
+                           pf->innovationAverage > s->updateInnovation);
 }
 
 int ImuMagPfRbUpdate(ImuMagPf *pf, const double mag[3])
@@ -332,6 +375,9 @@ int ImuMagPfRbUpdate(ImuMagPf *pf, const double mag[3])
         return 0;
     } else if (ImuMagPfPriorExplains(pf, mag)) {
         ImuMagPfRbTakeBackPrior(pf);
+        return 0;
+    }
+    if (!ImuMagPfRbInformative(pf)) { /* the change test above ran; the cloud waits for information */
         return 0;
     }
     if (!ImuMagPfRbWeighNew(pf)) { /* no admissible particle left: a change the test did not see */

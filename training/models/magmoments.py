@@ -20,7 +20,6 @@ SQRT_ITERATIONS = 12
 PHI_EXPONENT = ((2, 0, 0), (1, 1, 0), (1, 0, 1), (0, 2, 0), (0, 1, 1), (0, 0, 2))
 PHI_FACTOR = (1.0, 2.0, 2.0, 1.0, 2.0, 1.0)
 SQUARE_ENTRY = (0, 3, 5)
-BINOMIAL = ((1, 0, 0, 0, 0), (1, 1, 0, 0, 0), (1, 2, 1, 0, 0), (1, 3, 3, 1, 0), (1, 4, 6, 4, 1))
 SOFT_ROW = (0, 0, 0, 1, 1, 2)
 SOFT_COLUMN = (0, 1, 2, 1, 2, 2)
 
@@ -79,24 +78,30 @@ def power_sums(samples) -> list[float]:
     return sums
 
 
-def _shift_axis(values, axis: int, q) -> list[float]:
-    """One axis of the shift: out[e] = Σ_k C(e_axis, k) q^(e_axis − k) values[e with e_axis = k]."""
-    out = [0.0] * MOMENT_COUNT
-    for e in _exponents():
-        source = list(e)
-        total = 0.0
-        for k in range(e[axis] + 1):
-            source[axis] = k
-            total += BINOMIAL[e[axis]][k] * q[e[axis] - k] * values[moment_index(*source)]
-        out[moment_index(*e)] = total
-    return out
+def _shift_axis(t: list[float], axis: int, q: float) -> None:
+    """One axis of the shift, in place (ImuMagShiftAxis): per chain of monomials (the other two
+    exponents fixed), repeated synthetic steps v[a] += q·v[a − 1] (Taylor shift)."""
+    first, second = (1, 2) if axis == 0 else ((0, 2) if axis == 1 else (0, 1))
+    for i in range(MAX_DEGREE + 1):
+        for j in range(MAX_DEGREE + 1 - i):
+            length = MAX_DEGREE + 1 - i - j
+            index = []
+            for a in range(length):
+                e = [0, 0, 0]
+                e[first], e[second], e[axis] = i, j, a
+                index.append(moment_index(*e))
+            for step in range(1, length):
+                for a in range(length - 1, step - 1, -1):
+                    t[index[a]] += q * t[index[a - 1]]
 
 
 def moments_shift(sums, p) -> list[float]:
     """Sums of the monomials of (u − p) from the power sums of u (binomial expansion, one axis at a
     time as in the C code)."""
-    q = _powers([-float(p[0]), -float(p[1]), -float(p[2])])
-    return _shift_axis(_shift_axis(_shift_axis(sums, 0, q[0]), 1, q[1]), 2, q[2])
+    t = [float(v) for v in sums]
+    for axis in range(3):
+        _shift_axis(t, axis, -float(p[axis]))
+    return t
 
 
 def _phi_moment(t, i: int, j: int | None = None) -> float:
@@ -109,27 +114,28 @@ def _phi_moment(t, i: int, j: int | None = None) -> float:
 
 def _normal_equations(t, prior: MarginalPrior):
     precision = 1.0 / (prior.soft_spread * prior.soft_spread)
+    inverse_variance = 1.0 / prior.variance
     info = [[0.0] * 6 for _ in range(6)]
     eta = [0.0] * 6
     for i in range(6):
         sum_squares = 0.0
-        for j in range(6):
-            info[i][j] = PHI_FACTOR[i] * PHI_FACTOR[j] * _phi_moment(t, i, j) / prior.variance
+        for j in range(i + 1):   # the lower triangle: all the Cholesky factorisation reads
+            info[i][j] = PHI_FACTOR[i] * PHI_FACTOR[j] * _phi_moment(t, i, j) * inverse_variance
         info[i][i] += precision
         for j in range(3):
             sum_squares += _phi_moment(t, i, SQUARE_ENTRY[j])
-        eta[i] = (PHI_FACTOR[i] * (prior.offset * _phi_moment(t, i) - sum_squares) / prior.variance
+        eta[i] = (PHI_FACTOR[i] * (prior.offset * _phi_moment(t, i) - sum_squares) * inverse_variance
                   + float(prior.soft_mean[i]) * precision)
     squares = fourth = 0.0
     for i in range(3):
         squares += _phi_moment(t, SQUARE_ENTRY[i])
         for j in range(3):
             fourth += _phi_moment(t, SQUARE_ENTRY[i], SQUARE_ENTRY[j])
-    residual = (prior.offset * prior.offset * t[0] - 2.0 * prior.offset * squares + fourth) / prior.variance
+    residual = (prior.offset * prior.offset * t[0] - 2.0 * prior.offset * squares + fourth) * inverse_variance
     return info, eta, residual
 
 
-def _cholesky(a) -> bool:
+def _cholesky(a, inverse) -> bool:
     for j in range(6):
         d = a[j][j]
         for k in range(j):
@@ -137,11 +143,12 @@ def _cholesky(a) -> bool:
         if not d > 0.0:
             return False
         a[j][j] = math.sqrt(d)
+        inverse[j] = 1.0 / a[j][j]
         for i in range(j + 1, 6):
             s = a[i][j]
             for k in range(j):
                 s -= a[i][k] * a[j][k]
-            a[i][j] = s / a[j][j]
+            a[i][j] = s * inverse[j]
     return True
 
 
@@ -173,21 +180,23 @@ def marginal(sums, p, prior: MarginalPrior) -> tuple[float, np.ndarray, bool]:
     t = moments_shift(sums, p)
     l, y, residual = _normal_equations(t, prior)
     soft = np.zeros(6)
-    if not _cholesky(l):
+    inverse = [0.0] * 6
+    if not _cholesky(l, inverse):
         return -math.inf, soft, False
-    fit = log_det = prior_fit = 0.0
+    fit = prior_fit = 0.0
+    determinant = 1.0
     for i in range(6):
         for k in range(i):
             y[i] -= l[i][k] * y[k]
-        y[i] /= l[i][i]
+        y[i] *= inverse[i]
         fit += y[i] * y[i]
-        log_det += math.log(l[i][i])
+        determinant *= l[i][i]
         prior_fit += float(prior.soft_mean[i]) * float(prior.soft_mean[i])
     for i in range(5, -1, -1):
         v = y[i]
         for k in range(i + 1, 6):
             v -= l[k][i] * soft[k]
-        soft[i] = v / l[i][i]
+        soft[i] = v * inverse[i]
     if not admissible(soft, prior.min_eigen, prior.max_eigen):
         return -math.inf, soft, False
     hard = 0.0
@@ -195,7 +204,7 @@ def marginal(sums, p, prior: MarginalPrior) -> tuple[float, np.ndarray, bool]:
         d = (float(p[i]) - float(prior.hard_centre[i])) / prior.hard_spread
         hard += d * d
     prior_fit /= prior.soft_spread * prior.soft_spread
-    return -0.5 * (residual - fit + prior_fit) - log_det - 0.5 * hard, soft, True
+    return -0.5 * (residual - fit + prior_fit) - math.log(determinant) - 0.5 * hard, soft, True
 
 
 def _inverse3(a):

@@ -18,6 +18,7 @@ BRIDGE_STEPS = 8
 BISECTIONS = 40
 MIN_BRIDGE_STEP = 1e-6
 MOVE_SWEEPS = 2
+IDLE_SWEEPS = 1
 MOVE_SCALE = 2.38 * 2.38 / 3.0
 MOVE_FLOOR = 1e-10
 MAX_SOFT = 0.3
@@ -174,8 +175,8 @@ def resample(pf) -> None:
     pf.weight = np.full(n, 1.0 / n)
 
 
-def move(pf, g: float, f) -> None:
-    for _ in range(MOVE_SWEEPS):
+def move(pf, g: float, f, sweeps: int) -> None:
+    for _ in range(sweeps):
         for k in range(pf.n):
             z = [pf.rng.normal(), pf.rng.normal(), pf.rng.normal()]
             proposal = np.array([pf.particle[k, j] + f[j][0] * z[0] + f[j][1] * z[1] + f[j][2] * z[2]
@@ -205,7 +206,7 @@ def _normalise_log(pf, logs) -> None:
 
 def bridge(pf) -> None:
     threshold = (2.0 / 3.0) * pf.n
-    g, step = 0.0, 1
+    g, step, moved = 0.0, 1, False
     while g < 1.0:
         nxt = next_exponent(pf, g, step)
         _normalise_log(pf, [log_weight(pf, i, nxt - g) for i in range(pf.n)])
@@ -218,8 +219,19 @@ def bridge(pf) -> None:
             f = proposal_factor(pf)
             resample(pf)
             if int(pf.s["enable_move"]):
-                move(pf, g, f)
+                move(pf, g, f, MOVE_SWEEPS)
+                moved = True
         step += 1
+    if int(pf.s["enable_move"]) and not moved:   # a cloud whose weights stayed even still explores π_new
+        move(pf, 1.0, proposal_factor(pf), IDLE_SWEEPS)
+
+
+def informative(pf) -> bool:
+    """ImuMagPfRbInformative: new samples in the sums since the last move, and either update_growth ×
+    the count then (moments[0] counts the samples) or an innovation average above update_innovation."""
+    added = pf.moments[0] - pf.previous_moments[0]
+    return added > 0.0 and (added >= float(pf.s["update_growth"]) * pf.previous_moments[0]
+                            or pf.innovation_average > float(pf.s["update_innovation"]))
 
 
 def update(pf, mag: np.ndarray) -> bool:
@@ -239,6 +251,8 @@ def update(pf, mag: np.ndarray) -> bool:
         return False
     elif pf._prior_explains(mag):
         pf._take_back_prior()
+        return False
+    if not informative(pf):   # the change test above ran; the cloud waits for information
         return False
     if not weigh_new(pf):
         pf._declare_change()
