@@ -7,10 +7,18 @@
    Heading = tilt-compensated compass of the corrected field with the TRUE roll and pitch, so
    the figure isolates the compass. Repeated with the shared mems_grade sensor (weaker cubic).
 2. Training loss against hidden nodes, plain incremental ELM vs back-tuned growth.
-3. Measured BROAD trials (undisturbed 01-18): leave-one-trial-out heading RMSE without / with
+3. Training schedules: the seed's ("source": odd iterations stage one, even iterations plain
+   gradient descent on all rows) against the product's ("adam"), same seeds, same data, same
+   budget, at the bench's budget and at the chain's (training.train.ELM_FITTER), where each of
+   the product's additions (elm.ADDITIONS) is also added to the source alone; per seed the
+   scenario is simulated with that seed and every schedule trains on the same rows. Mean and
+   worst held-out figures over the seeds. Then the plain gradient-descent step-size sweep.
+4. Measured BROAD trials (undisturbed 01-18): leave-one-trial-out heading RMSE without / with
    the ELM trained on the other trials, and behind the validation gate.
 
-Usage: python benchmarks/bench_elm.py [--skip-broad] [--broad-dir DIR] [--seed N]
+Usage: python benchmarks/bench_elm.py [--skip-broad] [--broad-dir DIR] [--seed N] [--seeds N]
+       python benchmarks/bench_elm.py --small    (table 3 only: 2 seeds, every 8th sample, small
+                                                  budget; what tests/test_elm.py runs)
 """
 from __future__ import annotations
 
@@ -25,6 +33,7 @@ import torch
 from training.models import elm
 from training.models.ellipsoid import fit_ellipsoid
 from training.simulator import load_scenario, simulate
+from training.train import ELM_FITTER
 
 ROOT = Path(__file__).resolve().parent.parent
 SCENARIO = ROOT / "scenarios" / "variants" / "compass_elm.toml"
@@ -34,6 +43,18 @@ PREP = elm.CompassPrep()
 #: noise ≈ 0.04 µT on a ~110 µT range -> (2·0.04/110)² ≈ 5e-7, plus quantisation) times ~4.
 TARGET_LOSS = 2e-6
 FITTER = elm.ElmFitter(max_hidden=40, target_loss=TARGET_LOSS)
+#: The ablation: the source, the source plus one of the product's additions, the product.
+ABLATION = ("source", *(f"source+{a}" for a in elm.ADDITIONS), "adam")
+#: Budgets of the schedule table: name -> (fitter, the schedules trained with it).
+BUDGETS = {"bench (E 2e-6, ≤ 40 nodes, 150 steps)": (FITTER, ("source", "adam")),
+           "chain (training.train.ELM_FITTER)": (elm.ElmFitter(**ELM_FITTER), ABLATION)}
+#: The --small run: a budget that trains in about a second on every 8th sample.
+SMALL_BUDGETS = {"small (≤ 12 nodes, 20 steps)":
+                 (dataclasses.replace(FITTER, max_hidden=12, tune_steps=20), ABLATION)}
+SMALL_STRIDE = 8
+#: Step sizes of the plain gradient-descent sweep ("source" schedule, chain budget, all seeds);
+#: 0 leaves stage two without effect (the plain incremental ELM of the same growth).
+GD_SWEEP = (0.0, 0.005, 0.01, 0.02, 0.05, 0.1, 0.2, 0.5, 1.0)
 
 
 def field_rms(a: np.ndarray, b: np.ndarray) -> float:
@@ -85,6 +106,75 @@ def loss_table(grown: elm.ElmModel, tuned: elm.ElmModel) -> None:
             print(f"| {n} | {cell(plain)} | {cell(back)} |")
 
 
+def prepared_compass(scenario, seed: int, prep: elm.CompassPrep) -> elm.CompassSet:
+    """The scenario simulated with `seed`, its ellipsoid fit (no reference used) and prepared rows."""
+    data = simulate(scenario, seed)
+    linear = fit_ellipsoid(elm.median_filter(data.mag, prep.median_window), data.field_norm_ut)
+    return elm.prepare_compass(data, linear, prep, seed)
+
+
+def held_out(model: elm.ElmModel | None, s: elm.CompassSet) -> tuple[float, float]:
+    """(field error RMS µT, heading RMS °) on the held-out rows; model None = linear stage alone."""
+    x, t, e = s.field[s.test], s.reference[s.test], s.euler[s.test]
+    y = x if model is None else elm.elm_apply(model, x)
+    return field_rms(y, t), elm.heading_rms_deg(y, e)
+
+
+def schedule_table(scenario, seeds: int, stride: int, budgets: dict) -> None:
+    """The schedules on the same seeds, data and budget: mean and worst over the seeds of the
+    held-out heading RMS and field error, hidden nodes and training time (table 3); a diverged
+    fit counts as an infinite error and in the last column."""
+    prep = dataclasses.replace(PREP, stride=stride)
+    results = {}   # (budget, schedule or None) -> list of (field µT, heading °, nodes, time s)
+    for seed in range(seeds):
+        s = prepared_compass(scenario, seed, prep)
+        results.setdefault(("–", None), []).append((*held_out(None, s), 0, 0.0))
+        for budget, (fitter, schedules) in budgets.items():
+            for schedule in schedules:
+                try:
+                    m = dataclasses.replace(fitter, schedule=schedule).fit(
+                        s.field[s.train], s.reference[s.train], seed)
+                    row = (*held_out(m, s), m.hidden, m.train_time_s)
+                except ValueError:          # gradient descent diverged: counted, not hidden
+                    row = (np.inf, np.inf, 0, np.nan)
+                results.setdefault((budget, schedule), []).append(row)
+    print(f"\n## Training schedules: {seeds} seeds (0..{seeds - 1}), every {stride}. sample, "
+          f"held-out 10 %, mean / worst over the seeds\n")
+    print("| budget | schedule | hidden nodes mean / max | field error RMS [µT] mean / worst | "
+          "heading RMS [°] mean / worst | train time [s] mean | diverged |")
+    print("|---|---|---|---|---|---|---|")
+    for (budget, schedule), rows in results.items():
+        f, h, n, t = (np.array(c, dtype=float) for c in zip(*rows))
+        ok = np.isfinite(t)
+        label, nodes, train = (("linear (ellipsoid) alone", "–", "–") if schedule is None else
+                               (schedule, f"{n[ok].mean():.1f} / {n.max():.0f}" if ok.any() else "–",
+                                f"{t[ok].mean():.1f}" if ok.any() else "–"))
+        print(f"| {budget} | {label} | {nodes} | {f.mean():.3f} / {f.max():.3f} | "
+              f"{h.mean():.3f} / {h.max():.3f} | {train} | {int((~ok).sum())} |")
+
+
+def gd_sweep_table(scenario, seeds: int, fitter: elm.ElmFitter) -> None:
+    """Held-out heading RMS of the "source" schedule at each plain gradient-descent step size
+    (GD_SWEEP), mean / worst over the seeds; how many fits diverged."""
+    sets = [prepared_compass(scenario, seed, PREP) for seed in range(seeds)]
+    print(f"\n## Plain gradient-descent step size, 'source' schedule, chain budget, {seeds} seeds\n")
+    print("| gd_learning_rate | hidden nodes mean | heading RMS [°] mean / worst | diverged |")
+    print("|---|---|---|---|")
+    for lr in GD_SWEEP:
+        nodes, heading = [], []
+        for seed, s in enumerate(sets):
+            try:
+                m = dataclasses.replace(fitter, schedule="source", gd_learning_rate=lr).fit(
+                    s.field[s.train], s.reference[s.train], seed)
+            except ValueError:
+                continue
+            nodes.append(m.hidden)
+            heading.append(held_out(m, s)[1])
+        cells = (f"{np.mean(nodes):.1f} | {np.mean(heading):.3f} / {np.max(heading):.3f}" if heading
+                 else "– | –")
+        print(f"| {lr} | {cells} | {seeds - len(heading)} |")
+
+
 def broad_table(folder: Path, seed: int) -> None:
     """Leave-one-trial-out heading RMSE on the undisturbed BROAD trials."""
     paths = sorted(folder.glob("*_undisturbed_*.csv.gz"))
@@ -105,13 +195,21 @@ def main() -> None:
     parser.add_argument("--skip-broad", action="store_true")
     parser.add_argument("--broad-dir", type=Path, default=ROOT.parent / "shared" / "data" / "broad")
     parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--seeds", type=int, default=8, help="seeds of the schedule table")
+    parser.add_argument("--small", action="store_true",
+                        help="the schedule table only, 2 seeds, every 8th sample, a small budget")
     args = parser.parse_args()
     torch.set_num_threads(1)
     scenario = load_scenario(SCENARIO)
+    if args.small:
+        schedule_table(scenario, 2, SMALL_STRIDE, SMALL_BUDGETS)
+        return
     grown, tuned = compass_table("compass_elm (sensors/compass_nonlinear.toml)", scenario, args.seed)
     loss_table(grown, tuned)
     shared = dataclasses.replace(scenario, sensor=load_scenario(SHARED_SENSOR_SCENARIO).sensor)
     compass_table("compass_elm with the shared mems_grade sensor", shared, args.seed)
+    schedule_table(scenario, args.seeds, PREP.stride, BUDGETS)
+    gd_sweep_table(scenario, args.seeds, BUDGETS["chain (training.train.ELM_FITTER)"][0])
     if not args.skip_broad:
         broad_table(args.broad_dir, args.seed)
 

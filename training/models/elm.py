@@ -13,10 +13,22 @@ Siew, IEEE TNN 17(4), 2006):
 
     stage one   random w, b (seeded); β = H⁺ T, the minimum-norm least-squares solution
     stage two   forward pass, residual H β − T, back-propagated gradients of the mean-square
-                loss for β, w and b, gradient-descent steps (torch, float64, Adam step rule)
+                loss for β, w and b, gradient-descent steps (torch, float64)
     growth      start with one hidden node; while loss > E and fewer than k iterations: add a
-                node (random w, b; tuned nodes kept), re-solve β (stage one), tune (stage two);
+                node (random w, b; tuned nodes kept) and run the stages by the schedule;
                 nodes with ‖β_j‖ below a threshold are removed and β re-solved.
+
+Schedules (`ElmFitter.schedule`, recorded in the model and the artefact):
+
+    "source"    the method as issue 5 (the seed) describes it: odd iterations stage one (add a
+                node, β = H⁺T), even iterations stage two by plain gradient descent on all
+                training rows (the last iterate is kept); k counts both kinds, so a node costs
+                two iterations (default k = 2 · max_hidden)
+    "adam"      the product's (default): the source plus all four ADDITIONS — every iteration
+                adds a node and runs stage one then stage two ("merged", default k =
+                max_hidden), the Adam step rule ("adam"), on `tune_batch` seeded random rows
+                ("batch"), keeping the best iterate on those rows ("best")
+    "source+a+b" the source with the named additions only (the ablation of docs/elm.md)
 
 Two model forms share the code: the field form (3 → 3, distorted field → true field [µT]),
 which the C runtime evaluates (sources/ImuElm.h, block layout below), and the heading form
@@ -121,6 +133,16 @@ def split_indices(n: int, test_fraction: float, seed: int) -> tuple[np.ndarray, 
 
 # ----------------------------------------------------------------------------- network
 
+#: The product's additions to the seed's schedule (module docstring), in ablation order.
+ADDITIONS = ("adam", "batch", "best", "merged")
+#: The named schedules: the seed's alternating plain gradient descent, and the product's.
+SCHEDULES = {"source": frozenset(), "adam": frozenset(ADDITIONS)}
+#: Step size of the plain gradient descent of schedules without "adam", on the normalised MSE
+#: (the seed gives none): the best mean and worst held-out heading of the sweep in docs/elm.md
+#: (benchmarks/bench_elm.py, chain budget, 8 seeds); from 0.02 up the last iterate can land far
+#: off (worst 5-49°), below it stage two changes little.
+GD_LEARNING_RATE = 0.01
+
 
 def _activation_np(name: str):
     """numpy activation g by name."""
@@ -146,7 +168,9 @@ class GrowthStep:
 class ElmModel:
     """A trained ELM. w (L, n_in), b (L,), beta (L, n_out) act on normalised values;
     x_norm / y_norm map physical inputs / outputs to [−1, 1]. `history` lists the growth,
-    `loss` is the final training loss (normalised MSE), `train_time_s` the fit time [s]."""
+    `loss` is the final training loss (normalised MSE), `train_time_s` the fit time [s],
+    `schedule` the training schedule (`schedule_additions` reads it; None when not recorded: a
+    C block or an artefact written before schedules were recorded)."""
 
     activation: str
     w: np.ndarray
@@ -158,11 +182,26 @@ class ElmModel:
     loss: float
     train_time_s: float
     history: tuple[GrowthStep, ...] = field(default=())
+    schedule: str | None = None
 
     @property
     def hidden(self) -> int:
         """Number of hidden nodes L."""
         return int(self.b.shape[0])
+
+
+def schedule_additions(schedule: str) -> frozenset[str]:
+    """The ADDITIONS a schedule name carries: a name of SCHEDULES, or "source+a+b..." with
+    distinct names from ADDITIONS; ValueError naming the schedule otherwise."""
+    if not isinstance(schedule, str):
+        raise ValueError(f"schedule must be a name, got {schedule!r}")
+    if schedule in SCHEDULES:
+        return SCHEDULES[schedule]
+    head, *parts = schedule.split("+")
+    if head != "source" or not parts or len(set(parts)) != len(parts) or not set(parts) <= set(ADDITIONS):
+        raise ValueError(f"schedule must be one of {list(SCHEDULES)} or 'source+' additions from "
+                         f"{list(ADDITIONS)} joined by '+', got {schedule!r}")
+    return frozenset(parts)
 
 
 def hidden_layer(activation: str, w: np.ndarray, b: np.ndarray, xn: np.ndarray) -> np.ndarray:
@@ -213,12 +252,16 @@ class ElmFitter:
     """Hyperparameters of the growing ELM.
 
     max_hidden: node cap (≤ MAX_HIDDEN for C export); max_iterations: k, growth iterations
-    (default max_hidden); target_loss: E, stop when the training MSE (normalised units) is
-    below it; activation: 'tanh' or 'sigmoid'; weight_scale: new w, b ~ U(−s, s);
+    (default max_hidden when the schedule is "merged", else 2 · max_hidden); target_loss: E,
+    stop when the training MSE (normalised units) is below it; activation: 'tanh' or 'sigmoid';
+    weight_scale: new w, b ~ U(−s, s); schedule: "adam", "source" or "source+..." (module
+    docstring, `schedule_additions`);
     back_tuning: run stage two (False = plain incremental ELM, stage one only);
-    tune_steps / learning_rate: Adam steps per iteration and their step size;
-    tune_batch: training rows stage two uses per iteration (a seeded random subset; all rows
-    when there are fewer), which bounds its cost on long recordings;
+    tune_steps: gradient steps per stage two (both schedules);
+    learning_rate: the Adam step size; gd_learning_rate: the plain gradient-descent step size
+    (the seed gives none: chosen by the sweep in docs/elm.md);
+    tune_batch: training rows stage two uses per iteration with "batch" (a seeded random
+    subset; all rows when there are fewer), which bounds its cost on long recordings;
     prune_threshold: nodes with ‖β_j‖ below it (normalised output units) are removed.
     fixed_hidden: if set, no growth: one stage-one solve with that many random nodes (the
     classic ELM), followed by `tune_steps` back-tuning steps when back_tuning is on.
@@ -235,8 +278,11 @@ class ElmFitter:
     tune_batch: int = 4096
     prune_threshold: float = 1e-4
     fixed_hidden: int | None = None
+    schedule: str = "adam"
+    gd_learning_rate: float = GD_LEARNING_RATE
 
     def __post_init__(self):
+        schedule_additions(self.schedule)
         if self.activation not in ACTIVATIONS:
             raise ValueError(f"activation must be one of {sorted(ACTIVATIONS)}, got {self.activation!r}")
         if self.max_hidden < 1 or (self.fixed_hidden is not None and self.fixed_hidden < 1):
@@ -251,11 +297,13 @@ class ElmFitter:
         rng = np.random.default_rng(seed)
         if self.fixed_hidden is not None:
             w, b, beta, history = self._fit_fixed(xn, tn, rng)
-        else:
+        elif "merged" in schedule_additions(self.schedule):
             w, b, beta, history = self._grow(xn, tn, rng)
+        else:
+            w, b, beta, history = self._grow_alternating(xn, tn, rng)
         loss = _mse(hidden_layer(self.activation, w, b, xn), beta, tn)
         return ElmModel(self.activation, w, b, beta, x_norm, y_norm, seed, loss,
-                        time.perf_counter() - start, tuple(history))
+                        time.perf_counter() - start, tuple(history), self.schedule)
 
     def _random_nodes(self, rng: np.random.Generator, count: int, n_in: int):
         """count new nodes: w (count, n_in), b (count,) ~ U(−s, s)."""
@@ -269,7 +317,7 @@ class ElmFitter:
         beta = solve_output_weights(h, tn)
         one = _mse(h, beta, tn)
         if self.back_tuning:
-            w, b, beta = self._tune(xn, tn, w, b, beta, rng)
+            w, b, beta = self._stage_two(xn, tn, w, b, beta, rng)
         return w, b, beta, [GrowthStep(len(b), one, _mse(hidden_layer(self.activation, w, b, xn), beta, tn))]
 
     def _grow(self, xn, tn, rng):
@@ -286,7 +334,7 @@ class ElmFitter:
             beta = solve_output_weights(h, tn)
             one = _mse(h, beta, tn)
             if self.back_tuning:
-                w, b, beta = self._tune(xn, tn, w, b, beta, rng)
+                w, b, beta = self._stage_two(xn, tn, w, b, beta, rng)
             w, b, beta = prune_nodes(self.activation, xn, tn, w, b, beta, self.prune_threshold)
             loss = _mse(hidden_layer(self.activation, w, b, xn), beta, tn)
             history.append(GrowthStep(len(b), one, loss))
@@ -294,26 +342,73 @@ class ElmFitter:
                 break
         return w, b, beta, history
 
-    def _tune(self, xn, tn, w, b, beta, rng):
-        """Stage two: gradient descent (Adam) on the MSE over `tune_batch` rows for β, w, b
-        (float64); returns the best iterate on those rows (never worse than the start)."""
-        g = _activation_torch(self.activation)
-        rows = np.sort(rng.permutation(len(xn))[:self.tune_batch])
-        x_t, t_t = torch.from_numpy(xn[rows]), torch.from_numpy(tn[rows])
-        params = [torch.tensor(p, dtype=torch.float64, requires_grad=True) for p in (w, b, beta)]
-        optimiser = torch.optim.Adam(params, lr=self.learning_rate)
-        best_loss, best = np.inf, (w, b, beta)
-        for step in range(self.tune_steps + 1):
-            optimiser.zero_grad()
-            residual = g(x_t @ params[0].T + params[1]) @ params[2] - t_t
-            loss = torch.mean(residual * residual)
-            if loss.item() < best_loss:
-                best_loss, best = loss.item(), tuple(p.detach().numpy().copy() for p in params)
-            if step == self.tune_steps:
+    def _grow_alternating(self, xn, tn, rng):
+        """Schedules without "merged": odd iterations add a node (while below the cap) and solve β
+        (stage one), even iterations run stage two (`_stage_two`); nodes with negligible β are
+        pruned after every iteration; until loss < E or k iterations (both kinds counted).
+        History: one step per node pair (stage-two loss = stage-one loss when the run stops
+        after a stage one). ValueError when the loss is no longer finite (diverged descent)."""
+        cap = self.max_hidden
+        iterations = self.max_iterations if self.max_iterations is not None else 2 * cap
+        w, b = np.empty((0, xn.shape[1])), np.empty(0)
+        beta, history = np.empty((0, tn.shape[1])), []
+        for iteration in range(1, iterations + 1):
+            stage_one = iteration % 2 == 1
+            if stage_one:
+                if len(b) < cap:
+                    w_new, b_new = self._random_nodes(rng, 1, xn.shape[1])
+                    w, b = np.vstack([w, w_new]), np.concatenate([b, b_new])
+                beta = solve_output_weights(hidden_layer(self.activation, w, b, xn), tn)
+            elif self.back_tuning:
+                w, b, beta = self._stage_two(xn, tn, w, b, beta, rng)
+            w, b, beta = prune_nodes(self.activation, xn, tn, w, b, beta, self.prune_threshold)
+            with np.errstate(over="ignore", invalid="ignore"):     # divergence is reported below
+                loss = _mse(hidden_layer(self.activation, w, b, xn), beta, tn)
+            if not np.isfinite(loss):
+                raise ValueError(f"ELM schedule {self.schedule!r}: gradient descent diverged at "
+                                 f"iteration {iteration} (gd_learning_rate {self.gd_learning_rate}); "
+                                 "lower the step size")
+            if stage_one:
+                one = loss
+            if not stage_one or loss < self.target_loss or iteration == iterations:
+                history.append(GrowthStep(len(b), one, loss))
+            if loss < self.target_loss:
                 break
-            loss.backward()
-            optimiser.step()
-        return best
+        return w, b, beta, history
+
+    def _stage_two(self, xn, tn, w, b, beta, rng):
+        """Stage two, `tune_steps` float64 steps, by the schedule's additions: Adam ("adam") or
+        plain gradient descent, on `tune_batch` seeded random rows ("batch") or all rows, the
+        best iterate on those rows ("best": never worse than the start) or the last one.
+        Returns (w, b, β)."""
+        additions = schedule_additions(self.schedule)
+        rows = (np.sort(rng.permutation(len(xn))[:self.tune_batch]) if "batch" in additions
+                else slice(None))
+        params = [torch.tensor(p, dtype=torch.float64, requires_grad=True) for p in (w, b, beta)]
+        optimiser = (torch.optim.Adam(params, lr=self.learning_rate) if "adam" in additions
+                     else torch.optim.SGD(params, lr=self.gd_learning_rate))
+        return _descend(self.activation, torch.from_numpy(xn[rows]), torch.from_numpy(tn[rows]),
+                        params, optimiser, self.tune_steps, keep_best="best" in additions)
+
+
+def _descend(activation: str, x_t: torch.Tensor, t_t: torch.Tensor, params: list[torch.Tensor],
+             optimiser: torch.optim.Optimizer, steps: int, keep_best: bool):
+    """`steps` optimiser steps on the MSE of g(x wᵀ + b) β against t over the given rows,
+    params = [w, b, β] (float64 leaf tensors). Returns the (w, b, β) arrays of the best iterate
+    seen (start included) when keep_best, else of the last one."""
+    g = _activation_torch(activation)
+    best_loss, best = np.inf, tuple(p.detach().numpy().copy() for p in params)
+    for step in range(steps + 1):
+        optimiser.zero_grad()
+        residual = g(x_t @ params[0].T + params[1]) @ params[2] - t_t
+        loss = torch.mean(residual * residual)
+        if not keep_best or loss.item() < best_loss:
+            best_loss, best = loss.item(), tuple(p.detach().numpy().copy() for p in params)
+        if step == steps:
+            break
+        loss.backward()
+        optimiser.step()
+    return best
 
 
 # ----------------------------------------------------------------------------- block (C layout)
@@ -370,7 +465,8 @@ def to_json(model: ElmModel) -> dict:
             "field_box_ut": {"lo": model.x_norm.lo.tolist(), "hi": model.x_norm.hi.tolist()},
             "output_range_ut": {"lo": model.y_norm.lo.tolist(), "hi": model.y_norm.hi.tolist()},
             "w": model.w.tolist(), "b": model.b.tolist(), "beta": model.beta.tolist(), "seed": int(model.seed),
-            "training_loss": float(model.loss) if np.isfinite(model.loss) else None}
+            "training_loss": float(model.loss) if np.isfinite(model.loss) else None,
+            "schedule": model.schedule}
 
 
 def _finite_array(doc: dict, key: str, shape: tuple[int, ...]) -> np.ndarray:
@@ -394,13 +490,15 @@ def from_json(doc: dict) -> ElmModel:
     if not isinstance(n, int) or isinstance(n, bool) or not 1 <= n <= MAX_HIDDEN:
         raise ValueError(f"hidden must be a whole number in 1..{MAX_HIDDEN}")
     box, out = doc.get("field_box_ut") or {}, doc.get("output_range_ut") or {}
-    loss = doc.get("training_loss")
+    loss, schedule = doc.get("training_loss"), doc.get("schedule")
+    if schedule is not None:
+        schedule_additions(schedule)
     return ElmModel(doc["activation"], _finite_array(doc, "w", (n, 3)), _finite_array(doc, "b", (n,)),
                     _finite_array(doc, "beta", (n, 3)),
                     MinMax(_finite_array(box, "lo", (3,)), _finite_array(box, "hi", (3,))),
                     MinMax(_finite_array(out, "lo", (3,)), _finite_array(out, "hi", (3,))),
                     seed=int(doc.get("seed", -1)), loss=float("nan") if loss is None else float(loss),
-                    train_time_s=float("nan"))
+                    train_time_s=float("nan"), schedule=schedule)
 
 
 def c_apply(block: np.ndarray, x: np.ndarray) -> np.ndarray:

@@ -38,6 +38,23 @@ the chain's training (MODE_RESIDUAL), `residual_psobp_wins` the rule for `enable
 Training targets: static samples (|ref_gyr| <= rest_rad_s), measured bias = gyr - ref_gyr,
 averaged over non-overlapping `window_s` windows (with the window means of T and of the
 estimated rate) to remove white noise.
+
+Source form vs product. The source (issue 4, the seed's PSO-BP): per axis a 2-4-1 network,
+tansig hidden, linear output, inputs T and dT/dt min-max normalised; PSO of the initial weights
+and thresholds with inertia decreasing linearly, c1 = c2 = 2, uniform r1, r2, fitness = variance
+of predicted - measured bias; then back-propagation (torch) from the best particle; the runtime
+estimates dT/dt causally as training does. MODE_FULL with the defaults is that model
+(docs/thermal_models.md row "PSO-BP (a)", plain BP from random weights beside it), with these
+choices the source leaves open or does not make, none of them switchable off:
+  - BP step rule Rprop (the source says back-propagation; the classic rule is plain gradient
+    descent), a 3000-epoch budget and a patience stop;
+  - targets averaged over `window_s` windows of static rows, not single samples;
+  - PSO velocity clamp (vmax = velocity_fraction x box width) and a position box (+-bound);
+  - the output threshold set to its least-squares value after PSO (the variance fitness
+    leaves it free), targets min-max normalised per axis;
+  - dT/dt from a causal first-order low-pass (tau_s); inputs clamped to the training ranges.
+MODE_RESIDUAL (the product, "poly + PSO-BP (b)") adds two things at once: the network fits
+the residual of the polynomial B(T), and its output is shrunk by the inner validation.
 """
 from __future__ import annotations
 
