@@ -52,6 +52,10 @@ BUDGETS = {"bench (E 2e-6, ≤ 40 nodes, 150 steps)": (FITTER, ("source", "adam"
 SMALL_BUDGETS = {"small (≤ 12 nodes, 20 steps)":
                  (dataclasses.replace(FITTER, max_hidden=12, tune_steps=20), ABLATION)}
 SMALL_STRIDE = 8
+#: The --small forms of the other tables: a small fitter, two step sizes, three BROAD trials thinned.
+SMALL_FITTER = dataclasses.replace(FITTER, max_hidden=12, tune_steps=20)
+SMALL_SWEEP = (0.0, 0.01)
+SMALL_BROAD_TRIALS, SMALL_BROAD_STRIDE = 3, 200
 #: Step sizes of the plain gradient-descent sweep ("source" schedule, chain budget, all seeds);
 #: 0 leaves stage two without effect (the plain incremental ELM of the same growth).
 GD_SWEEP = (0.0, 0.005, 0.01, 0.02, 0.05, 0.1, 0.2, 0.5, 1.0)
@@ -62,7 +66,7 @@ def field_rms(a: np.ndarray, b: np.ndarray) -> float:
     return float(np.sqrt(np.mean((a - b) ** 2)))
 
 
-def compass_table(name: str, scenario, seed: int) -> tuple[elm.ElmModel, elm.ElmModel]:
+def compass_table(name: str, scenario, seed: int, fitter: elm.ElmFitter = FITTER) -> tuple[elm.ElmModel, elm.ElmModel]:
     """Print the heading table of one simulated compass; returns (plain grown, back-tuned)."""
     data = simulate(scenario, seed)
     start = time.perf_counter()
@@ -70,11 +74,11 @@ def compass_table(name: str, scenario, seed: int) -> tuple[elm.ElmModel, elm.Elm
     linear_s = time.perf_counter() - start
     s = elm.prepare_compass(data, linear, PREP, seed)
     x, t, xt, tt, et = s.field[s.train], s.reference[s.train], s.field[s.test], s.reference[s.test], s.euler[s.test]
-    tuned = FITTER.fit(x, t, seed)
-    grown = dataclasses.replace(FITTER, back_tuning=False).fit(x, t, seed)
-    plain = dataclasses.replace(FITTER, back_tuning=False, fixed_hidden=tuned.hidden).fit(x, t, seed)
+    tuned = fitter.fit(x, t, seed)
+    grown = dataclasses.replace(fitter, back_tuning=False).fit(x, t, seed)
+    plain = dataclasses.replace(fitter, back_tuning=False, fixed_hidden=tuned.hidden).fit(x, t, seed)
     hx, ht = elm.heading_form_data(s, s.train)
-    heading = dataclasses.replace(FITTER, max_hidden=20).fit(hx, ht, seed)
+    heading = dataclasses.replace(fitter, max_hidden=min(20, fitter.max_hidden)).fit(hx, ht, seed)
     print(f"\n## {name}: {len(data)} samples, {s.rejected} rejected by the invariance test "
           f"(invariant {s.invariant_ut:.2f} µT), train {len(s.train)}, test {len(s.test)}\n")
     print("| model | hidden nodes | train loss (norm. MSE) | field error RMS [µT] | heading RMS [°] | train time [s] |")
@@ -153,14 +157,14 @@ def schedule_table(scenario, seeds: int, stride: int, budgets: dict) -> None:
               f"{h.mean():.3f} / {h.max():.3f} | {train} | {int((~ok).sum())} |")
 
 
-def gd_sweep_table(scenario, seeds: int, fitter: elm.ElmFitter) -> None:
+def gd_sweep_table(scenario, seeds: int, fitter: elm.ElmFitter, sweep=GD_SWEEP, prep: elm.CompassPrep = PREP) -> None:
     """Held-out heading RMS of the "source" schedule at each plain gradient-descent step size
-    (GD_SWEEP), mean / worst over the seeds; how many fits diverged."""
-    sets = [prepared_compass(scenario, seed, PREP) for seed in range(seeds)]
+    (`sweep`), mean / worst over the seeds; how many fits diverged."""
+    sets = [prepared_compass(scenario, seed, prep) for seed in range(seeds)]
     print(f"\n## Plain gradient-descent step size, 'source' schedule, chain budget, {seeds} seeds\n")
     print("| gd_learning_rate | hidden nodes mean | heading RMS [°] mean / worst | diverged |")
     print("|---|---|---|---|")
-    for lr in GD_SWEEP:
+    for lr in sweep:
         nodes, heading = [], []
         for seed, s in enumerate(sets):
             try:
@@ -175,12 +179,13 @@ def gd_sweep_table(scenario, seeds: int, fitter: elm.ElmFitter) -> None:
         print(f"| {lr} | {cells} | {seeds - len(heading)} |")
 
 
-def broad_table(folder: Path, seed: int) -> None:
-    """Leave-one-trial-out heading RMSE on the undisturbed BROAD trials."""
-    paths = sorted(folder.glob("*_undisturbed_*.csv.gz"))
+def broad_table(folder: Path, seed: int, trials: int | None = None, stride: int = 20) -> None:
+    """Leave-one-trial-out heading RMSE on the undisturbed BROAD trials (the first `trials` of
+    them; None: all), every `stride`-th sample."""
+    paths = sorted(folder.glob("*_undisturbed_*.csv.gz"))[:trials]
     fitter = dataclasses.replace(FITTER, max_hidden=10, target_loss=1e-6)
     start = time.perf_counter()
-    results = elm.broad_heading_with_elm(paths, fitter, elm.CompassPrep(stride=20), seed)
+    results = elm.broad_heading_with_elm(paths, fitter, elm.CompassPrep(stride=stride), seed)
     print(f"\n## BROAD undisturbed trials, leave-one-trial-out ({time.perf_counter() - start:.0f} s)\n")
     print("| trial | eval samples | without ELM [°] | ELM always on [°] | change [°] | gate | gated [°] | gated change [°] |")
     print("|---|---|---|---|---|---|---|---|")
@@ -197,12 +202,18 @@ def main() -> None:
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--seeds", type=int, default=8, help="seeds of the schedule table")
     parser.add_argument("--small", action="store_true",
-                        help="the schedule table only, 2 seeds, every 8th sample, a small budget")
+                        help="every table on a small input: small fitters, 2 seeds for the schedules, 1 for the "
+                             "step sizes, 3 BROAD trials every 200th sample")
     args = parser.parse_args()
     torch.set_num_threads(1)
     scenario = load_scenario(SCENARIO)
     if args.small:
+        grown, tuned = compass_table("compass_elm, small fitter", scenario, args.seed, SMALL_FITTER)
+        loss_table(grown, tuned)
         schedule_table(scenario, 2, SMALL_STRIDE, SMALL_BUDGETS)
+        gd_sweep_table(scenario, 1, SMALL_FITTER, SMALL_SWEEP, dataclasses.replace(PREP, stride=SMALL_STRIDE))
+        if not args.skip_broad and args.broad_dir.is_dir():
+            broad_table(args.broad_dir, args.seed, SMALL_BROAD_TRIALS, SMALL_BROAD_STRIDE)
         return
     grown, tuned = compass_table("compass_elm (sensors/compass_nonlinear.toml)", scenario, args.seed)
     loss_table(grown, tuned)

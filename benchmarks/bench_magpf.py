@@ -1,6 +1,7 @@
 """Benchmark of the magnetometer particle filter (docs/magpf.md): prints Markdown tables.
 
     python benchmarks/bench_magpf.py [--seeds 20] [--no-broad] [--no-sim] [--only-train] [--sensitivity]
+                                     [--trials 33 35]
 
 1. Simulated tumbling (60 s at 100 Hz, |h_0| = 60 µT, h_p = [30, 40, 20] µT, soft iron up to
    0.05, uniform + Student-t noise), wide zero prior (magpf.zero_prior): hard-iron error (largest
@@ -25,8 +26,7 @@
    trial without the filter, with the derived settings and, for comparison, with the hand-set
    BROAD_PF on the same chain. `--sensitivity` adds the table of each rule constant varied ±50 %.
        python benchmarks/bench_magpf.py --only-train [--sensitivity]
-5. Cost: µs per sample of the whole runtime without the filter, with it holding the calibration
-   and with it adapting, on a BROAD recording (best of 3 runs).
+The cost of the filter: benchmarks/pf_cost.py. --trials limits tables 3 and 4 to those BROAD trials.
 """
 from __future__ import annotations
 
@@ -34,7 +34,6 @@ import argparse
 import copy
 import glob
 import sys
-import time
 from pathlib import Path
 
 import numpy as np
@@ -165,7 +164,7 @@ def _spread(field: np.ndarray, mask: np.ndarray) -> float:
     return 100.0 * float(np.std(norm) / np.mean(norm))
 
 
-def broad() -> None:
+def broad(trials: list[str] | None = None) -> None:
     print("\n### BROAD: spread 100·std/mean of |h_c| [%] and heading RMSE [°] over eval_mask, "
           f"whole runtime (BROAD attitude set), filter settings {BROAD_PF}\n")
     print("| trial | spread raw | spread with filter | heading without filter | heading with filter | "
@@ -174,7 +173,7 @@ def broad() -> None:
     print("|---|---|---|---|---|---|---|---|---|")
     for path in sorted(glob.glob(str(BROAD / "*.csv.gz"))):
         name = Path(path).name.split("_")[0]
-        if not (name <= "18" or name in MAGNET_TRIALS):
+        if not (name <= "18" or name in MAGNET_TRIALS) or (trials and name not in trials):
             continue
         d = read_imu_csv(path)
         m = d.eval_mask.astype(bool)
@@ -237,7 +236,7 @@ def _summary(off: dict, on: dict) -> str:
     return f"{mag} | {on[worst][1] - off[worst][1]:+.2f} ({worst})"
 
 
-def broad_train(sensitivity_table: bool = False) -> None:
+def broad_train(sensitivity_table: bool = False, trials: list[str] | None = None) -> None:
     fit, norm, coefficients, calibrated, t = train_calibration()
     rate = float(_trial(TRAIN_TRIALS[0]).meta["rate_hz"])
     stats = pf_settings.noise_statistics(calibrated, t, rate, pf_settings.decimation_for(rate))
@@ -254,7 +253,7 @@ def broad_train(sensitivity_table: bool = False) -> None:
           "filter | heading derived | change | changes declared | heading hand-set |")
     print("|---|---|---|---|---|---|---|---|---|---|")
     on = {"enable_pf": 1.0, **derived}
-    trials = {n: _trial(n) for n in (*UNDISTURBED_TRIALS, *MAGNET_TRIALS)}
+    trials = {n: _trial(n) for n in (*UNDISTURBED_TRIALS, *MAGNET_TRIALS) if not trials or n in trials}
     off_figures = {}
     derived_figures = {}
     for n, d in trials.items():
@@ -267,7 +266,7 @@ def broad_train(sensitivity_table: bool = False) -> None:
         print(f"| {d.name[:36]} | {_spread(d.mag, d.eval_mask.astype(bool)):.2f} | {s0:.2f} | {s1:.2f} | "
               f"{hand[0]:.2f} | {h0:.2f} | {h1:.2f} | {h1 - h0:+.2f} | {int(changes[-1])} | {hand[1]:.2f} |",
               flush=True)
-    if not sensitivity_table:
+    if not sensitivity_table or set(MAGNET_TRIALS) - set(trials):
         return
     print("\n### Sensitivity: each rule constant of training.models.pf_settings at 0.5× and 1.5× (others as derived)\n")
     print("Cells: magnet trials spread [%] / heading [°] with the filter (without: "
@@ -295,15 +294,6 @@ def _ellipsoid_heading(d, mask: np.ndarray) -> float:
     return bench.broad_errors(_run_chain(calibrated, {})[:, QUATERNION], d)["heading"]
 
 
-def _best_us(fn, samples: int, repeats: int = 3) -> float:
-    best = float("inf")
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        fn()
-        best = min(best, time.perf_counter() - t0)
-    return 1e6 * best / samples
-
-
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     p.add_argument("--seeds", type=int, default=20)
@@ -313,6 +303,7 @@ def main(argv=None) -> int:
                    help="only the table of the settings derived from the calibration (train)")
     p.add_argument("--sensitivity", action="store_true",
                    help="add the table of the rule constants varied by ±50 %%")
+    p.add_argument("--trials", nargs="*", default=None, help="BROAD trial numbers (default: all)")
     a = p.parse_args(argv)
     if a.only_train:
         if BROAD.is_dir():
@@ -321,8 +312,8 @@ def main(argv=None) -> int:
     if not a.no_sim:
         simulated(a.seeds)
     if not a.no_broad and BROAD.is_dir():
-        broad()
-        broad_train(sensitivity_table=a.sensitivity)
+        broad(a.trials)
+        broad_train(sensitivity_table=a.sensitivity, trials=a.trials)
     return 0
 
 

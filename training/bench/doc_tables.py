@@ -25,7 +25,7 @@ SHARED = ROOT.parent / "shared" / "data"
 DOC_FILES = ("README.md", *sorted(str(p.relative_to(ROOT)) for p in (ROOT / "docs").glob("*.md")))
 #: Docs whose benchmark scripts other work owns: their tables are not checked yet (the lead
 #: empties this list when those branches merge and their small forms are filled in below).
-PENDING_DOCS = ("docs/elm.md", "docs/magpf.md")
+PENDING_DOCS = ()
 
 COMMAND_TAG = re.compile(r"Command: `([^`]+)`")
 HAND_WRITTEN_TAG = re.compile(r"<!-- hand-written: \S[^>]*-->")
@@ -150,37 +150,44 @@ GENERATORS = (
          "| enable_psobp |",),
         small=("benchmarks/bench_thermal.py", "verdict", "--out", "{tmp}", "--recordings", "rate",
                "--bp-epochs", "20")),
-    # PENDING (docs/magpf.md, benchmarks/bench_magpf.py: the particle-filter branch owns them). The
-    # commands its tables name today, with the headers as the doc has them; the lead fills in the
-    # small forms (and checks the headers against what the scripts print) at merge. Tables of
-    # docs/magpf.md that name no command today: the glitch table (line ~256, printed by
-    # `python -m pytest tests/test_pf_glitches.py`), the two settings tables (~284, ~309: FMU
-    # parameters from contract/variables.py, internal settings from ImuMagPf.c), the mode-0
-    # ablation (~388: a described script, no command) and the settings rules (~537, hand-written).
     TableGenerator(
-        "python benchmarks/bench_magpf.py",
+        "python benchmarks/bench_magpf.py --no-broad",
         ("| method | hard-iron err mean / worst [µT] | norm RMS clean mean / worst [%] "
          "| norm RMS measured mean / worst [%] |",),
-        why_not_small="pending: owned by the particle-filter work (PENDING_DOCS)"),
+        small=("benchmarks/bench_magpf.py", "--no-broad", "--seeds", "1")),
     TableGenerator(
         "python benchmarks/bench_magpf.py --no-sim",
         ("| trial | spread raw | spread with filter | heading without filter | heading with filter | change "
          "| changes declared | heading, filter adapting from the start (pf_hold_prior 0) "
-         "| heading, batch ellipsoid fitted on the eval phase |",),
-        why_not_small="pending: owned by the particle-filter work (PENDING_DOCS)"),
+         "| heading, batch ellipsoid fitted on the eval phase |",
+         "| trial | spread raw | spread without filter | spread derived | spread hand-set | heading without "
+         "filter | heading derived | change | changes declared | heading hand-set |"),
+        small=("benchmarks/bench_magpf.py", "--no-sim", "--trials", "35"), needs=("broad",)),
     TableGenerator(
-        "python -c \"import sys; sys.path.insert(0, 'benchmarks'); import bench_magpf; bench_magpf.cost()\"",
-        ("| configuration | µs/sample |",),
-        why_not_small="pending: owned by the particle-filter work (PENDING_DOCS)"),
-    # PENDING (docs/elm.md, benchmarks/bench_elm.py: the ELM branch owns them), as above; its block
-    # layout table (~line 45) is a reference list (hand-written). The doc's headers differ from what
-    # bench_elm.py prints today ("train loss (norm. MSE)"; the BROAD table's columns).
+        "python benchmarks/magpf_ablation.py",
+        ("| configuration | tumbling: hard-iron err mean / worst [µT] | tumbling: norm RMS clean mean / worst [%] "
+         "| jump: hard-iron err mean / worst [µT] | jump: norm RMS clean mean / worst [%] "
+         "| seeds with a change declared: tumbling (false) / jump |",),
+        small=("benchmarks/magpf_ablation.py", "--seeds", "2", "--seconds", "10")),
+    TableGenerator(
+        "python benchmarks/magpf_ablation.py --source-sweep",
+        ("| configuration | tumbling: hard-iron err mean / worst [µT] | tumbling: norm RMS clean mean / worst [%] "
+         "| jump: hard-iron err mean / worst [µT] | jump: norm RMS clean mean / worst [%] "
+         "| seeds with a change declared: tumbling (false) / jump |",),
+        small=("benchmarks/magpf_ablation.py", "--source-sweep", "--seeds", "1", "--seconds", "10")),
+    TableGenerator(
+        "python benchmarks/pf_cost.py",
+        ("| configuration | samples | µs/sample | × VQF |",),
+        small=("benchmarks/pf_cost.py", "--seconds", "3", "--repeats", "1"), trains=True, needs=("broad",)),
     TableGenerator(
         "python benchmarks/bench_elm.py",
-        ("| model | hidden nodes | train loss | field error RMS [µT] | heading RMS [°] | train time [s] |",
+        ("| model | hidden nodes | train loss (norm. MSE) | field error RMS [µT] | heading RMS [°] | train time [s] |",
          "| nodes | plain incremental ELM | with back-tuning |",
-         "| trial | without [°] | ELM always on [°] | change | gate | gated change |"),
-        why_not_small="pending: owned by the ELM work (PENDING_DOCS)"),
+         "| budget | schedule | hidden nodes mean / max | field error RMS [µT] mean / worst | "
+         "heading RMS [°] mean / worst | train time [s] mean | diverged |",
+         "| gd_learning_rate | hidden nodes mean | heading RMS [°] mean / worst | diverged |",
+         "| trial | eval samples | without ELM [°] | ELM always on [°] | change [°] | gate | gated [°] | gated change [°] |"),
+        small=("benchmarks/bench_elm.py", "--small")),
 )
 
 
