@@ -174,3 +174,11 @@ def _has_member(path: Path, member: str) -> bool:
     with zipfile.ZipFile(path) as zf:
         return member in zf.namelist()
 
+
+
+def declared_mounting(path: str | Path) -> tuple[int, int, int]:
+    """The mounting the FMU at path declares: the start values of mount_x, mount_y, mount_z in its
+    model description (contract.mounting; the FMU reports in the body axes they define)."""
+    from contract.mounting import MOUNT_SETTINGS
+    starts = {v.name: v.start for v in read_description(path).modelVariables if v.name in MOUNT_SETTINGS}
+    return tuple(int(float(starts[name])) for name in MOUNT_SETTINGS)

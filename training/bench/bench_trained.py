@@ -78,6 +78,9 @@ def _rows(fmus: dict[str, Path], datas: list[ImuData]) -> tuple[list[dict], list
     """Per-trial BROAD errors of every FMU variant (with and without the particle filter) and VQF;
     per-trial field-norm spreads of the magnet trials."""
     from tqdm import tqdm
+
+    from fmu.archive import declared_mounting
+    from training.mounting import body_references
     rows, spreads = [], []
     for data in tqdm(datas, desc="BROAD trials through the FMUs"):
         base = {"name": data.name, "trial": trial_number(data)}
@@ -85,9 +88,10 @@ def _rows(fmus: dict[str, Path], datas: list[ImuData]) -> tuple[list[dict], list
         for label, path in fmus.items():
             out = _run(path, data)
             out_pf = _run(path, data, {"enable_pf": 1.0})
-            rows.append({**base, "filter": f"ImuFusion FMU, {label}", **broad_errors(out[:, _Q], data)})
+            body = body_references(data, declared_mounting(path))  # the FMU reports in its body axes
+            rows.append({**base, "filter": f"ImuFusion FMU, {label}", **broad_errors(out[:, _Q], body)})
             rows.append({**base, "filter": f"ImuFusion FMU, {label}, enable_pf = 1",
-                         **broad_errors(out_pf[:, _Q], data)})
+                         **broad_errors(out_pf[:, _Q], body)})
             if base["trial"] in MAGNET_TRIALS:
                 spreads.append({**base, "training": label, "raw": field_norm_spread(data.mag, data),
                                 "without filter": field_norm_spread(out[:, _FIELD], data),

@@ -126,15 +126,15 @@ def _recording(path: str) -> ImuData:
 
 
 @functools.lru_cache(maxsize=2)
-def _mount_starts(fmu_path: str) -> dict[str, float]:
-    """The FMU's start values of the mounting parameters (its model description)."""
-    from fmu.archive import read_description
-    return {v.name: float(v.start) for v in read_description(fmu_path).modelVariables if v.name in MOUNT_SETTINGS}
+def _declared_mounting(fmu_path: str) -> tuple[int, int, int]:
+    """The FMU's declared mounting (read once per worker)."""
+    from fmu.archive import declared_mounting
+    return declared_mounting(fmu_path)
 
 
 def _mounting(fmu_path: str, parameters: dict[str, float]) -> tuple[int, int, int]:
-    """The run's mounting codes: the FMU's start values of mount_x/y/z unless varied."""
-    return settings_codes({**_mount_starts(fmu_path), **parameters})
+    """The run's mounting codes: the FMU's declared mounting unless varied."""
+    return settings_codes({**dict(zip(MOUNT_SETTINGS, _declared_mounting(fmu_path))), **parameters})
 
 
 def run_partition(runs: list[int], fmu_path: str, data_path: str, variations: tuple[Variation, ...],
