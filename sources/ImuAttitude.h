@@ -30,6 +30,24 @@ typedef enum {
     IMU_ATTITUDE_QUATERNION = 1  /* quaternion filter with disturbance rejection */
 } ImuAttitudeMode;
 
+/**
+ * The project's additions to the adaptive-gain Euler fusion (ImuAttitudeSettings.eulerAdditions, a
+ * sum of these bits; the FMU sets all, the batch entry ImuBatchRunEuler any, 0 being the method as
+ * issue 2 describes it). Why each came: ImuAttitudeEuler.c.
+ */
+typedef enum {
+    IMU_EULER_TRAPEZOID = 1,        /* propagate with the mean of the previous and current rate
+                                     * (off: the current rate alone) */
+    IMU_EULER_MSE_FLOOR = 2,        /* R_i floored by angle_noise^2 */
+    IMU_EULER_DEPARTURE = 4,        /* R_i grows with the departure of |f| from g, |m| from field_norm */
+    IMU_EULER_STEP_ERROR = 8,       /* P_i grows by the step's integration-error bound */
+    IMU_EULER_YAW_TILT_VARIANCE = 16, /* yaw's R carries the variance of the tilt it is de-tilted with */
+    IMU_EULER_RESTART = 32          /* restart from the acc/mag set when the summed bounds grow */
+} ImuEulerAddition;
+/** Every Euler addition (the FMU's filter). */
+#define IMU_EULER_ALL_ADDITIONS (IMU_EULER_TRAPEZOID | IMU_EULER_MSE_FLOOR | IMU_EULER_DEPARTURE | \
+                                 IMU_EULER_STEP_ERROR | IMU_EULER_YAW_TILT_VARIANCE | IMU_EULER_RESTART)
+
 /** Settings in user units. */
 typedef struct {
     double gyroNoise;        /* rad/s/sqrt(Hz), white-noise density of the corrected gyro */
@@ -44,6 +62,8 @@ typedef struct {
     double restGyroThreshold; /* rad/s, rest-detection rate threshold (0: no bias estimation) */
     double restAccThreshold; /* m/s^2, rest-detection specific-force threshold (> 0) */
     double magRejectTime;    /* s, longest rejection of a disturbed field (0: no rejection) */
+    int eulerAdditions;      /* sum of ImuEulerAddition bits in use by the Euler mode (not an FMU
+                              * parameter: IMU_EULER_ALL_ADDITIONS except in ImuBatchRunEuler) */
 } ImuAttitudeSettings;
 
 /** Settings and evolving state (plain struct: copy = save state). */

@@ -36,6 +36,13 @@
  * IMU_ATTITUDE_RESTART_VARIANCE, the angles restart from the acc/mag set as at power-on (the
  * gyro set may then be off by more than the correction removes in the averaging time). Recovery:
  * within 10 s after the glitch the error is back within 2x the clean run's (tests/test_attitude_recovery.py).
+ *
+ * Each addition has a switch, a bit of ImuAttitudeSettings.eulerAdditions (ImuEulerAddition; all on
+ * in the FMU, any in the batch entry ImuBatchRunEuler for the ablation): the trapezoidal rule, the floor of R_i, the departure terms of R_i (all three from the
+ * first runtime, issue 2's turn) and (a), (b), (c) above. With none the filter is the method as
+ * issue 2 describes it: the current rate held over the step, P_i grown by the gyro noise alone,
+ * R_i the bare moving mean-square innovation (started at angle_noise^2). The de-tilting with the
+ * gyro-predicted roll/pitch and the random walk of steps without a finite rate have no switch.
  */
 #include <math.h>
 #include "ImuAttitudePrivate.h"
@@ -56,6 +63,28 @@
 /* cos^2 of 80 deg: caps the tan^2(dip) by which a tilt error enters the yaw measurement. */
 #define IMU_ATTITUDE_COS2_DIP_MIN 0.0301536896
 
+/** @brief 1 if the Euler addition bit (ImuEulerAddition) is switched on in the settings of a. */
+static int ImuAttitudeEulerUses(const ImuAttitude *a, int addition)
+{
+    return (a->settings.eulerAdditions & addition) != 0;
+}
+
+/**
+ * @brief Rate [rad/s] held over the step: the trapezoidal mean (IMU_EULER_TRAPEZOID) or the
+ *        current rate alone, each falling back on the finite one; 0 if neither rate is finite.
+ */
+static int ImuAttitudeEulerStepRate(const ImuAttitude *a, const double gyr[3], double rate[3])
+{
+    int i;
+    if (ImuAttitudeEulerUses(a, IMU_EULER_TRAPEZOID) || !ImuAllFinite(gyr, 3)) {
+        return ImuAttitudeStepRate(a, gyr, rate);
+    }
+    for (i = 0; i < 3; i++) {
+        rate[i] = gyr[i];
+    }
+    return 1;
+}
+
 /** @brief Gyro Euler set: propagate R with the rate gyr [rad/s] over dt [s] and grow P_i. */
 static void ImuAttitudeEulerPredict(ImuAttitude *a, const double gyr[3], double dt)
 {
@@ -66,14 +95,16 @@ static void ImuAttitudeEulerPredict(ImuAttitude *a, const double gyr[3], double 
         return;
     }
     growth = s->gyroNoise * s->gyroNoise * dt + (s->gyroBiasResidual * dt) * (s->gyroBiasResidual * dt);
-    if (ImuAttitudeStepRate(a, gyr, rate)) {
+    if (ImuAttitudeEulerStepRate(a, gyr, rate)) {
         ImuMatrixPropagate(a->rotation, rate, dt);
         ImuMatrixToEuler(a->rotation, a->euler);
         stepError = ImuAttitudeStepError(a, gyr, dt);
-        growth += stepError;
+        if (ImuAttitudeEulerUses(a, IMU_EULER_STEP_ERROR)) {
+            growth += stepError;
+        }
         a->stepError = a->stepError * exp(-dt / s->mseTimeConstant) + stepError;
-        if (a->stepError > IMU_ATTITUDE_RESTART_VARIANCE) { /* restart as at power-on */
-            a->stepError = 0.0;
+        if (ImuAttitudeEulerUses(a, IMU_EULER_RESTART) && a->stepError > IMU_ATTITUDE_RESTART_VARIANCE) {
+            a->stepError = 0.0; /* restart as at power-on */
             a->tiltInitialised = 0;
             a->yawInitialised = 0;
         }
@@ -94,12 +125,13 @@ static void ImuAttitudeCorrect(ImuAttitude *a, int i, double measured, double ex
 {
     const double floor = a->settings.angleNoise * a->settings.angleNoise;
     const double e = ImuWrapAngle(measured - a->euler[i]);
-    double k;
+    double k, total;
     a->mse[i] += alpha * (e * e - a->mse[i]);
-    if (a->mse[i] < floor) {
+    if (ImuAttitudeEulerUses(a, IMU_EULER_MSE_FLOOR) && a->mse[i] < floor) {
         a->mse[i] = floor;
     }
-    k = a->variance[i] / (a->variance[i] + a->mse[i] + extra);
+    total = a->variance[i] + a->mse[i] + extra;
+    k = total > 0.0 ? a->variance[i] / total : 0.0; /* 0 only without the floor and gyro noise */
     a->euler[i] = ImuWrapAngle(a->euler[i] + k * e);
     a->variance[i] *= 1.0 - k;
     a->gain[i] = k;
@@ -111,7 +143,8 @@ static void ImuAttitudeCorrectTilt(ImuAttitude *a, const double acc[3], double a
     const double roll = atan2(-acc[1], -acc[2]);
     const double pitch = atan2(acc[0], sqrt(acc[1] * acc[1] + acc[2] * acc[2]));
     const double departure = (ImuVectorNorm(acc) - IMU_ATTITUDE_GRAVITY) / IMU_ATTITUDE_GRAVITY;
-    const double extra = IMU_ATTITUDE_ACC_DEPARTURE_VARIANCE * departure * departure;
+    const double extra = ImuAttitudeEulerUses(a, IMU_EULER_DEPARTURE)
+                             ? IMU_ATTITUDE_ACC_DEPARTURE_VARIANCE * departure * departure : 0.0;
     if (!a->tiltInitialised) {
         a->euler[0] = roll;
         a->euler[1] = pitch;
@@ -134,7 +167,11 @@ static void ImuAttitudeCorrectYaw(ImuAttitude *a, const double mag[3], const dou
     const double sinDip = sin(a->settings.fieldDip), cosDip = cos(a->settings.fieldDip);
     /* A tilt error d turns the de-tilted horizontal field by up to d tan(dip): the yaw measurement
      * inherits the variance of the tilt it was de-tilted with (tan^2 capped at dip 80 deg). */
-    const double tiltTerm = tiltVariance * sinDip * sinDip / fmax(cosDip * cosDip, IMU_ATTITUDE_COS2_DIP_MIN);
+    const double tiltTerm = ImuAttitudeEulerUses(a, IMU_EULER_YAW_TILT_VARIANCE)
+                                ? tiltVariance * sinDip * sinDip / fmax(cosDip * cosDip, IMU_ATTITUDE_COS2_DIP_MIN)
+                                : 0.0;
+    const double departureTerm = ImuAttitudeEulerUses(a, IMU_EULER_DEPARTURE)
+                                     ? IMU_ATTITUDE_MAG_DEPARTURE_VARIANCE * departure * departure : 0.0;
     double level[9], m[3], yaw;
     ImuMatrixFromEuler(tilt[0], tilt[1], 0.0, level); /* Ry(pitch) Rx(roll): body -> level */
     ImuMatrixVector(level, mag, m);
@@ -144,7 +181,7 @@ static void ImuAttitudeCorrectYaw(ImuAttitude *a, const double mag[3], const dou
         a->yawInitialised = 1;
         return;
     }
-    ImuAttitudeCorrect(a, 2, yaw, IMU_ATTITUDE_MAG_DEPARTURE_VARIANCE * departure * departure + tiltTerm, alpha);
+    ImuAttitudeCorrect(a, 2, yaw, departureTerm + tiltTerm, alpha);
 }
 
 /** @brief Euler mode: one sample of corrected gyr [rad/s], acc [m/s^2], mag [uT]; dt [s]. */

@@ -161,6 +161,7 @@ static void ImuPipelineAttitudeSettings(const ImuPipelineSettings *s, ImuAttitud
     a->restGyroThreshold = s->restGyroThreshold;
     a->restAccThreshold = s->restAccThreshold;
     a->magRejectTime = s->magRejectTime;
+    a->eulerAdditions = IMU_EULER_ALL_ADDITIONS; /* the FMU's filter; ImuBatchRunEuler ablates them */
 }
 
 void ImuPipelineConfigure(ImuPipeline *p, const ImuPipelineSettings *s, const ImuCoefficients *c)

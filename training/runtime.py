@@ -99,6 +99,8 @@ _TEXT = ctypes.POINTER(ctypes.c_char_p)
 #: type): the one place Python declares them.
 SIGNATURES = {
     "ImuBatchRun": ([_DP, _SZ, _DP, _SZ, _SZ, _DP, _DP, _DP], ctypes.c_int),
+    "ImuBatchRunEuler": ([_DP, _SZ, _DP, _SZ, ctypes.c_int, _SZ, _DP, _DP, _DP], ctypes.c_int),
+    "ImuBatchEulerAllAdditions": ([], ctypes.c_int),
     "ImuBatchCheckSettings": ([_DP, _SZ, _TEXT], ctypes.c_int),
     "ImuBatchLayout": ([_IP] * 5, None),
     "ImuBatchTermSignals": ([_SZ, _DP, _DP, _DP, _DP, _DP], None),
@@ -160,7 +162,13 @@ def _error(lib: ctypes.CDLL, code: int, settings: np.ndarray) -> ValueError:
     return ValueError(f"C runtime rejected the input (code {code}): {text}")
 
 
-def run_batch(coefficients, settings, t, inputs) -> np.ndarray:
+def euler_all_additions() -> int:
+    """Every bit of the Euler fusion's project additions (sources/ImuAttitude.h ImuEulerAddition): the
+    additions the FMU and run_batch's default use."""
+    return int(load_runtime().ImuBatchEulerAllAdditions())
+
+
+def run_batch(coefficients, settings, t, inputs, euler_additions: int | None = None) -> np.ndarray:
     """Run the C pipeline over a recording.
 
     coefficients: (N_COEFFICIENTS,) flat coefficient array (contract.layout); settings: flat settings
@@ -168,8 +176,10 @@ def run_batch(coefficients, settings, t, inputs) -> np.ndarray:
     gyr [rad/s], acc [m/s²], mag [µT], temp [°C] and the auxiliary inputs (ImuData.inputs). Returns (N, len(OUTPUTS)) outputs in the order of
     contract.layout.OUTPUTS, finite except the corrected triad of an absent sensor (NaN; docs/fmu.md,
     "Absent sensors"). Only the differences of t are used: sample k is integrated over t[k] − t[k−1],
-    the step size the FMU gets from fmu.cosim.run_fmu. Raises ValueError on bad shapes or when the
-    runtime rejects the coefficients or settings.
+    the step size the FMU gets from fmu.cosim.run_fmu. euler_additions: the Euler fusion's project
+    additions in use, a sum of ImuEulerAddition bits (0 = the method as issue 2 describes it), an
+    ablation switch the FMU does not have; None: every addition, as the FMU. Raises ValueError on bad
+    shapes or when the runtime rejects the coefficients or settings.
     """
     lib = load_runtime()
     c = _as_array("coefficients", coefficients, (-1,))
@@ -177,8 +187,15 @@ def run_batch(coefficients, settings, t, inputs) -> np.ndarray:
     tt = _as_array("t", t, (-1,))
     x = _as_array("inputs", inputs, (tt.shape[0], len(layout.INPUTS)))
     out = np.empty((tt.shape[0], len(layout.OUTPUTS)), dtype=np.float64)
-    code = lib.ImuBatchRun(pointer(c), c.size, pointer(s), s.size, tt.shape[0],
-                           pointer(tt), pointer(x), pointer(out))
+    if euler_additions is None:
+        code = lib.ImuBatchRun(pointer(c), c.size, pointer(s), s.size, tt.shape[0],
+                               pointer(tt), pointer(x), pointer(out))
+    elif not 0 <= euler_additions <= euler_all_additions() or euler_additions != int(euler_additions):
+        raise ValueError(f"euler_additions {euler_additions} is not a sum of the Euler fusion's addition bits "
+                         f"(a whole number in 0..{euler_all_additions()})")
+    else:
+        code = lib.ImuBatchRunEuler(pointer(c), c.size, pointer(s), s.size, int(euler_additions), tt.shape[0],
+                                    pointer(tt), pointer(x), pointer(out))
     if code != 0:
         raise _error(lib, code, s)
     return out

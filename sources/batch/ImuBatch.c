@@ -18,14 +18,10 @@ int ImuBatchCheckSettings(const double *settings, size_t nSettings, const char *
     return result;
 }
 
-/** @brief Run the guarded pipeline (ImuGuard.h, as in the FMU) over nSamples samples (times t [s],
- *         inputs/outputs row-major). Sample k comes t[k] - t[k-1] after the previous one: the step
- *         size of the FMU's previous doStep (fmu/cosim.py: h = diff(t)), so both give the same bits.
- *         A time that does not increase is an ImuGuardIssueOrder sample; the next step counts from
- *         the last time that did. */
-int ImuBatchRun(const double *coefficients, size_t nCoefficients, const double *settings,
-                size_t nSettings, size_t nSamples, const double *t, const double *inputs,
-                double *outputs)
+/** @brief ImuBatchRun with the Euler fusion's additions eulerAdditions (ImuEulerAddition bits). */
+static int ImuBatchRunWith(const double *coefficients, size_t nCoefficients, const double *settings,
+                           size_t nSettings, int eulerAdditions, size_t nSamples, const double *t,
+                           const double *inputs, double *outputs)
 {
     ImuRuntime runtime;
     const char *message;
@@ -38,6 +34,7 @@ int ImuBatchRun(const double *coefficients, size_t nCoefficients, const double *
     if (result != ImuRuntimeOk) {
         return result;
     }
+    runtime.pipeline.attitude.settings.eulerAdditions = eulerAdditions;
     for (k = 0; k < nSamples; k++) {
         const double step = k > 0 ? t[k] - last : 0.0;
         (void)ImuRuntimeStep(&runtime, step, inputs + k * IMU_INPUT_COUNT, outputs + k * IMU_OUTPUT_COUNT);
@@ -46,6 +43,36 @@ int ImuBatchRun(const double *coefficients, size_t nCoefficients, const double *
         }
     }
     return ImuRuntimeOk;
+}
+
+/** @brief Run the guarded pipeline (ImuGuard.h, as in the FMU) over nSamples samples (times t [s],
+ *         inputs/outputs row-major). Sample k comes t[k] - t[k-1] after the previous one: the step
+ *         size of the FMU's previous doStep (fmu/cosim.py: h = diff(t)), so both give the same bits.
+ *         A time that does not increase is an ImuGuardIssueOrder sample; the next step counts from
+ *         the last time that did. */
+int ImuBatchRun(const double *coefficients, size_t nCoefficients, const double *settings,
+                size_t nSettings, size_t nSamples, const double *t, const double *inputs,
+                double *outputs)
+{
+    return ImuBatchRunWith(coefficients, nCoefficients, settings, nSettings, IMU_EULER_ALL_ADDITIONS, nSamples,
+                           t, inputs, outputs);
+}
+
+int ImuBatchRunEuler(const double *coefficients, size_t nCoefficients, const double *settings,
+                     size_t nSettings, int eulerAdditions, size_t nSamples, const double *t,
+                     const double *inputs, double *outputs)
+{
+    if (eulerAdditions < 0 || eulerAdditions > IMU_EULER_ALL_ADDITIONS) {
+        return ImuRuntimeBadSettings;
+    }
+    return ImuBatchRunWith(coefficients, nCoefficients, settings, nSettings, eulerAdditions, nSamples, t,
+                           inputs, outputs);
+}
+
+/** @brief The Euler fusion's additions that the FMU uses (every ImuEulerAddition bit). */
+int ImuBatchEulerAllAdditions(void)
+{
+    return IMU_EULER_ALL_ADDITIONS;
 }
 
 /** @brief Layout version and the lengths of the coefficient, settings, input and output arrays. */

@@ -78,10 +78,14 @@ def _inputs(data: ImuData) -> np.ndarray:
 
 
 def run_imufusion(data: ImuData, overrides: dict | None = None) -> np.ndarray:
-    """(N, 4) body -> magnetic NED quaternion of the ImuFusion batch runtime (identity coefficients)."""
+    """(N, 4) body -> magnetic NED quaternion of the ImuFusion batch runtime (identity coefficients).
+    overrides: settings over BROAD_SETTINGS, and EULER_SWITCH (not a setting): the Euler fusion's
+    additions in use (training.runtime.run_batch euler_additions)."""
     from training.runtime import run_batch
-    out = run_batch(layout.identity_coefficients(), imufusion_settings(data, overrides), data.t - data.t[0],
-                    _inputs(data))
+    settings = dict(overrides or {})
+    euler_additions = settings.pop(EULER_SWITCH, None)
+    out = run_batch(layout.identity_coefficients(), imufusion_settings(data, settings), data.t - data.t[0],
+                    _inputs(data), euler_additions=euler_additions)
     return out[:, _Q_COLS]
 
 
@@ -148,9 +152,38 @@ def broad_errors(q_est: np.ndarray, data: ImuData) -> dict[str, float]:
     return {"total": rmse(total), "heading": rmse(heading), "inclination": rmse(tilt)}
 
 
+#: Key of an ABLATION row that selects the Euler fusion's additions (a sum of the bits below; not an
+#: FMU setting: training.runtime.run_batch euler_additions).
+EULER_SWITCH = "euler_additions"
+#: The project's additions to the Euler fusion in the order they are ablated (the first three
+#: came with the first runtime, the last three with issue 15's recovery from transients):
+#: row label -> its bit of euler_additions (sources/ImuAttitude.h ImuEulerAddition; their sum is
+#: training.runtime.euler_all_additions(), checked by tests/test_euler_additions.py).
+EULER_ADDITIONS = {
+    "trapezoidal propagation": 1,
+    "floor angle_noise on R": 2,
+    "R terms for the norms of f and m off g and field_norm": 4,
+    "integration-error bound in P": 8,
+    "tilt variance in yaw's R": 16,
+    "restart after a transient = method + project additions (attitude_mode 0)": 32,
+}
+
+
+def _euler_ablation() -> dict[str, dict[str, float]]:
+    """The Euler fusion without rest bias in the source's pure form (issue 2), then with each of
+    EULER_ADDITIONS added cumulatively; the last row is today's attitude_mode 0."""
+    rows = {"Euler adaptive gains, the source's form (issue 2), no bias":
+            {"attitude_mode": 0.0, "rest_gyro_threshold": 0.0, EULER_SWITCH: 0}}
+    bits = 0
+    for label, bit in EULER_ADDITIONS.items():
+        bits |= bit
+        rows[f"  + {label}, no bias"] = {"attitude_mode": 0.0, "rest_gyro_threshold": 0.0, EULER_SWITCH: bits}
+    return rows
+
+
 #: Ablation of the attitude chain on BROAD: name -> settings overrides of BROAD_SETTINGS.
 ABLATION = {
-    "Euler adaptive gains (method, attitude_mode 0), no bias": {"attitude_mode": 0.0, "rest_gyro_threshold": 0.0},
+    **_euler_ablation(),
     "Euler adaptive gains + rest bias": {"attitude_mode": 0.0, "rest_gyro_threshold": 0.035},
     "quaternion, no rest bias, no rejection": {"rest_gyro_threshold": 0.0, "mag_reject_time": 0.0},
     "quaternion + rest bias, no rejection": {"mag_reject_time": 0.0},
