@@ -10,6 +10,10 @@ Recordings (one report folder each under OUT):
 Usage: python benchmarks/bench_thermal.py {plateaus,rate,pan} --out OUT [--runs N] [--seed N]
        [--bp-epochs N] [--pan-dir DIR]
 Each recording is a separate invocation so they can run in parallel on separate cores.
+The table's rows (training/bench/compare_thermal.MODELS): the polynomials, plain BP, PSO-BP in the
+source's form (issue 4), the product's additions one at a time up to (a), (b) without the
+shrinkage and (b). The source's form fits single samples with plain gradient descent over the
+whole budget: about 60 s of CPU per run on the simulated recordings, most of a run's time.
 
        python benchmarks/bench_thermal.py verdict --out OUT [--recordings plateaus rate pan]
        [--seeds 0 1 2] [--bp-epochs N] [--pan-dir DIR]

@@ -5,11 +5,17 @@ Models, all trained on the static training part of each recording and judged on 
   single polynomial    the gain/bias model's bias term B(Tn) (training/models/thermal.py), degree P
   piecewise polynomial independent degree-P polynomials on `segments` equal temperature bands
   BP                   2-H-1 networks per axis from uniform random weights (training/models/psobp.py)
-  PSO-BP (a)           the paper's model: the same networks from the particle-swarm start,
-                       whole bias from T and dT/dt (MODE_FULL)
-  poly + PSO-BP (b)    the product's hybrid: the single polynomial plus a PSO-BP network
-                       trained on the bias left after it (MODE_RESIDUAL), its output shrunk
-                       by an inner validation on the training rows (fit_gyro_residual_psobp)
+  PSO-BP, the source's form (issue 4)
+                       the same networks from the particle-swarm start, whole bias from T and
+                       dT/dt (MODE_FULL), every switch in its source form (psobp.SOURCE_FORM)
+  + ...                the product's additions one at a time, cumulative (psobp.ADDITIONS);
+                       rows that differ only in clamp_inputs share one fit (and its time)
+  PSO-BP (a): + ...    the last addition: (a) is MODE_FULL with the fitter's defaults
+  poly + PSO-BP (b) without the shrinkage
+                       the single polynomial plus a PSO-BP network trained on the bias left
+                       after it (MODE_RESIDUAL), output not shrunk
+  poly + PSO-BP (b)    the product's hybrid: as above, its output shrunk by an inner
+                       validation on the training rows (fit_gyro_residual_psobp)
 
 Metrics on the validation rows, residual e = gyr - ref_gyr - b_hat (per axis, then averaged):
   residual bias RMS [°/s]     RMS of the `window_s` window means of e (white noise averaged out)
@@ -41,8 +47,8 @@ import torch
 
 from contract.errors import DataError
 from training.data.io import read_imu_csv
-from training.models.psobp import (PsoBpFitter, apply_psobp, bias_targets, fit_gyro_residual_psobp,
-                                   temperature_rate)
+from training.models.psobp import (MODE_RESIDUAL, PsoBpFitter, apply_psobp, bias_targets, cumulative_forms,
+                                   fit_gyro_residual_psobp, temperature_rate)
 from training.models.thermal import (ThermalModel, apply_thermal, normalised_temperature,
                                      temperature_normalisation)
 
@@ -51,7 +57,15 @@ DPS = 180.0 / np.pi
 VARIANCE_WINDOW_S = 100.0
 #: Averaging time of the standard bias-stability figure (GJB 2426 / IEEE Std 952: 10 s) [s].
 STABILITY_WINDOW_S = 10.0
-MODELS = ("uncompensated", "single polynomial", "piecewise polynomial", "BP", "PSO-BP (a)",
+#: The row of the source's form, and the row of the product's MODE_FULL fit.
+SOURCE = "PSO-BP, the source's form (issue 4)"
+FULL = "PSO-BP (a)"
+#: Rows from the source's form to (a), one per `cumulative_forms` entry, each naming what it adds
+#: to the row above.
+FORM_ROWS = tuple(SOURCE if not added else f"+ {added}" if k < len(cumulative_forms()) - 1
+                  else f"{FULL}: + {added}" for k, (added, _, _) in enumerate(cumulative_forms()))
+UNSHRUNK = "poly + PSO-BP (b) without the shrinkage"
+MODELS = ("uncompensated", "single polynomial", "piecewise polynomial", "BP", *FORM_ROWS, UNSHRUNK,
           "poly + PSO-BP (b)")
 TRAINED = MODELS[1:]
 NETWORKS = MODELS[3:]
@@ -184,11 +198,20 @@ def _one_run(data, train, settings: dict, seed: int) -> dict:
     out["piecewise polynomial"] = (piece.bias(held), time.process_time() - start, None)
     common = dict(hidden=settings["hidden"], tau_s=settings["tau_s"], window_s=settings["window_s"],
                   rest_rad_s=settings["rest_rad_s"], epochs=settings["bp_epochs"])
-    for name, use_pso in (("BP", False), ("PSO-BP (a)", True)):
-        fit = PsoBpFitter(use_pso=use_pso, **common).fit(t[train], gyr[train], ref[train],
-                                                         temp[train], seed)
-        out[name] = (apply_psobp(fit.model, t, temp), fit.cpu_seconds, fit)
+    fit = PsoBpFitter(use_pso=False, **common).fit(t[train], gyr[train], ref[train], temp[train], seed)
+    out["BP"] = (apply_psobp(fit.model, t, temp), fit.cpu_seconds, fit)
+    fits = {}
+    for name, (_, switches, clamp) in zip(FORM_ROWS, cumulative_forms(window_s=settings["window_s"])):
+        key = tuple(sorted(switches.items()))
+        if key not in fits:  # rows that differ only in clamp_inputs share one fit
+            fits[key] = PsoBpFitter(**{**common, **switches}).fit(t[train], gyr[train], ref[train],
+                                                                  temp[train], seed)
+        fit = fits[key]
+        out[name] = (apply_psobp(fit.model, t, temp, clamp_inputs=clamp), fit.cpu_seconds, fit)
     compensated = gyr - poly
+    fit = PsoBpFitter(mode=MODE_RESIDUAL, **common).fit(t[train], compensated[train], ref[train],
+                                                        temp[train], seed)
+    out[UNSHRUNK] = (poly + apply_psobp(fit.model, t, temp), poly_seconds + fit.cpu_seconds, fit)
     fit = fit_gyro_residual_psobp(t[train], compensated[train], ref[train], temp[train], seed,
                                   **common)
     out[HYBRID] = (poly + apply_psobp(fit.model, t, temp), poly_seconds + fit.cpu_seconds, fit)
@@ -290,9 +313,9 @@ def _plots(data, train, valid, first: dict, times: dict, settings: dict, out_dir
     ax.grid(True, which="both", lw=0.3)
     ax.legend(fontsize=7)
     names.append(_save(fig, out_dir, f"{data.name}_allan.png"))
-    fig, ax = plt.subplots(figsize=(6, 4))
+    fig, ax = plt.subplots(figsize=(8, 5))
     ax.boxplot([times[m] for m in NETWORKS])
-    ax.set_xticks(range(1, len(NETWORKS) + 1), NETWORKS)
+    ax.set_xticks(range(1, len(NETWORKS) + 1), NETWORKS, rotation=30, ha="right", fontsize=7)
     ax.set_ylabel("training CPU time [s]")
     names.append(_save(fig, out_dir, f"{data.name}_training_time.png"))
     return names

@@ -8,7 +8,8 @@ its rate of change, both min-max normalised to [-1, 1] with the training ranges)
     b_i = b2[i] + sum_j w2[i][j] tanh(w1[i][j][0] u0 + w1[i][j][1] u1 + b1[i][j])   [rad/s]
 
 T and r are clamped to the training ranges [t_min, t_max] and [r_min, r_max] before they are
-normalised, so the networks are never evaluated outside what they were fitted on.
+normalised, so the networks are never evaluated outside what they were fitted on (Python's
+`clamp_inputs=False` skips that for the source's form; the C runtime always clamps).
 
 The output normalisation of the training targets is folded into w2, b2, so the stored model
 gives rad/s directly. `sources/ImuPsoBp.c` evaluates the identical formula in the identical
@@ -39,26 +40,24 @@ Training targets: static samples (|ref_gyr| <= rest_rad_s), measured bias = gyr 
 averaged over non-overlapping `window_s` windows (with the window means of T and of the
 estimated rate) to remove white noise.
 
-Source form vs product. The source (issue 4, the seed's PSO-BP): per axis a 2-4-1 network,
-tansig hidden, linear output, inputs T and dT/dt min-max normalised; PSO of the initial weights
-and thresholds with inertia decreasing linearly, c1 = c2 = 2, uniform r1, r2, fitness = variance
-of predicted - measured bias; then back-propagation (torch) from the best particle; the runtime
-estimates dT/dt causally as training does. MODE_FULL with the defaults is that model
-(docs/thermal_models.md row "PSO-BP (a)", plain BP from random weights beside it), with these
-choices the source leaves open or does not make, none of them switchable off:
-  - BP step rule Rprop (the source says back-propagation; the classic rule is plain gradient
-    descent), a 3000-epoch budget and a patience stop;
-  - targets averaged over `window_s` windows of static rows, not single samples;
-  - PSO velocity clamp (vmax = velocity_fraction x box width) and a position box (+-bound);
-  - the output threshold set to its least-squares value after PSO (the variance fitness
-    leaves it free), targets min-max normalised per axis;
-  - dT/dt from a causal first-order low-pass (tau_s); inputs clamped to the training ranges.
-MODE_RESIDUAL (the product, "poly + PSO-BP (b)") adds two things at once: the network fits
-the residual of the polynomial B(T), and its output is shrunk by the inner validation.
+Source form vs product (docs/thermal_models.md "Source form vs product"). The source (issue 4)
+leaves open or does not make several choices this fitter makes; each is a switch whose default is
+the product's choice, and `SOURCE_FORM` sets them all to the source's form:
+  window_s       10 s window-mean targets; None = single static samples (the source's targets)
+  pso_clamp      PSO velocity clamp and position box; False = the plain update, unbounded
+  ls_threshold   output threshold set to its least-squares value after PSO; False = as the swarm left it
+  bp_rule        "rprop" (Rprop); "gd" = plain gradient descent, step lr
+  early_stop     patience stop; False = the whole epoch budget
+  clamp_inputs   (evaluate_psobp / apply_psobp) inputs clamped to the training ranges; False = not
+`ADDITIONS` orders them as the comparison adds them one at a time, `cumulative_forms` gives the
+rows from the source's form to MODE_FULL with the defaults ("PSO-BP (a)"). MODE_RESIDUAL (the
+product, "poly + PSO-BP (b)") adds two things at once: the network fits the residual of the
+polynomial B(T), and its output is shrunk by the inner validation.
 """
 from __future__ import annotations
 
 import time
+import inspect
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -81,6 +80,8 @@ MIN_TEMP_SPAN_C = 1.0
 MIN_RATE_SPAN_C_S = 1e-3
 #: Rprop step-size bounds (normalised weights are O(1)).
 RPROP_STEP_BOUNDS = (1e-9, 1.0)
+#: BP step rules: Rprop (the product) and plain gradient descent theta <- theta - lr grad (the source).
+BP_RULES = ("rprop", "gd")
 #: Meaning of the negative return codes of ImuBatchPsoBp* (ImuBatchPsoBp.c).
 ERROR_CODES = {-1: "an array pointer is NULL", -2: f"block is not {BLOCK_SIZE} valid doubles"}
 
@@ -217,12 +218,17 @@ def temperature_rate(t: np.ndarray, temp: np.ndarray, tau_s: float,
     return held, rate
 
 
-def evaluate_psobp(model: PsoBpModel, temp: np.ndarray, rate: np.ndarray) -> np.ndarray:
+def evaluate_psobp(model: PsoBpModel, temp: np.ndarray, rate: np.ndarray,
+                   clamp_inputs: bool = True) -> np.ndarray:
     """Bias (N, 3) [rad/s] of the networks at temperatures (N,) [°C] and rates (N,) [°C/s], each
     clamped to the training range [t_min, t_max], [r_min, r_max] first (the networks are never
-    extrapolated). Same operation order as ImuPsoBpEvaluate in C."""
-    temp = np.clip(np.asarray(temp, dtype=np.float64), model.t_min, model.t_max)
-    rate = np.clip(np.asarray(rate, dtype=np.float64), model.r_min, model.r_max)
+    extrapolated). Same operation order as ImuPsoBpEvaluate in C. clamp_inputs=False skips the
+    clamp (the source's form; Python only, the C runtime always clamps)."""
+    temp = np.asarray(temp, dtype=np.float64)
+    rate = np.asarray(rate, dtype=np.float64)
+    if clamp_inputs:
+        temp = np.clip(temp, model.t_min, model.t_max)
+        rate = np.clip(rate, model.r_min, model.r_max)
     if not model.enabled:
         return np.zeros((temp.shape[0], 3))
     u0 = 2.0 * (temp - model.t_min) / (model.t_max - model.t_min) - 1.0
@@ -237,11 +243,13 @@ def evaluate_psobp(model: PsoBpModel, temp: np.ndarray, rate: np.ndarray) -> np.
     return out
 
 
-def apply_psobp(model: PsoBpModel, t: np.ndarray, temp: np.ndarray) -> np.ndarray:
+def apply_psobp(model: PsoBpModel, t: np.ndarray, temp: np.ndarray,
+                clamp_inputs: bool = True) -> np.ndarray:
     """Causal bias prediction (N, 3) [rad/s] over a series: rate estimator, then the networks.
-    t (N,) [s] increasing; temp (N,) [°C], NaN allowed (last finite value held)."""
+    t (N,) [s] increasing; temp (N,) [°C], NaN allowed (last finite value held); clamp_inputs
+    as in `evaluate_psobp`."""
     held, rate = temperature_rate(t, temp, model.tau_s, 0.5 * (model.t_min + model.t_max))
-    return evaluate_psobp(model, held, rate)
+    return evaluate_psobp(model, held, rate, clamp_inputs)
 
 
 def correct_gyro_psobp(model: PsoBpModel, t: np.ndarray, gyr: np.ndarray,
@@ -326,13 +334,14 @@ class PsoResult:
 def pso_minimise(fitness, dim: int, rng: np.random.Generator, particles: int = 30,
                  iterations: int = 50, bound: float = 3.0, velocity_fraction: float = 0.2,
                  w_begin: float = 0.9, w_end: float = 0.4, c1: float = 2.0,
-                 c2: float = 2.0) -> PsoResult:
+                 c2: float = 2.0, clamp: bool = True) -> PsoResult:
     """Minimise fitness((P, D) positions) -> (P,) over the box [-bound, bound]^D.
 
     Start: positions uniform in [-1, 1] (the usual initial-weight range), velocities 0;
     velocity clamp vmax = velocity_fraction * 2 bound; positions clipped to the box.
+    clamp=False: no velocity clamp and no box (the plain update; bound and velocity_fraction unused).
     """
-    vmax = velocity_fraction * 2.0 * bound
+    vmax = velocity_fraction * 2.0 * bound if clamp else np.inf
     x = rng.uniform(-1.0, 1.0, (particles, dim))
     v = np.zeros_like(x)
     f = fitness(x)
@@ -343,7 +352,8 @@ def pso_minimise(fitness, dim: int, rng: np.random.Generator, particles: int = 3
         r1, r2 = rng.random((particles, dim)), rng.random((particles, dim))
         x, v = pso_step(x, v, pbest, pbest[g], inertia_weight(k, iterations, w_begin, w_end),
                         c1, c2, r1, r2, vmax)
-        x = np.clip(x, -bound, bound)
+        if clamp:
+            x = np.clip(x, -bound, bound)
         f = fitness(x)
         better = f < pbest_f
         pbest[better], pbest_f[better] = x[better], f[better]
@@ -394,16 +404,21 @@ def _batched_losses(theta: torch.Tensor, u: torch.Tensor, y: torch.Tensor, hidde
 
 
 def backpropagate(theta0: np.ndarray, u: np.ndarray, y: np.ndarray, hidden: int, epochs: int,
-                  lr: float, patience: int, tolerance: float) -> BpResult:
-    """Full-batch BP (Rprop) of the three axis networks (independent weights, trained together
-    on the summed MSE), from theta0 (3, 4H+1); u (M, 2) inputs, y (M, 3) targets.
+                  lr: float, patience: int, tolerance: float, rule: str = "rprop",
+                  early_stop: bool = True) -> BpResult:
+    """Full-batch BP of the three axis networks (independent weights, trained together on the
+    summed MSE), from theta0 (3, 4H+1); u (M, 2) inputs, y (M, 3) targets.
 
-    Stops after `epochs`, or when the summed loss fell by less than `tolerance` (relative)
-    over the last `patience` epochs.
+    rule: "rprop" (Rprop, initial step lr) or "gd" (plain gradient descent, step lr).
+    Stops after `epochs`, or (early_stop) when the summed loss fell by less than `tolerance`
+    (relative) over the last `patience` epochs.
     """
+    if rule not in BP_RULES:
+        raise ValueError(f"BP rule {rule!r} is not one of {BP_RULES}")
     theta = torch.tensor(theta0, dtype=torch.float64, requires_grad=True)
     ut, yt = torch.from_numpy(u), torch.from_numpy(y)
-    opt = torch.optim.Rprop([theta], lr=lr, step_sizes=RPROP_STEP_BOUNDS)
+    opt = (torch.optim.Rprop([theta], lr=lr, step_sizes=RPROP_STEP_BOUNDS) if rule == "rprop"
+           else torch.optim.SGD([theta], lr=lr))
     losses, first = [], None
     for _ in range(epochs):
         opt.zero_grad()
@@ -413,7 +428,7 @@ def backpropagate(theta0: np.ndarray, u: np.ndarray, y: np.ndarray, hidden: int,
         loss.backward()
         opt.step()
         losses.append(loss.item())
-        if len(losses) > patience and losses[-patience - 1] - losses[-1] < tolerance * losses[-patience - 1]:
+        if early_stop and len(losses) > patience and losses[-patience - 1] - losses[-1] < tolerance * losses[-patience - 1]:
             break
     with torch.no_grad():
         final = _batched_losses(theta, ut, yt, hidden).numpy()
@@ -421,12 +436,13 @@ def backpropagate(theta0: np.ndarray, u: np.ndarray, y: np.ndarray, hidden: int,
                     tuple(map(float, final)))
 
 
-def bias_targets(t, gyr, ref_gyr, temp, tau_s: float, window_s: float, rest_rad_s: float):
+def bias_targets(t, gyr, ref_gyr, temp, tau_s: float, window_s: float | None, rest_rad_s: float):
     """Window-averaged static training targets.
 
     Runs the causal rate estimator over the whole series, keeps rows with finite gyr, ref_gyr
     and temperature and |ref_gyr| <= rest_rad_s, and averages them over non-overlapping
-    windows of window_s [s] (window k holds t0 + k window_s <= t < t0 + (k+1) window_s).
+    windows of window_s [s] (window k holds t0 + k window_s <= t < t0 + (k+1) window_s);
+    window_s None keeps the single rows (no averaging).
     Returns (temp (M,) [°C], rate (M,) [°C/s], bias (M, 3) [rad/s]).
     """
     t, temp = np.asarray(t, dtype=np.float64), np.asarray(temp, dtype=np.float64)
@@ -436,6 +452,8 @@ def bias_targets(t, gyr, ref_gyr, temp, tau_s: float, window_s: float, rest_rad_
             & np.isfinite(temp) & (np.linalg.norm(np.nan_to_num(ref_gyr), axis=1) <= rest_rad_s))
     if not keep.any():
         raise ValueError("no static row with finite gyro, reference and temperature")
+    if window_s is None:
+        return temp[keep], rate[keep], gyr[keep] - ref_gyr[keep]
     bins = np.floor((t[keep] - t[keep][0]) / window_s).astype(np.int64)
     _, index, counts = np.unique(bins, return_inverse=True, return_counts=True)
 
@@ -484,19 +502,25 @@ class PsoBpFitter:
     after the gain/bias polynomial; pass the compensated gyro to `fit`).
     PSO: particles, pso_iterations, inertia (w_begin, w_end), c1, c2, bound (position box),
     velocity_fraction (vmax = fraction * box width).
-    BP: epochs (budget), lr (initial Rprop step), patience and tolerance (stopping rule).
+    BP: epochs (budget), lr (initial Rprop step, or the gradient-descent step), patience and
+    tolerance (stopping rule).
+    Source-form switches (module docstring; defaults = the product): window_s None (single-sample
+    targets), pso_clamp, ls_threshold, bp_rule ("rprop" or "gd"), early_stop.
     """
 
-    def __init__(self, hidden: int = 4, tau_s: float = 10.0, window_s: float = 10.0,
+    def __init__(self, hidden: int = 4, tau_s: float = 10.0, window_s: float | None = 10.0,
                  rest_rad_s: float = 1e-3, mode: int = MODE_FULL, use_pso: bool = True, particles: int = 30,
                  pso_iterations: int = 60, inertia: tuple[float, float] = (0.9, 0.4),
                  c1: float = 2.0, c2: float = 2.0, bound: float = 3.0,
                  velocity_fraction: float = 0.2, epochs: int = 3000, lr: float = 0.01,
-                 patience: int = 50, tolerance: float = 1e-3):
+                 patience: int = 50, tolerance: float = 1e-3, pso_clamp: bool = True,
+                 ls_threshold: bool = True, bp_rule: str = "rprop", early_stop: bool = True):
         if not 1 <= hidden <= MAX_HIDDEN:
             raise ValueError(f"hidden size {hidden} is outside 1..{MAX_HIDDEN}")
-        if not (tau_s > 0 and window_s > 0):
-            raise ValueError("tau_s and window_s must be positive")
+        if not (tau_s > 0 and (window_s is None or window_s > 0)):
+            raise ValueError("tau_s and window_s must be positive (window_s None: single samples)")
+        if bp_rule not in BP_RULES:
+            raise ValueError(f"BP rule {bp_rule!r} is not one of {BP_RULES}")
         if mode not in (MODE_FULL, MODE_RESIDUAL):
             raise ValueError(f"mode {mode} is not MODE_FULL ({MODE_FULL}) or MODE_RESIDUAL ({MODE_RESIDUAL})")
         self.mode = mode
@@ -505,6 +529,8 @@ class PsoBpFitter:
         self.inertia, self.c1, self.c2 = inertia, c1, c2
         self.bound, self.velocity_fraction = bound, velocity_fraction
         self.epochs, self.lr, self.patience, self.tolerance = epochs, lr, patience, tolerance
+        self.pso_clamp, self.ls_threshold = pso_clamp, ls_threshold
+        self.bp_rule, self.early_stop = bp_rule, early_stop
 
     def fit(self, t, gyr, ref_gyr, temp, seed: int) -> PsoBpFit:
         """Fit on a static recording: t (N,) [s], gyr and ref_gyr (N, 3) [rad/s], temp (N,)
@@ -535,7 +561,7 @@ class PsoBpFitter:
         starts = [self._start(u, y[:, i], rng) for i in range(3)]
         t1 = time.perf_counter()
         bp = backpropagate(np.array([s[0] for s in starts]), u, y, self.hidden, self.epochs,
-                           self.lr, self.patience, self.tolerance)
+                           self.lr, self.patience, self.tolerance, self.bp_rule, self.early_stop)
         t2 = time.perf_counter()
         w1, b1, w2, b2 = _unpack(bp.theta, self.hidden)
         # Fold the output normalisation y = centre + scale y_n into the output layer.
@@ -554,11 +580,52 @@ class PsoBpFitter:
             return rng.uniform(-1.0, 1.0, dim), float("nan")
         result = pso_minimise(lambda th: variance_fitness(th, u, y, self.hidden), dim, rng,
                               self.particles, self.pso_iterations, self.bound,
-                              self.velocity_fraction, *self.inertia, self.c1, self.c2)
-        # The variance fitness leaves the output threshold free: take its least-squares value.
+                              self.velocity_fraction, *self.inertia, self.c1, self.c2, self.pso_clamp)
         best = result.best.copy()
-        best[-1] += float(np.mean(y - swarm_predict(best[None, :], u, self.hidden)[0]))
+        if self.ls_threshold:
+            # The variance fitness leaves the output threshold free: take its least-squares value.
+            best[-1] += float(np.mean(y - swarm_predict(best[None, :], u, self.hidden)[0]))
         return best, result.fitness
+
+
+# ----------------------------------------------------------------------------- source form
+
+
+#: The source's form (issue 4) of every switch (module docstring): single-sample targets, the
+#: plain swarm update with no clamp or box, the threshold as the swarm leaves it, plain gradient
+#: descent over the whole budget, inputs not clamped.
+SOURCE_FORM = {"window_s": None, "pso_clamp": False, "ls_threshold": False, "bp_rule": "gd",
+               "early_stop": False, "clamp_inputs": False}
+#: The product's additions to the source form, in the order the comparison adds them: (switch,
+#: what it adds). Every switch of SOURCE_FORM once.
+ADDITIONS = (("window_s", "window-mean targets"),
+             ("pso_clamp", "PSO velocity clamp and position box"),
+             ("ls_threshold", "least-squares output threshold after PSO"),
+             ("bp_rule", "Rprop step rule"),
+             ("early_stop", "patience stop"),
+             ("clamp_inputs", "inputs clamped to the training ranges"))
+
+
+def product_form(**overrides) -> dict:
+    """The product's value of every SOURCE_FORM switch: PsoBpFitter's defaults (clamp_inputs:
+    evaluate_psobp's), with `overrides` (e.g. the harness's window_s) taking precedence."""
+    values = {**{k: p.default for k, p in inspect.signature(PsoBpFitter).parameters.items()},
+              "clamp_inputs": inspect.signature(evaluate_psobp).parameters["clamp_inputs"].default}
+    return {k: overrides.get(k, values[k]) for k in SOURCE_FORM}
+
+
+def cumulative_forms(**overrides) -> list[tuple[str, dict, bool]]:
+    """The rows from the source's form to the product's MODE_FULL fit, additions one at a time:
+    (what the row adds, or "" for the source's form; PsoBpFitter switch settings; clamp_inputs).
+    The last row is the product's form (`product_form(**overrides)`)."""
+    product = product_form(**overrides)
+    form, rows = dict(SOURCE_FORM), []
+    for switch, added in (("", ""),) + ADDITIONS:
+        if switch:
+            form[switch] = product[switch]
+        fit = {k: v for k, v in form.items() if k != "clamp_inputs"}
+        rows.append((added, fit, form["clamp_inputs"]))
+    return rows
 
 
 # ----------------------------------------------------------------------------- chain entry
