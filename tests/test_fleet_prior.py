@@ -94,3 +94,31 @@ def test_the_posterior_is_tighter_than_the_prior_where_the_data_look():
     b0, b1 = post[b].reshape(3, 2).T
     assert np.all(b0 < 0.01 * prior.sigma[b].reshape(3, 2)[:, 0])   # NOISE / √3000 ≈ 2e-4
     assert np.all(b1 > 0.9 * prior.sigma[b].reshape(3, 2)[:, 1])
+
+
+def test_train_with_a_prior_widens_the_range_and_sets_the_filter_spreads(tmp_path):
+    """`train(prior=...)` on one minute at 10 °C: every referenced triad is fitted in the prior's
+    basis (its degree, its calibrated range: the prior carries the temperature dependence there),
+    and the particle filter's prior spreads are the magnetometer fit's posterior σ (Laplace)."""
+    from pathlib import Path
+
+    from training.data.io import read_imu_csv
+    from training.simulator import simulate_to_dir
+    from training.train import train
+    root = Path(__file__).resolve().parent.parent
+    full = read_imu_csv(simulate_to_dir(root / "scenarios" / "fleet" / "calibration.toml", tmp_path, seed=4))
+    minute = full.slice(slice(0, 6000))
+    plain = train([minute], progress=False)
+    priors = {t: TriadPrior(15.0, 20.0, 1, theta(plain.thermal[t], 1), np.full(parameter_count(1), 0.01),
+                            0.01, (5.0, 40.0), 20) for t in ("gyr", "acc", "mag")}
+    fitted = train([minute], progress=False, prior=priors)
+    for triad in ("gyr", "acc", "mag"):
+        model = fitted.thermal[triad]
+        assert model.degree == 1 and (model.t0, model.ts) == (15.0, 20.0)
+        assert model.t_range[0] <= 5.0 and model.t_range[1] >= 40.0
+        assert fitted.fit_stats[triad]["fleet_prior_units"] == 20
+    sigma = np.asarray(fitted.fit_stats["mag"]["posterior_sigma"])
+    assert fitted.settings["pf_prior_spread_hard"] == pytest.approx(sigma[9:].reshape(3, 2)[:, 0].max())
+    assert fitted.settings["pf_prior_spread_soft"] == pytest.approx(sigma[:6].max())
+    assert 0 < fitted.settings["pf_prior_spread_hard"] <= 0.01
+    assert any("fleet prior of 20 units" in n for n in fitted.notes)
