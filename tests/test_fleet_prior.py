@@ -122,3 +122,15 @@ def test_train_with_a_prior_widens_the_range_and_sets_the_filter_spreads(tmp_pat
     assert fitted.settings["pf_prior_spread_soft"] == pytest.approx(sigma[:6].max())
     assert 0 < fitted.settings["pf_prior_spread_hard"] <= 0.01
     assert any("fleet prior of 20 units" in n for n in fitted.notes)
+
+
+def test_a_prior_that_cannot_help_a_triad_says_so():
+    from types import SimpleNamespace
+
+    from training.train import _unused_prior_notes
+    refs = {"gyr": SimpleNamespace(source="columns"), "acc": SimpleNamespace(source="none"),
+            "mag": SimpleNamespace(source="columns")}
+    notes = _unused_prior_notes(refs, {"gyr": _prior(0.1)})
+    assert len(notes) == 2 and notes[0].startswith("acc: the fleet prior was not used")
+    assert notes[1].startswith("mag: the fleet prior has no mag population")
+    assert _unused_prior_notes(refs, {}) == []

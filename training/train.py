@@ -325,6 +325,22 @@ def _fit_with_prior(triad: str, raw: np.ndarray, target: np.ndarray, temp: np.nd
         f"{lo:.1f} … {hi:.1f} °C): what this recording does not observe comes from the population"]
 
 
+def _unused_prior_notes(refs: dict[str, TriadReference], prior: dict[str, TriadPrior]) -> list[str]:
+    """One note per triad the fleet prior could not help: it applies to fits against a reference,
+    and a triad without one is self-calibrated as without the prior; or the fleet had no prior for it."""
+    notes = []
+    for triad in TRIAD_ORDER:
+        if not prior:
+            break
+        if refs[triad].source == "none":
+            notes.append(f"{triad}: the fleet prior was not used: the recordings carry no {triad} reference, and the "
+                         "prior applies to fits against one (the triad is self-calibrated as without it)")
+        elif triad not in prior:
+            notes.append(f"{triad}: the fleet prior has no {triad} population (fewer than its minimum of units "
+                         "calibrated against a reference); fitted without it")
+    return notes
+
+
 def _prior_pf_spreads(prior: TriadPrior, stats: dict, notes: list[str]) -> dict[str, float]:
     """The particle filter's prior spreads from the fit under the fleet prior: the largest posterior
     σ of the magnetometer bias at the population's centre temperature [µT] (pf_prior_spread_hard)
@@ -472,6 +488,7 @@ def train(datasets: list[ImuData], seed: int = 0, degree: int | str = AUTO,
     thermal, stats, notes = {}, {}, []
     with _deterministic(seed):
         _reference_fits(refs, degree, seed, progress, thermal, stats, notes, prior or {})
+        notes += _unused_prior_notes(refs, prior or {})
         blind = [t for t in TRIAD_ORDER if refs[t].source == "none"]
         selfcal = _self_calibrated(datasets, blind, ceiling(degree), progress, notes) if blind else None
         for triad in blind:
