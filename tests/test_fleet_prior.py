@@ -97,21 +97,26 @@ def test_the_posterior_is_tighter_than_the_prior_where_the_data_look():
 
 
 def test_train_with_a_prior_widens_the_range_and_sets_the_filter_spreads(tmp_path):
-    """`train(prior=...)` on one minute at 10 °C: every referenced triad is fitted in the prior's
-    basis (its degree, its calibrated range: the prior carries the temperature dependence there),
-    and the particle filter's prior spreads are the magnetometer fit's posterior σ (Laplace)."""
+    """`train(prior=..., fleet_elm=...)` on one minute at 10 °C: every referenced triad is fitted in the
+    prior's basis (its degree, its calibrated range: the prior carries the temperature dependence
+    there), the particle filter's prior spreads are the magnetometer fit's posterior σ (Laplace), and
+    the fleet's ELM replaces the unit's own when it leaves less on the unit's held-out data."""
     from pathlib import Path
 
     from training.data.io import read_imu_csv
     from training.simulator import simulate_to_dir
-    from training.train import train
+    from training.models import elm
+    from training.models.fleet_elm import FLEET_ELM_FITTER
+    from training.train import elm_rows, train
     root = Path(__file__).resolve().parent.parent
     full = read_imu_csv(simulate_to_dir(root / "scenarios" / "fleet" / "calibration.toml", tmp_path, seed=4))
     minute = full.slice(slice(0, 6000))
     plain = train([minute], progress=False)
     priors = {t: TriadPrior(15.0, 20.0, 1, theta(plain.thermal[t], 1), np.full(parameter_count(1), 0.01),
                             0.01, (5.0, 40.0), 20) for t in ("gyr", "acc", "mag")}
-    fitted = train([minute], progress=False, prior=priors)
+    other = read_imu_csv(simulate_to_dir(root / "scenarios" / "fleet" / "calibration.toml", tmp_path / "other", seed=5))
+    fleet_elm = elm.ElmFitter(**FLEET_ELM_FITTER).fit(*elm_rows([other], plain.thermal), 0)  # another recording
+    fitted = train([minute], progress=False, prior=priors, fleet_elm=fleet_elm)
     for triad in ("gyr", "acc", "mag"):
         model = fitted.thermal[triad]
         assert model.degree == 1 and (model.t0, model.ts) == (15.0, 20.0)
@@ -122,6 +127,10 @@ def test_train_with_a_prior_widens_the_range_and_sets_the_filter_spreads(tmp_pat
     assert fitted.settings["pf_prior_spread_soft"] == pytest.approx(sigma[:6].max())
     assert 0 < fitted.settings["pf_prior_spread_hard"] <= 0.01
     assert any("fleet prior of 20 units" in n for n in fitted.notes)
+    # the fleet's ELM, learnt on another recording of the type, beats the minute's own on its held-out end
+    stage = fitted.fit_stats["elm"]
+    assert stage["source"] == "fleet prior" and stage["enabled"] and stage["rms_after"] < 0.8 * stage["rms_before"]
+    assert fitted.elm is fleet_elm and any(n.endswith("the unit gets the fleet") for n in fitted.notes)
 
 
 def test_a_prior_that_cannot_help_a_triad_says_so():

@@ -87,3 +87,26 @@ def test_bad_fleet_arguments_are_one_line(tmp_path, capsys, argv, problem):
     assert main(["fleet", "train", str(folder), "--out", str(tmp_path / "out"), *argv]) == 1
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and problem in err[0]
+
+
+def test_the_prior_leaves_an_outlier_unit_out(tmp_path):
+    """A unit 10× off the population is named and left out of the prior: its gyro bias σ stays the
+    population's (0.01 rad/s drawn) instead of growing to ~0.7 rad/s with it."""
+    from training.artefact import ModelArtefact
+    from training.fleet.report import _prior_lines, fleet_document
+    from training.fleet.train import UnitResult
+    from training.models.thermal import ThermalModel
+    rng = np.random.default_rng(5)
+    results = []
+    for k in range(40):
+        bias = rng.normal([0.1, -0.1, 0.05], 0.01) * (10.0 if k == 7 else 1.0)
+        thermal = {t: ThermalModel(True, 25.0, 10.0, 0, np.eye(3), np.zeros((3, 0)), bias[:, None] * (t == "gyr"))
+                   for t in ("gyr", "acc", "mag")}
+        stats = {t: {"reference": "columns", "rms_after": 0.01} for t in thermal}
+        path = ModelArtefact(seed=0, thermal=thermal, settings={}, fit_stats=stats).save(tmp_path / f"{k}.json")
+        results.append(UnitResult(f"unit_{k:04d}", str(path), None))
+    doc = fleet_document(results)
+    assert {o["unit"] for o in doc["outliers"]} == {"unit_0007"} and doc["prior_excludes"] == ["unit_0007"]
+    prior = doc["prior"]["gyr"]
+    assert prior["units"] == 39 and max(prior["sigma"][-3:]) < 0.015
+    assert "- Left out as outliers: unit_0007." in _prior_lines(doc)

@@ -70,7 +70,7 @@ def cmd_fleet_train(args) -> None:
     from training.fleet.report import write_fleet_report
     from training.fleet.train import train_fleet
     results = train_fleet(args.fleet_dir, args.out, seed=args.seed, workers=args.workers, scheduler=args.scheduler)
-    json_path, md_path, doc = write_fleet_report(results, args.out)
+    json_path, md_path, doc = write_fleet_report(results, args.out, seed=args.seed, progress=True)
     print(f"trained {doc['trained']} of {len(results)} units; {len(doc['failed'])} failed, "
           f"{len({o['unit'] for o in doc['outliers']})} outlier unit(s)")
     for failure in doc["failed"]:

@@ -65,7 +65,7 @@ def _stage(name: str, steps: int, progress: bool) -> tqdm:
 
 
 @contextmanager
-def _deterministic(seed: int):
+def deterministic(seed: int):
     """Seed torch, force deterministic kernels and run it on TORCH_THREADS threads; restore the
     previous mode and thread count afterwards."""
     previous, threads = torch.are_deterministic_algorithms_enabled(), torch.get_num_threads()
@@ -182,30 +182,72 @@ def _elm_holdout(sets: list) -> list[tuple[np.ndarray, np.ndarray, np.ndarray, n
     return [(s.field[:cut], s.reference[:cut], s.field[cut:], s.reference[cut:])]
 
 
+def _usable_for_elm(datasets: list[ImuData]) -> list[ImuData]:
+    """The recordings the ELM can learn from: a magnetometer and its reference field and attitude."""
+    return [d for d in datasets if d.ref_mag is not None and d.ref_q is not None and d.has("mag")]
+
+
+def _compass_sets(datasets: list[ImuData], thermal: dict[str, ThermalModel], seed: int) -> list:
+    """The ELM's prepared compass sets (training.models.elm.prepare_compass) of the usable
+    recordings, thermally compensated by `thermal`."""
+    from training.models import elm
+    prep = elm.CompassPrep(stride=ELM_STRIDE)
+    return [elm.prepare_compass(_compensated(d, thermal), None, prep, seed) for d in _usable_for_elm(datasets)]
+
+
+def elm_rows(datasets: list[ImuData], thermal: dict[str, ThermalModel], seed: int = 0
+             ) -> tuple[np.ndarray, np.ndarray] | None:
+    """(calibrated field, reference field) [µT]: the rows a unit's ELM learns from, as `train` prepares
+    them for recordings calibrated by `thermal`; None without a magnetometer reference. The fleet ELM
+    (training.models.fleet_elm) pools them over units."""
+    refs = {triad: choose_reference(datasets, triad) for triad in TRIAD_ORDER}
+    sets = _compass_sets(_prepared_datasets(datasets, refs), thermal, seed)
+    if not sets or not thermal["mag"].enabled:
+        return None
+    return np.concatenate([s.field for s in sets]), np.concatenate([s.reference for s in sets])
+
+
+def _fleet_elm_choice(fleet_elm: ElmModel, folds: list, errors: list, notes: list[str]) -> bool:
+    """Whether the fleet's ELM beats the unit's own on the unit's held-out folds (the fleet ELM never
+    saw this unit); a note says which one the unit gets and why."""
+    from training.models import elm
+    own = float(np.sqrt(np.mean(np.concatenate([e for _, e in errors]))))
+    fleet = float(np.sqrt(np.mean(np.concatenate([(elm.elm_apply(fleet_elm, x) - y) ** 2 for _, _, x, y in folds]))))
+    chosen = fleet < own
+    notes.append(f"elm: the fleet prior's ELM ({fleet_elm.hidden} nodes) leaves {fleet:.3g} µT on this unit's held-out "
+                 f"data, its own ELM {own:.3g} µT: the unit gets {'the fleet' if chosen else 'its own'}")
+    return chosen
+
+
 def _elm_stage(datasets: list[ImuData], thermal: dict[str, ThermalModel], seed: int,
-               notes: list[str], progress: bool) -> tuple[ElmModel | None, bool, dict]:
+               notes: list[str], progress: bool, fleet_elm: ElmModel | None = None
+               ) -> tuple[ElmModel | None, bool, dict]:
     """Fit the field-form ELM on the thermally compensated field against ref_mag.
 
     Returns (the model or None, enabled, stats). Enabled only when the ELM lowers the field
     error RMS of the held-out data (`_elm_holdout`) by ELM_MIN_GAIN; the block is fitted on all
-    the data and kept but off otherwise.
+    the data and kept but off otherwise. With a fleet ELM (`train --prior`), the one of the two with
+    the lower held-out error is the unit's.
     """
     from training.models import elm
-    usable = [d for d in datasets if d.ref_mag is not None and d.ref_q is not None and d.has("mag")]
-    if not usable or not thermal["mag"].enabled:
+    if not _usable_for_elm(datasets) or not thermal["mag"].enabled:
         notes.append("elm: no magnetometer reference (ref_mag, ref_q) or no fitted magnetometer; "
                      "ELM stage off")
         return None, False, {}
-    prep = elm.CompassPrep(stride=ELM_STRIDE)
-    sets = [elm.prepare_compass(_compensated(d, thermal), None, prep, seed) for d in usable]
+    sets = _compass_sets(datasets, thermal, seed)
     errors, folds = [], _elm_holdout(sets)
     with _stage("ELM (held-out folds, final fit)", len(folds) + 1, progress) as bar:
         for train_x, train_y, test_x, test_y in folds:
             fold = elm.ElmFitter(**ELM_FITTER).fit(train_x, train_y, seed)
             errors.append(((test_x - test_y) ** 2, (elm.elm_apply(fold, test_x) - test_y) ** 2))
             bar.update()
-        model = elm.ElmFitter(**ELM_FITTER).fit(np.concatenate([s.field for s in sets]),
-                                               np.concatenate([s.reference for s in sets]), seed)
+        from_fleet = fleet_elm is not None and _fleet_elm_choice(fleet_elm, folds, errors, notes)
+        if from_fleet:
+            model = fleet_elm
+            errors = [(before, (elm.elm_apply(fleet_elm, x) - y) ** 2) for (before, _), (_, _, x, y) in zip(errors, folds)]
+        else:
+            model = elm.ElmFitter(**ELM_FITTER).fit(np.concatenate([s.field for s in sets]),
+                                                   np.concatenate([s.reference for s in sets]), seed)
         bar.update()
     before = float(np.sqrt(np.mean(np.concatenate([e for e, _ in errors]))))
     after = float(np.sqrt(np.mean(np.concatenate([e for _, e in errors]))))
@@ -216,7 +258,8 @@ def _elm_stage(datasets: list[ImuData], thermal: dict[str, ThermalModel], seed: 
     stats = {"unit": "µT", "hidden": model.hidden, "folds": len(errors),
              "holdout": "each recording against the others" if len(sets) > 1 else
              f"last {ELM_HOLDOUT_FRACTION:.0%} of the recording in time",
-             "rms_before": before, "rms_after": after, "enabled": enabled, "train_time_s": model.train_time_s}
+             "rms_before": before, "rms_after": after, "enabled": enabled,
+             **({"source": "fleet prior"} if from_fleet else {"train_time_s": model.train_time_s})}
     return model, enabled, stats
 
 
@@ -393,7 +436,7 @@ def _held_out(datasets: list[ImuData], refs: dict[str, TriadReference], degree, 
     def fit_selfcal(parts):
         return self_calibrate(parts, field_norm=norm, degree=ceiling(degree), progress=False).thermal
     try:
-        with _deterministic(seed), _stage("held-out refit", len(refs) + 1, progress) as bar:
+        with deterministic(seed), _stage("held-out refit", len(refs) + 1, progress) as bar:
             return held_out(datasets, refs, lambda r: _fit_with_reference(r, degree, seed, prior.get(r.triad))[0], fit_selfcal,
                             norm, STANDARD_GRAVITY, step=bar.update)
     except ValueError as e:
@@ -464,7 +507,7 @@ def _moved(report: dict) -> bool:
 
 def train(datasets: list[ImuData], seed: int = 0, degree: int | str = AUTO,
           progress: bool = True, allow_identity: bool = False,
-          prior: dict[str, TriadPrior] | None = None) -> ModelArtefact:
+          prior: dict[str, TriadPrior] | None = None, fleet_elm: ElmModel | None = None) -> ModelArtefact:
     """Fit the gain/bias temperature model of every triad and return the model artefact.
 
     datasets: calibration recordings. Per triad the best reference any recording offers is used
@@ -474,7 +517,9 @@ def train(datasets: list[ImuData], seed: int = 0, degree: int | str = AUTO,
     chosen from the data (training.models.degree: no more than the distinct temperatures pin down, the
     simplest that holds on held-out data; self-calibrated triads cap it by their rest temperatures).
     prior: {triad: TriadPrior} from a fleet (training.models.prior.load_prior): referenced triads
-    with a prior are fitted as the population's maximum a posteriori model.
+    with a prior are fitted as the population's maximum a posteriori model. fleet_elm: the fleet's
+    ELM (training.models.fleet_elm), which the unit gets instead of its own when it leaves less on
+    the unit's held-out data.
     Deterministic given `seed`. Raises ModelError when `datasets` is empty,
     and when no triad can be calibrated unless allow_identity (then an identity model is returned).
     """
@@ -486,7 +531,7 @@ def train(datasets: list[ImuData], seed: int = 0, degree: int | str = AUTO,
         raise ModelError(f"train: {e}") from None
     refs = {triad: choose_reference(datasets, triad) for triad in TRIAD_ORDER}
     thermal, stats, notes = {}, {}, []
-    with _deterministic(seed):
+    with deterministic(seed):
         _reference_fits(refs, degree, seed, progress, thermal, stats, notes, prior or {})
         notes += _unused_prior_notes(refs, prior or {})
         blind = [t for t in TRIAD_ORDER if refs[t].source == "none"]
@@ -499,7 +544,7 @@ def train(datasets: list[ImuData], seed: int = 0, degree: int | str = AUTO,
         for triad in TRIAD_ORDER:
             stats.setdefault(triad, {})["reference"] = refs[triad].source
         prepared = _prepared_datasets(datasets, refs)
-        elm_model, elm_on, stats["elm"] = _elm_stage(prepared, thermal, seed, notes, progress)
+        elm_model, elm_on, stats["elm"] = _elm_stage(prepared, thermal, seed, notes, progress, fleet_elm)
         psobp_model, psobp_on, stats["psobp"] = _psobp_stage(prepared, thermal, seed, notes, progress)
     if not allow_identity:
         _refuse_identity(thermal, refs, selfcal, notes)
@@ -541,9 +586,11 @@ def train_to_folder(paths: list[Path], out_dir: str | Path, seed: int = 0, degre
     from training.data.io import read_imu_csv
     from training.reports.calibration_report import summary_text, write_calibration_report
     datasets = [read_imu_csv(p) for p in paths]
+    from training.models.fleet_elm import load_fleet_elm
     prior = load_prior(prior_path) if prior_path is not None else None
+    fleet_elm = load_fleet_elm(prior_path) if prior_path is not None else None
     artefact = train(datasets, seed=seed, degree=degree, allow_identity=allow_identity, progress=progress,
-                     prior=prior)
+                     prior=prior, fleet_elm=fleet_elm)
     model = Path(out_dir) / "model.json"
     artefact.save(model)
     report = write_calibration_report(artefact, datasets, out_dir)

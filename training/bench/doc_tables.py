@@ -110,7 +110,7 @@ GENERATORS = (
         small=("benchmarks/train_time.py", "--profile"), trains=True),
     TableGenerator(
         "OMP_NUM_THREADS=1 .venv/bin/python benchmarks/fleet_prior.py --prior FLEET_OUT/fleet.json --units 5",
-        ("| unit | calibration | rate_err_dps | field_err_ut |",),
+        ("| unit | calibration | rate_err_dps | field_err_ut | slope-limited rate [°/s] |",),
         small=("benchmarks/fleet_prior.py", "--fleet-units", "5", "--units", "1", "--seconds", "30"), trains=True),
     TableGenerator(
         "OMP_NUM_THREADS=1 .venv/bin/python benchmarks/fleet_speed.py --devices 200",

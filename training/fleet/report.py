@@ -12,7 +12,7 @@ from training.artefact import ModelArtefact, load_artefact
 from training.fleet.population import (MIN_UNITS_FOR_OUTLIERS, OUTLIER_SIGMAS, POPULATION_TEMP_C, outliers,
                                        population, unit_parameters)
 from training.fleet.train import UnitResult
-from training.models.prior import build_prior
+from training.models.prior import MIN_PRIOR_UNITS, build_prior
 
 #: Parameter kinds drawn as histograms, one figure per triad.
 HISTOGRAM_KINDS = ("bias", "scale")
@@ -34,16 +34,34 @@ def fleet_prior(artefacts: list[ModelArtefact]) -> dict[str, dict]:
     return out
 
 
-def fleet_document(results: list[UnitResult]) -> dict:
-    """The content of fleet.json: per-unit status, the population, outliers, failures and the prior."""
+def fleet_elm_document(results: list[UnitResult], excluded: list[str], seed: int, progress: bool) -> dict:
+    """fleet.json 'elm': the fleet ELM learnt from the non-outlier units' compass rows
+    (training.models.fleet_elm), with a progress bar over its two fits."""
+    from tqdm import tqdm
+    from training.models.fleet_elm import fit_fleet_elm, fleet_elm_json
+    from training.train import deterministic
+    rows = {r.unit: r.elm_rows for r in results if r.model and r.unit not in excluded and r.elm_rows is not None}
+    with deterministic(seed), tqdm(total=2, desc="fleet ELM (held-out check, fit)", unit="fit",
+                                   disable=not progress or len(rows) < MIN_PRIOR_UNITS) as bar:
+        return fleet_elm_json(*fit_fleet_elm(rows, seed, bar.update))
+
+
+def fleet_document(results: list[UnitResult], seed: int = 0, progress: bool = False) -> dict:
+    """The content of fleet.json: per-unit status, the population, outliers, failures and the prior.
+    The prior and the fleet ELM leave out every outlier unit (`prior_excludes`): one unit with a 10×
+    bias would otherwise widen the population's σ for every new unit."""
     artefacts = {r.unit: load_artefact(r.model) for r in results if r.model}
     trained = {unit: unit_parameters(a) for unit, a in artefacts.items()}
     stats = population(trained)
+    found = outliers(stats)
+    excluded = sorted({o["unit"] for o in found})
     return {"format": "imufusion-fleet", "format_version": FLEET_FORMAT,
             "population_temperature_c": POPULATION_TEMP_C, "outlier_sigmas": OUTLIER_SIGMAS,
             "units": {r.unit: {"model": r.model, "reason": r.reason} for r in results},
             "trained": len(trained), "failed": [{"unit": r.unit, "reason": r.reason} for r in results if not r.model],
-            "population": stats, "outliers": outliers(stats), "prior": fleet_prior(list(artefacts.values()))}
+            "population": stats, "outliers": found, "prior_excludes": excluded,
+            "prior": fleet_prior([a for unit, a in artefacts.items() if unit not in excluded]),
+            "elm": fleet_elm_document(results, excluded, seed, progress)}
 
 
 def _histograms(stats: dict, out_dir: Path) -> list[Path]:
@@ -71,6 +89,21 @@ def _histograms(stats: dict, out_dir: Path) -> list[Path]:
     return paths
 
 
+def _prior_lines(doc: dict) -> list[str]:
+    """fleet.md's prior section: the triads it covers, the units left out, the fleet ELM."""
+    triads = ", ".join(f"{t} ({p['units']} units)" for t, p in doc["prior"].items()) or "none"
+    elm = doc["elm"]
+    lines = [f"- Gain/bias populations: {triads}.",
+             f"- Left out as outliers: {', '.join(doc['prior_excludes']) or 'none'}."]
+    if "model" in elm:
+        lines.append(f"- Fleet ELM: {elm['hidden']} nodes from {elm['units']} units; on the held-out units "
+                     f"{', '.join(elm['held_out_units'])} it moves the field error {elm['rms_before']:.3g} -> "
+                     f"{elm['rms_after']:.3g} µT.")
+    else:
+        lines.append(f"- No fleet ELM: {elm['reason']}.")
+    return lines
+
+
 def _markdown(doc: dict, plots: list[Path]) -> str:
     """fleet.md from the fleet document."""
     lines = [f"# Fleet calibration: {len(doc['units'])} units, {doc['trained']} trained, {len(doc['failed'])} failed",
@@ -87,6 +120,7 @@ def _markdown(doc: dict, plots: list[Path]) -> str:
                   f"{o['distance']:.1f} |" for o in doc["outliers"]]
     lines += ["", "## Failed units", ""]
     lines += [f"- {f['unit']}: {f['reason']}" for f in doc["failed"]] or ["None."]
+    lines += ["", "## Prior (`imufmu train DATA --prior fleet.json`)", ""] + _prior_lines(doc)
     lines += ["", "## Population", "", "| parameter | unit | units | mean | std | median | robust σ | 5 % | 95 % |",
               "|---|---|---|---|---|---|---|---|---|"]
     lines += [f"| {n} | {s['unit']} | {s['units']} | {s['mean']:.4g} | {s['std']:.3g} | {s['median']:.4g} | "
@@ -95,10 +129,11 @@ def _markdown(doc: dict, plots: list[Path]) -> str:
     return "\n".join(lines) + "\n"
 
 
-def write_fleet_report(results: list[UnitResult], out_dir: str | Path) -> tuple[Path, Path, dict]:
+def write_fleet_report(results: list[UnitResult], out_dir: str | Path, seed: int = 0,
+                       progress: bool = False) -> tuple[Path, Path, dict]:
     """Write out_dir/fleet.json, fleet.md and the histograms; returns (json, md, document)."""
     out_dir = Path(out_dir)
-    doc = fleet_document(results)
+    doc = fleet_document(results, seed, progress)
     plots = _histograms(doc["population"], out_dir) if doc["trained"] else []
     json_path, md_path = out_dir / "fleet.json", out_dir / "fleet.md"
     json_path.write_text(json.dumps(doc, indent=1, default=lambda v: float(v) if isinstance(v, np.floating) else v) + "\n")

@@ -10,7 +10,7 @@ describe the population (training.fleet.population).
 from __future__ import annotations
 
 import json
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 from contract.errors import DataError
@@ -24,11 +24,18 @@ CALIBRATION_DIR = "calibration"
 
 @dataclass(frozen=True)
 class UnitResult:
-    """What training one unit gave: its model file, or the one-line reason it failed."""
+    """What training one unit gave: its model file, or the one-line reason it failed, and the compass
+    rows its ELM learnt from (training.train.elm_rows, for the fleet ELM; None without a magnetometer
+    reference)."""
 
     unit: str
     model: str | None
     reason: str | None
+    elm_rows: tuple | None = field(default=None, repr=False, compare=False)
+
+    def summary(self) -> dict:
+        """units.json entry."""
+        return {"unit": self.unit, "model": self.model, "reason": self.reason}
 
 
 def unit_recordings(folder: Path) -> list[Path]:
@@ -52,11 +59,15 @@ def unit_folders(fleet_dir: Path) -> list[Path]:
 def train_unit(folder: Path, out_dir: Path, seed: int) -> UnitResult:
     """Train one unit into out_dir/<unit> as `imufmu train` does; any failure becomes its reason
     (one line), never an exception: one unit never stops the fleet."""
-    from training.train import train_to_folder
     from contract.errors import one_line
+    from training.artefact import load_artefact
+    from training.data.io import read_imu_csv
+    from training.train import elm_rows, train_to_folder
     try:
-        done = train_to_folder(unit_recordings(folder), out_dir / folder.name, seed=seed, progress=False)
-        return UnitResult(folder.name, str(done.model), None)
+        recordings = unit_recordings(folder)
+        done = train_to_folder(recordings, out_dir / folder.name, seed=seed, progress=False)
+        rows = elm_rows([read_imu_csv(p) for p in recordings], load_artefact(done.model).thermal, seed)
+        return UnitResult(folder.name, str(done.model), None, rows)
     except Exception as e:  # noqa: BLE001 - the reason is reported per unit, the fleet goes on
         return UnitResult(folder.name, None, one_line(f"{type(e).__name__}: {e}"))
 
@@ -72,5 +83,5 @@ def train_fleet(fleet_dir: str | Path, out_dir: str | Path, seed: int = 0, worke
         results = [r for _, r in run_tasks(client, train_unit, units, "units", progress,
                                            out_dir=out_dir.resolve(), seed=seed)]
     results.sort(key=lambda r: r.unit)
-    (out_dir / "units.json").write_text(json.dumps([r.__dict__ for r in results], indent=1) + "\n")
+    (out_dir / "units.json").write_text(json.dumps([r.summary() for r in results], indent=1) + "\n")
     return results
