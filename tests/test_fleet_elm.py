@@ -83,3 +83,11 @@ def test_a_unit_gets_the_fleet_elm_only_when_it_leaves_less_on_the_units_held_ou
     notes = []
     assert _fleet_elm_choice(good, folds, own, notes) and notes[-1].endswith("the unit gets the fleet")
     assert not _fleet_elm_choice(bad, folds, own, notes) and notes[-1].endswith("the unit gets its own")
+
+
+def test_a_fleet_elm_is_not_used_without_a_reference_to_check_it_on():
+    from training.models.thermal import ThermalModel
+    from training.train import _elm_stage
+    notes = []
+    model, enabled, _ = _elm_stage([], {"mag": ThermalModel.identity()}, 0, notes, False, fleet_elm=object())
+    assert model is None and not enabled and notes[-1].endswith("not used either (nothing to check it on)")

@@ -200,9 +200,11 @@ def elm_rows(datasets: list[ImuData], thermal: dict[str, ThermalModel], seed: in
     """(calibrated field, reference field) [µT]: the rows a unit's ELM learns from, as `train` prepares
     them for recordings calibrated by `thermal`; None without a magnetometer reference. The fleet ELM
     (training.models.fleet_elm) pools them over units."""
+    if not thermal["mag"].enabled:
+        return None
     refs = {triad: choose_reference(datasets, triad) for triad in TRIAD_ORDER}
     sets = _compass_sets(_prepared_datasets(datasets, refs), thermal, seed)
-    if not sets or not thermal["mag"].enabled:
+    if not sets:
         return None
     return np.concatenate([s.field for s in sets]), np.concatenate([s.reference for s in sets])
 
@@ -232,7 +234,8 @@ def _elm_stage(datasets: list[ImuData], thermal: dict[str, ThermalModel], seed: 
     from training.models import elm
     if not _usable_for_elm(datasets) or not thermal["mag"].enabled:
         notes.append("elm: no magnetometer reference (ref_mag, ref_q) or no fitted magnetometer; "
-                     "ELM stage off")
+                     "ELM stage off" + ("; the fleet prior's ELM is not used either (nothing to check it on)"
+                                        if fleet_elm is not None else ""))
         return None, False, {}
     sets = _compass_sets(datasets, thermal, seed)
     errors, folds = [], _elm_holdout(sets)

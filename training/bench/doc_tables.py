@@ -109,8 +109,10 @@ GENERATORS = (
         ("| stage | time [s] | share |",),
         small=("benchmarks/train_time.py", "--profile"), trains=True),
     TableGenerator(
-        "OMP_NUM_THREADS=1 .venv/bin/python benchmarks/fleet_prior.py --prior FLEET_OUT/fleet.json --units 5",
-        ("| unit | calibration | rate_err_dps | field_err_ut | slope-limited rate [°/s] |",),
+        "OMP_NUM_THREADS=1 .venv/bin/python benchmarks/fleet_prior.py --prior FLEET_OUT/fleet.json --units 20",
+        ("| unit | rate [°/s], full | rate [°/s], # s | rate [°/s], # s + prior | rate, slope-limited | field [µT], full "
+         "| field [µT], # s | field [µT], # s + prior |",
+         "| error | with prior ÷ full calibration (bound ≤ #) | with prior ÷ same # s alone (bound ≤ #) |"),
         small=("benchmarks/fleet_prior.py", "--fleet-units", "5", "--units", "1", "--seconds", "30"), trains=True),
     TableGenerator(
         "OMP_NUM_THREADS=1 .venv/bin/python benchmarks/fleet_speed.py --devices 200",
