@@ -143,3 +143,15 @@ def test_a_prior_that_cannot_help_a_triad_says_so():
     assert len(notes) == 2 and notes[0].startswith("acc: the fleet prior was not used")
     assert notes[1].startswith("mag: the fleet prior has no mag population")
     assert _unused_prior_notes(refs, {}) == []
+
+
+def test_the_bias_uncertainty_grows_away_from_the_recordings_temperature():
+    """One temperature (20 °C = t0) pins the bias there; at ± 15 °C (τ = ±1) the posterior σ is
+    the prior's slope σ (0.2 × 0.2 + 1e-3 = 0.041), whatever the recording says."""
+    from training.train import bias_uncertainty
+    raw, ref, temp = _data(20.0)
+    prior = _prior(0.2)
+    fit = GainBiasFitter(degree=1, prior=prior).fit(raw, ref, temp, 0, "1")
+    at_data, away, far = bias_uncertainty(fit.posterior_cov, prior, (20.0, 35.0, 5.0))
+    assert at_data < 0.01 * away                      # NOISE / √3000 ≈ 2e-4 against the prior's 0.04
+    assert away == pytest.approx(far, rel=0.05) and 0.9 * 0.041 < away < 1.05 * 0.041

@@ -16,6 +16,7 @@ from training.artefact import ModelArtefact
 from training.data.dataset import ImuData
 from training.data.reference import matched_raw
 from training.data.reference_source import TriadReference, choose_reference
+from training.display import DISPLAY
 from training.models.calibrated_range import range_notes
 from training.models.degree import AUTO, ceiling, choose_degree, parse_degree
 from training.models.prior import TriadPrior, load_prior
@@ -366,9 +367,29 @@ def _fit_with_prior(triad: str, raw: np.ndarray, target: np.ndarray, temp: np.nd
     stats = {**_fit_stats(fit), "fleet_prior_units": prior.units,
              "posterior_sigma": [float(v) for v in fit.posterior_sigma]}
     lo, hi = prior.t_range
+    middle = float(np.median(temp[np.isfinite(temp)])) if np.isfinite(temp).any() else prior.t0
+    points = sorted({round(t, 1) for t in (lo, middle, hi)})   # the fleet's range and the recording's median
+    bias_sigma = bias_uncertainty(fit.posterior_cov, prior, points)
+    stats["bias_sigma"] = {"temp_c": list(points), "sigma": bias_sigma, "unit": UNITS[triad]}
+    unit, factor = DISPLAY[triad]
     return fit.model, stats, notes + _fit_notes(triad, fit, prior.degree) + [
         f"{triad}: fitted with the fleet prior of {prior.units} units (degree {prior.degree}, calibrated over "
-        f"{lo:.1f} … {hi:.1f} °C): what this recording does not observe comes from the population"]
+        f"{lo:.1f} … {hi:.1f} °C): what this recording does not observe comes from the population; the bias is "
+        "uncertain by " + ", ".join(f"{factor * v:.2g} {unit} at {t:.1f} °C" for t, v in zip(points, bias_sigma))
+        + " (1σ, largest axis, posterior: away from the recording's temperatures it is the fleet's spread)"]
+
+
+def bias_uncertainty(cov: np.ndarray, prior: TriadPrior, temps) -> list[float]:
+    """The largest axis's posterior σ of the bias B(T) [triad unit] at each temperature [°C], from the
+    covariance of θ (training.models.prior order: b is the last 3·(degree+1) entries, axis-major)."""
+    d = prior.degree
+    b = cov[6 + 3 * d:, 6 + 3 * d:]
+    out = []
+    for t in temps:
+        v = ((t - prior.t0) / prior.ts) ** np.arange(d + 1)
+        out.append(float(max(np.sqrt(max(v @ b[i * (d + 1):(i + 1) * (d + 1), i * (d + 1):(i + 1) * (d + 1)] @ v, 0.0))
+                             for i in range(3))))
+    return out
 
 
 def _unused_prior_notes(refs: dict[str, TriadReference], prior: dict[str, TriadPrior]) -> list[str]:

@@ -10,10 +10,9 @@ import numpy as np
 
 from training.diagnosis.candidates import TRIAD_NAMES
 from training.diagnosis.diagnose_fit import Fit
+from training.display import DISPLAY
 
 G = 9.80665
-#: Unit of each triad's residual and the factor to its display unit.
-DISPLAY = {"gyr": ("°/s", np.rad2deg(1.0)), "acc": ("m/s²", 1.0), "mag": ("µT", 1.0)}
 
 
 def _vector(v, digits: int = 3) -> str:

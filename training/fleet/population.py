@@ -12,6 +12,7 @@ import numpy as np
 
 from contract.layout import TRIAD_ORDER
 from training.artefact import ModelArtefact
+from training.display import DISPLAY
 from training.models.fit_quality import cross_axis_deg
 from training.models.thermal import ThermalModel, apply_thermal
 
@@ -24,8 +25,6 @@ OUTLIER_SIGMAS = 6.0
 #: uncertain by about 1.17/√n of itself, 21 % at 30 units; in a clean fleet of 12 a 3 σ unit came out
 #: at 6.3 robust σ (measured: simulate-fleet --devices 12 --seed 0, unit_0005 gyr.bias_x).
 MIN_UNITS_FOR_OUTLIERS = 30
-#: Display unit and factor from the triad's SI unit (°/s reads better than rad/s).
-DISPLAY = {"gyr": ("°/s", float(np.rad2deg(1.0))), "acc": ("m/s²", 1.0), "mag": ("µT", 1.0)}
 #: Consistency factor of the MAD for a normal distribution.
 MAD_TO_SIGMA = 1.4826
 

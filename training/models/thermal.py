@@ -205,7 +205,12 @@ class ThermalFit:
     rows_used: int
     rows_dropped: int
     unit: str
-    posterior_sigma: np.ndarray | None = None  # with a fleet prior: σ of θ (training.models.prior order)
+    posterior_cov: np.ndarray | None = None  # with a fleet prior: covariance of θ (training.models.prior order)
+
+    @property
+    def posterior_sigma(self) -> np.ndarray | None:
+        """σ of θ with a fleet prior (the square root of the covariance's diagonal), else None."""
+        return None if self.posterior_cov is None else np.sqrt(np.clip(np.diag(self.posterior_cov), 0.0, None))
 
 
 #: Width of a temperature cluster [°C] (reference fits here, rest windows in training.selfcal): a MEMS bias drifts smoothly, by ~0.01-0.1 °/s or
@@ -306,11 +311,11 @@ class GainBiasFitter:
             model=model, loss_history=tuple(history), iterations=len(history),
             converged=converged, rms_before=_rms(x_raw - x_ref),
             rms_after=_rms(apply_thermal(model, x_raw, temp) - x_ref),
-            rows_used=int(keep.sum()), rows_dropped=int((~keep).sum()), unit=unit, posterior_sigma=posterior)
+            rows_used=int(keep.sum()), rows_dropped=int((~keep).sum()), unit=unit, posterior_cov=posterior)
 
     def _descend(self, x_raw, x_ref, temp, degree, t0, ts):
         """Gradient descent on normalised data; returns (model, loss history, converged, the
-        posterior σ of θ with a prior or None)."""
+        posterior covariance of θ with a prior or None)."""
         # Scale s: RMS of all raw and reference values, so u = x/s is O(1) for gyro
         # (~0.01-1 rad/s), acc (~10 m/s²) and mag (~50 µT) alike; loss = MSE / s².
         s = _rms(np.concatenate([x_raw, x_ref])) or 1.0
@@ -342,11 +347,11 @@ class GainBiasFitter:
             if self._converged(optimiser):
                 converged = True
                 break
-        posterior = None if prior_loss is None else self._posterior_sigma(a6, g, beta, u, v, vand, prior_loss, s)
+        posterior = None if prior_loss is None else self._posterior_cov(a6, g, beta, u, v, vand, prior_loss, s)
         return _to_model(a6, g, beta, s, degree, t0, ts), history, converged, posterior
 
-    def _posterior_sigma(self, a6, g, beta, u, v, vand, prior_loss, s: float) -> np.ndarray:
-        """σ of θ under the prior by Laplace's approximation: the loss is 2w · (negative log
+    def _posterior_cov(self, a6, g, beta, u, v, vand, prior_loss, s: float) -> np.ndarray:
+        """Covariance of θ under the prior by Laplace's approximation: the loss is 2w · (negative log
         posterior), w = σ_n² / (3N), so the covariance is 2w · H⁻¹ (H the loss's Hessian at the
         optimum); the b part scaled back by s."""
         degree = g.shape[1] if g is not None else 0
@@ -358,9 +363,9 @@ class GainBiasFitter:
             return torch.mean((_model_torch(a, gg, b, u, vand) - v) ** 2) + prior_loss(a, gg, b)
         hessian = torch.autograd.functional.hessian(total, flat).numpy()
         weight = float(self._normalised_prior(s)[2]) ** 2 / (3.0 * u.shape[0])
-        sigma = np.sqrt(np.clip(np.diag(2.0 * weight * np.linalg.pinv(hessian)), 0.0, None))
-        sigma[6 + 3 * degree:] *= s
-        return sigma
+        scale = np.ones(len(flat))
+        scale[6 + 3 * degree:] = s
+        return 2.0 * weight * np.linalg.pinv(hessian) * np.outer(scale, scale)
 
     def _normalised_prior(self, s: float) -> tuple[np.ndarray, np.ndarray, float]:
         """(mean, σ, noise σ_n) of the prior in the descent's units (b and σ_n divided by s)."""

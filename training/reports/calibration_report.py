@@ -14,13 +14,12 @@ from contract.layout import TRIAD_ORDER
 from training.artefact import ModelArtefact
 from training.data.dataset import ImuData
 from training.data.reference_source import SOURCE_TEXT
+from training.display import DISPLAY
 from training.models.fit_quality import at_t0, cross_axis_deg, is_warning
 from training.models.thermal import apply_thermal
 
 UNITS = {"gyr": "rad/s", "acc": "m/s²", "mag": "µT"}
 NAMES = {"gyr": "gyroscope", "acc": "accelerometer", "mag": "magnetometer"}
-#: Display unit and factor from the triad unit, for the summary (°/s reads better than rad/s).
-DISPLAY = {"gyr": ("°/s", float(np.rad2deg(1.0))), "acc": ("m/s²", 1.0), "mag": ("µT", 1.0)}
 #: Settings the summary reports, with their display unit and factor.
 SETTINGS_SHOWN = {"attitude_mode": ("", 1.0), "rest_gyro_threshold": ("°/s", float(np.rad2deg(1.0))),
                   "gyro_noise": ("°/s/√Hz", float(np.rad2deg(1.0))), "field_norm": ("µT", 1.0),
