@@ -35,6 +35,7 @@ def test_fleet_train_equals_serial_train_and_names_a_corrupt_unit(tmp_path, caps
     assert main(["fleet", "train", str(fleet), "--out", str(tmp_path / "out"), "--workers", "2"]) == 0
     printed = capsys.readouterr().out
     assert "trained 1 of 2 units; 1 failed" in printed and "failed: unit_0001:" in printed
+    assert "No fleet ELM: fewer than 5 units with a magnetometer reference" in printed
     doc = json.loads((tmp_path / "out" / "fleet.json").read_text())
     assert [f["unit"] for f in doc["failed"]] == ["unit_0001"] and "cannot read" in doc["failed"][0]["reason"]
     serial = train_to_folder([fleet / "unit_0000" / "calibration" / "calibration.csv.gz"], tmp_path / "serial",

@@ -67,7 +67,7 @@ def cmd_simulate_fleet(args) -> None:
 
 def cmd_fleet_train(args) -> None:
     """imufmu fleet train FLEET_DIR --out OUT [--workers K | --scheduler ADDRESS] [--seed N]."""
-    from training.fleet.report import write_fleet_report
+    from training.fleet.report import fleet_elm_summary, write_fleet_report
     from training.fleet.train import train_fleet
     results = train_fleet(args.fleet_dir, args.out, seed=args.seed, workers=args.workers, scheduler=args.scheduler)
     json_path, md_path, doc = write_fleet_report(results, args.out, seed=args.seed, progress=True)
@@ -78,6 +78,7 @@ def cmd_fleet_train(args) -> None:
     for o in doc["outliers"]:
         print(f"  outlier: {o['unit']}: {o['parameter']} = {o['value']:.4g} {o['unit_of_value']} "
               f"({o['distance']:.1f} robust σ from the median {o['median']:.4g})")
+    print(f"  {fleet_elm_summary(doc['elm'])}")
     print(f"wrote {json_path} and {md_path}")
 
 

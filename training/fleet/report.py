@@ -95,13 +95,15 @@ def _prior_lines(doc: dict) -> list[str]:
     elm = doc["elm"]
     lines = [f"- Gain/bias populations: {triads}.",
              f"- Left out as outliers: {', '.join(doc['prior_excludes']) or 'none'}."]
-    if "model" in elm:
-        lines.append(f"- Fleet ELM: {elm['hidden']} nodes from {elm['units']} units; on the held-out units "
-                     f"{', '.join(elm['held_out_units'])} it moves the field error {elm['rms_before']:.3g} -> "
-                     f"{elm['rms_after']:.3g} µT.")
-    else:
-        lines.append(f"- No fleet ELM: {elm['reason']}.")
-    return lines
+    return lines + [f"- {fleet_elm_summary(elm)}."]
+
+
+def fleet_elm_summary(elm: dict) -> str:
+    """One line on the fleet ELM of fleet.json 'elm': what it does on the held-out units, or why there is none."""
+    if "model" not in elm:
+        return f"No fleet ELM: {elm['reason']}"
+    return (f"Fleet ELM: {elm['hidden']} nodes from {elm['units']} units; on the held-out units "
+            f"{', '.join(elm['held_out_units'])} it moves the field error {elm['rms_before']:.3g} -> {elm['rms_after']:.3g} µT")
 
 
 def _markdown(doc: dict, plots: list[Path]) -> str:
