@@ -23,7 +23,7 @@ _SPEC.loader.exec_module(import_graph)
 #: The layers of training/, bottom first: a module may import its own layer and the ones below.
 #: Each entry names modules or subpackages (a prefix covers the package and everything in it).
 LAYERS = (
-    ("training.frames", "training.runtime"),                    # conventions, the C bridge
+    ("training.frames", "training.display", "training.runtime"),  # conventions, the C bridge
     ("training.data",),                                         # recordings and references
     ("training.simulator",),                                    # simulated recordings
     ("training.models", "training.selfcal"),                    # models, twins, self-calibration

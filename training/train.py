@@ -20,7 +20,7 @@ from training.display import DISPLAY
 from training.models.calibrated_range import range_notes
 from training.models.degree import AUTO, ceiling, choose_degree, parse_degree
 from training.models.prior import TriadPrior, load_prior
-from training.models.elm import ElmModel
+from training.models.elm import MIN_GAIN as ELM_MIN_GAIN, ElmModel
 from training.models.fit_quality import fit_warnings
 from training.models.psobp import PsoBpModel
 from training.models.thermal import (GainBiasFitter, ThermalFit, ThermalModel, apply_thermal,
@@ -28,10 +28,6 @@ from training.models.thermal import (GainBiasFitter, ThermalFit, ThermalModel, a
 from training.recommend import recommended_settings, sidecar_values
 from training.selfcal import SelfCalResult, self_calibrate
 
-#: The ELM stage is switched on only when it lowers the held-out field error RMS of the
-#: calibration data by at least this fraction: a smaller gain is within what a different random
-#: split moves, and an ELM that does not clearly help is not worth its risk on other data.
-ELM_MIN_GAIN = 0.10
 #: Share of a single calibration recording (its end, in time) held out to decide on the ELM.
 ELM_HOLDOUT_FRACTION = 0.25
 #: Field directions covering this share of the sphere's cells prove that a recording moved (a

@@ -55,6 +55,12 @@ from training.data.io import read_imu_csv
 from training.data.reference import reference_euler_magnetic
 from training.frames import quat_to_matrix, wrap_angle
 
+#: An ELM stage is switched on only when it lowers the held-out field error RMS by at least this
+#: fraction (the chain's, training.train; the fleet's, training.models.fleet_elm): a smaller gain
+#: is within what a different random split moves, and an ELM that does not clearly help is not
+#: worth its risk on other data.
+MIN_GAIN = 0.10
+
 # ----------------------------------------------------------------------------- block layout
 
 #: Compile-time maximum of hidden nodes in the C runtime (IMU_ELM_MAX_HIDDEN, sources/ImuElm.h).

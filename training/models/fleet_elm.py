@@ -10,7 +10,7 @@ unit's own ELM on the unit's held-out data (training.train._elm_stage).
 
 Whether the type has such a common nonlinearity is measured, never assumed: every
 HOLDOUT_EVERY-th unit is held out, the ELM is fitted on the others and scored on them, and the
-fleet carries an ELM only when it lowers their field error by ELM_MIN_GAIN (as a unit's own
+fleet carries an ELM only when it lowers their field error by elm.MIN_GAIN (as a unit's own
 ELM must). Units whose nonlinearities differ give no gain there and no fleet ELM.
 """
 from __future__ import annotations
@@ -22,7 +22,6 @@ import numpy as np
 
 from contract.errors import ModelError
 from training.models import elm
-from training.train import ELM_MIN_GAIN
 
 #: The fleet ELM's fitter: the runtime's node cap, a classic ELM of random nodes (β by least
 #: squares) back-tuned by Adam on seeded batches. On the 12-unit fleet of docs/fleet.md it fits in
@@ -55,7 +54,7 @@ def fit_fleet_elm(rows_by_unit: dict[str, tuple[np.ndarray, np.ndarray]], seed: 
                   progress=None) -> tuple[elm.ElmModel | None, dict]:
     """The fleet ELM from each unit's compass rows {unit: (calibrated field, reference field) [µT]},
     and its stats: units, rows, the held-out units' field error RMS before / after [µT], enabled,
-    reason. None when there are too few units or the held-out units gain less than ELM_MIN_GAIN.
+    reason. None when there are too few units or the held-out units gain less than elm.MIN_GAIN.
     `progress`: called once after each of the two fits."""
     units = sorted(u for u, r in rows_by_unit.items() if r is not None and len(r[0]))
     if len(units) < MIN_UNITS:
@@ -69,10 +68,10 @@ def fit_fleet_elm(rows_by_unit: dict[str, tuple[np.ndarray, np.ndarray]], seed: 
     test_y = np.concatenate([rows_by_unit[u][1] for u in held])
     before, after = _rms(test_x - test_y), _rms(elm.elm_apply(trial, test_x) - test_y)
     stats = {"units": len(units), "held_out_units": held, "unit": "µT", "rms_before": before, "rms_after": after,
-             "enabled": after <= (1.0 - ELM_MIN_GAIN) * before}
+             "enabled": after <= (1.0 - elm.MIN_GAIN) * before}
     if not stats["enabled"]:
         return None, {**stats, "reason": f"on the held-out units the fleet ELM moves the field error {before:.3g} -> "
-                                         f"{after:.3g} µT, not a {ELM_MIN_GAIN:.0%} gain: the units do not share a "
+                                         f"{after:.3g} µT, not a {elm.MIN_GAIN:.0%} gain: the units do not share a "
                                          "nonlinearity it can learn"}
     x, y = _pooled([rows_by_unit[u] for u in units], seed)
     model = fitter.fit(x, y, seed)
