@@ -2,7 +2,7 @@
 from __future__ import annotations
 
 from contextlib import contextmanager
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -589,12 +589,14 @@ def train(datasets: list[ImuData], seed: int = 0, degree: int | str = AUTO,
 
 @dataclass
 class TrainedFolder:
-    """What `train_to_folder` wrote and what `imufmu train` prints."""
+    """What `train_to_folder` wrote and what `imufmu train` prints, with what it was made from."""
 
     model: Path            # OUT/model.json
     report: Path           # OUT/calibration.md
     notes: list[str]       # the artefact's notes
     summary: str           # the calibration summary (plain text)
+    artefact: ModelArtefact = field(repr=False)        # what OUT/model.json holds
+    datasets: list[ImuData] = field(repr=False)        # the recordings it was trained on
 
 
 def train_to_folder(paths: list[Path], out_dir: str | Path, seed: int = 0, degree: int | str = AUTO,
@@ -614,4 +616,4 @@ def train_to_folder(paths: list[Path], out_dir: str | Path, seed: int = 0, degre
     model = Path(out_dir) / "model.json"
     artefact.save(model)
     report = write_calibration_report(artefact, datasets, out_dir)
-    return TrainedFolder(model, report, list(artefact.notes), summary_text(artefact, datasets))
+    return TrainedFolder(model, report, list(artefact.notes), summary_text(artefact, datasets), artefact, datasets)

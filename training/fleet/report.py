@@ -92,10 +92,9 @@ def _histograms(stats: dict, out_dir: Path) -> list[Path]:
 def _prior_lines(doc: dict) -> list[str]:
     """fleet.md's prior section: the triads it covers, the units left out, the fleet ELM."""
     triads = ", ".join(f"{t} ({p['units']} units)" for t, p in doc["prior"].items()) or "none"
-    elm = doc["elm"]
-    lines = [f"- Gain/bias populations: {triads}.",
-             f"- Left out as outliers: {', '.join(doc['prior_excludes']) or 'none'}."]
-    return lines + [f"- {fleet_elm_summary(elm)}."]
+    return [f"- Gain/bias populations: {triads}.",
+            f"- Left out as outliers: {', '.join(doc['prior_excludes']) or 'none'}.",
+            f"- {fleet_elm_summary(doc['elm'])}."]
 
 
 def fleet_elm_summary(elm: dict) -> str:

@@ -60,14 +60,10 @@ def train_unit(folder: Path, out_dir: Path, seed: int) -> UnitResult:
     """Train one unit into out_dir/<unit> as `imufmu train` does; any failure becomes its reason
     (one line), never an exception: one unit never stops the fleet."""
     from contract.errors import one_line
-    from training.artefact import load_artefact
-    from training.data.io import read_imu_csv
     from training.train import elm_rows, train_to_folder
     try:
-        recordings = unit_recordings(folder)
-        done = train_to_folder(recordings, out_dir / folder.name, seed=seed, progress=False)
-        rows = elm_rows([read_imu_csv(p) for p in recordings], load_artefact(done.model).thermal, seed)
-        return UnitResult(folder.name, str(done.model), None, rows)
+        done = train_to_folder(unit_recordings(folder), out_dir / folder.name, seed=seed, progress=False)
+        return UnitResult(folder.name, str(done.model), None, elm_rows(done.datasets, done.artefact.thermal, seed))
     except Exception as e:  # noqa: BLE001 - the reason is reported per unit, the fleet goes on
         return UnitResult(folder.name, None, one_line(f"{type(e).__name__}: {e}"))
 

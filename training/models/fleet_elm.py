@@ -25,8 +25,8 @@ from training.models import elm
 
 #: The fleet ELM's fitter: the runtime's node cap, a classic ELM of random nodes (β by least
 #: squares) back-tuned by Adam on seeded batches. On the 12-unit fleet of docs/fleet.md it fits in
-#: ~10 s and leaves 0.09-0.10 µT on new units' held-out tests, against 0.13-0.19 µT with the
-#: per-unit budget on the same pooled rows and 12 s / 41 s for 32 / 64 grown nodes with no better result.
+#: ~10 s and leaves 0.089-0.098 µT on new units' held-out tests; on the same pooled rows the per-unit
+#: budget left 0.125-0.188 µT, 32 / 64 grown nodes 0.10-0.12 / 0.087-0.099 µT in 12 s / 41 s.
 FLEET_ELM_FITTER = dict(max_hidden=elm.MAX_HIDDEN, fixed_hidden=elm.MAX_HIDDEN, tune_steps=3000, tune_batch=8192)
 #: Most compass rows one fit sees (a seeded sample of the pooled rows): bounds the fit's time
 #: whatever the fleet's size; 12 units give ~28 000.
