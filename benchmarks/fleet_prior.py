@@ -3,7 +3,7 @@
 their held-out test recording through the C runtime (training.fleet.heldout).
 
 Usage: OMP_NUM_THREADS=1 .venv/bin/python benchmarks/fleet_prior.py --prior FLEET_OUT/fleet.json
-       [--fleet scenarios/fleet/mems_grade.toml] [--units 5] [--seconds 60]
+       [--fleet scenarios/fleet/mems_grade.toml] [--units 5] [--seconds 60] [--two-temperatures]
 or, building the prior first from a fleet of K units (simulate-fleet --seed 0, then fleet train):
        OMP_NUM_THREADS=1 .venv/bin/python benchmarks/fleet_prior.py --fleet-units K [--units 5] [--seconds 60]
 The new units are units 1000, 1001, … of the fleet seed 0, so none was in a fleet of fewer than 1000.
@@ -12,7 +12,9 @@ The column `rate, slope-limited` predicts the rate error of any calibration from
 temperature: the full calibration's, with (in quadrature) what the unit's gyro bias slope differs
 from the type's (the sensor file's nominal, the population's mean: all a prior can know) times the
 test's distance in temperature from the seconds' mean. Its ratio to the full calibration is the
-information limit of the rate bound.
+information limit of the rate bound. With --two-temperatures the seconds are split in two halves: the
+recording's first, and the first at its highest temperature (within HOT_BAND_C), so the short calibration
+sees the unit's own slope; the slope-limited column does not apply there and reads "—".
 """
 from __future__ import annotations
 
@@ -40,6 +42,8 @@ LABELS = {"rate_err_dps": "rate [°/s]", "field_err_ut": "field [µT]"}
 #: Acceptance ratios of issue 19: with the prior ≤ 1.5 × the full calibration, ≤ 0.5 × the same
 #: seconds without the prior.
 RATIO_FULL, RATIO_SHORT = 1.5, 0.5
+#: --two-temperatures: the second half starts at the first sample this close [°C] to the highest temperature.
+HOT_BAND_C = 0.1
 
 
 def slope_limited(spec, folder: Path, short_temp: np.ndarray, tests: list[Path], full_rate: float) -> float:
@@ -52,21 +56,33 @@ def slope_limited(spec, folder: Path, short_temp: np.ndarray, tests: list[Path],
     return float(np.sqrt(full_rate ** 2 + np.mean(np.outer(distance, slope_error) ** 2)))
 
 
-def unit_rows(spec, k: int, prior: Path, seconds: float, work: Path) -> tuple[dict[str, dict[str, float]], float]:
-    """({calibration: {metric: value}} of new unit k: full, first `seconds` s, same with the prior;
-    its slope-limited rate error [°/s])."""
+def short_windows(data, seconds: float, two_temperatures: bool) -> list:
+    """The short calibration's recordings: the first `seconds` s, or (two_temperatures) half of them from
+    the start and half from the first sample within HOT_BAND_C of the highest temperature."""
+    n = int(round(seconds * data.meta["rate_hz"]))
+    if not two_temperatures:
+        return [data.slice(slice(0, n))]
+    hot = int(np.argmax(data.temp >= data.temp.max() - HOT_BAND_C))
+    return [data.slice(slice(0, n // 2)), data.slice(slice(hot, hot + n - n // 2))]
+
+
+def unit_rows(spec, k: int, prior: Path, seconds: float, work: Path,
+              two_temperatures: bool) -> tuple[dict[str, dict[str, float]], float | None]:
+    """({calibration: {metric: value}} of new unit k: full, the short windows, same with the prior;
+    its slope-limited rate error [°/s], None for windows at two temperatures)."""
     folder = simulate_unit(spec, k, 0, work)
     full = folder / "calibration" / "calibration.csv.gz"
-    data = read_imu_csv(full)
-    window = data.slice(slice(0, int(round(seconds * data.meta["rate_hz"]))))
-    short = write_imu_csv(window, work / f"short_{k}.csv.gz")
+    windows = short_windows(read_imu_csv(full), seconds, two_temperatures)
+    short = [write_imu_csv(w, work / f"short_{k}_{i}.csv.gz") for i, w in enumerate(windows)]
     tests = sorted((folder / "test").glob("*.csv.gz"))
     rows = {}
-    for label, paths, prior_path in (("full recording", [full], None), (f"first {seconds:g} s", [short], None),
-                                     (f"first {seconds:g} s + fleet prior", [short], prior)):
+    for label, paths, prior_path in (("full recording", [full], None), (f"first {seconds:g} s", short, None),
+                                     (f"first {seconds:g} s + fleet prior", short, prior)):
         done = train_to_folder(paths, work / f"{k}_{len(rows)}", progress=False, prior_path=prior_path)
         rows[label] = held_out_errors(done.model, tests)
-    return rows, slope_limited(spec, folder, window.temp, tests, rows["full recording"]["rate_err_dps"])
+    if two_temperatures:
+        return rows, None
+    return rows, slope_limited(spec, folder, windows[0].temp, tests, rows["full recording"]["rate_err_dps"])
 
 
 def fleet_prior(fleet: Path, units: int, work: Path) -> Path:
@@ -86,6 +102,8 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--fleet", type=Path, default=ROOT / "scenarios" / "fleet" / "mems_grade.toml")
     p.add_argument("--units", type=int, default=5)
     p.add_argument("--seconds", type=float, default=60.0)
+    p.add_argument("--two-temperatures", action="store_true",
+                   help="split the seconds between the recording's start and its highest temperature")
     a = p.parse_args(argv)
     spec = load_fleet(a.fleet)
     columns = [f"{LABELS[m]}, {c}" for m in HELD_OUT_METRICS for c in ("full", f"{a.seconds:g} s", f"{a.seconds:g} s + prior")]
@@ -96,12 +114,13 @@ def main(argv: list[str] | None = None) -> int:
     with tempfile.TemporaryDirectory(prefix="imufusion-fleet-prior-") as tmp:
         prior = a.prior or fleet_prior(a.fleet, a.fleet_units, Path(tmp))
         for k in range(FIRST_NEW_UNIT, FIRST_NEW_UNIT + a.units):
-            rows, limit = unit_rows(spec, k, prior, a.seconds, Path(tmp))
+            rows, limit = unit_rows(spec, k, prior, a.seconds, Path(tmp), a.two_temperatures)
             cells = [f"{errors[m]:.4f}" for m in HELD_OUT_METRICS for errors in rows.values()]
-            cells.insert(3, f"{limit:.4f}")
+            cells.insert(3, "—" if limit is None else f"{limit:.4f}")
             print(f"| {k} | " + " | ".join(cells) + " |", flush=True)
             full, short, with_prior = rows.values()
-            limits.append((limit / full["rate_err_dps"], with_prior["rate_err_dps"] / limit))
+            if limit is not None:
+                limits.append((limit / full["rate_err_dps"], with_prior["rate_err_dps"] / limit))
             ratios.append([[with_prior[m] / full[m], with_prior[m] / short[m]] for m in HELD_OUT_METRICS])
     ratios = np.array(ratios)   # unit, metric, (÷ full, ÷ short)
     print(f"\n| error | with prior ÷ full calibration (bound ≤ {RATIO_FULL:g}) | with prior ÷ same {a.seconds:g} s alone "
@@ -112,6 +131,8 @@ def main(argv: list[str] | None = None) -> int:
                  f"({'met' if ratios[:, j, i].max() <= bound else 'not met'}: {int(np.sum(ratios[:, j, i] <= bound))} of "
                  f"{len(ratios)} units within)" for i, bound in enumerate((RATIO_FULL, RATIO_SHORT))]
         print(f"| {m} | " + " | ".join(cells) + " |")
+    if not limits:
+        return 0
     limit_ratio, measured = np.array(limits).T
     print(f"\nslope-limited rate / full calibration: {limit_ratio.min():.2f}–{limit_ratio.max():.2f}, mean "
           f"{limit_ratio.mean():.2f} (what the unit's own temperature slope, unseen in these {a.seconds:g} s, costs any "

@@ -21,7 +21,7 @@ from training.models.calibrated_range import range_notes
 from training.models.degree import AUTO, ceiling, choose_degree, parse_degree
 from training.models.prior import TriadPrior, load_prior
 from training.models.elm import MIN_GAIN as ELM_MIN_GAIN, ElmModel
-from training.models.fit_quality import fit_warnings
+from training.models.fit_quality import BIAS_FALLBACK_NOTE, fit_warnings
 from training.models.psobp import PsoBpModel
 from training.models.thermal import (GainBiasFitter, ThermalFit, ThermalModel, apply_thermal,
                                      normalised_temperature, temperature_clusters, temperature_normalisation)
@@ -311,11 +311,11 @@ def gate_outliers(raw: np.ndarray, target: np.ndarray) -> tuple[np.ndarray, int]
     return out, int(bad.sum())
 
 
-def _fit_with_reference(ref: TriadReference, degree, seed: int,
-                        prior: TriadPrior | None = None) -> tuple[ThermalModel, dict, list[str]]:
+def _fit_with_reference(ref: TriadReference, degree, seed: int, prior: TriadPrior | None = None,
+                        gains: bool = True) -> tuple[ThermalModel, dict, list[str]]:
     """Fit one triad against the reference its recordings carry (columns, derived or static):
-    the full gain/bias model when the reference moves along every axis, else the bias B(T) only.
-    degree: 'auto' or the largest degree; the degree fitted is chosen from the data
+    the full gain/bias model when the reference moves along every axis (and `gains`), else the bias
+    B(T) only. degree: 'auto' or the largest degree; the degree fitted is chosen from the data
     (training.models.degree.choose_degree) and reported in the stats ('degree_choice') and the notes.
     With a fleet prior the full model is fitted in the population's basis (`_fit_with_prior`)."""
     triad, datasets = ref.triad, list(ref.datasets)
@@ -331,10 +331,10 @@ def _fit_with_reference(ref: TriadReference, degree, seed: int,
     reason = _skip_reason(datasets, triad, raw, target, ceiling(degree))
     if reason:
         return ThermalModel.identity(enabled=False), {}, [f"{reason}; thermal model disabled"]
-    if prior is not None:
+    if prior is not None and gains:
         return _fit_with_prior(triad, raw, target, temp, seed, prior, notes)
     excitation = _weakest_excitation(target)
-    gains = excitation >= MIN_EXCITATION[triad]
+    gains = gains and excitation >= MIN_EXCITATION[triad]
     if not gains and ref.source == "static" and triad != "gyr" and temperature_clusters(temp) < 2:
         return ThermalModel.identity(enabled=False), {}, [
             f"{triad}: a static log at one temperature identifies nothing of the {triad} (its bias and "
@@ -348,6 +348,8 @@ def _fit_with_reference(ref: TriadReference, degree, seed: int,
     model = fit_bias_only(raw, target, temp, choice.degree)
     stats = {"unit": UNITS[triad], "bias_only": True, "weakest_excitation": excitation,
              "degree_choice": choice.as_dict()}
+    if excitation >= MIN_EXCITATION[triad]:
+        return model, stats, notes + [f"{triad}: fitted the bias B(T) only (A = I, G = 1)"]
     what = ("the temperature drift of the bias only (the absolute bias and the gains are not "
             "identifiable from a static log)") if ref.source == "static" and triad != "gyr" else "the bias B(T) only"
     return model, stats, notes + [f"{triad}: the reference hardly moves (weakest direction {excitation:.3g} "
@@ -470,7 +472,8 @@ BARELY_IMPROVED = 0.9
 
 def _worse_than_raw(thermal: dict[str, ThermalModel], stats: dict, notes: list[str]) -> list[str]:
     """Triads whose calibration is worse than the raw sensor on held-out data (not exported: the
-    caller keeps the identity), with a loud note each; a warning note for a fit that barely helps."""
+    caller keeps the identity, or the bias alone where `_may_fall_back`), with a loud note each; a
+    warning note for a fit that barely helps."""
     worse = []
     for triad in TRIAD_ORDER:
         held = stats.get(triad, {}).get("held_out") or {}
@@ -481,13 +484,56 @@ def _worse_than_raw(thermal: dict[str, ThermalModel], stats: dict, notes: list[s
         if after > before:
             worse.append(triad)
             notes.append(f"{triad}: NOT EXPORTED — the calibration is worse than the raw sensor on held-out data "
-                         f"({metric}: raw {before:.4g}, calibrated {after:.4g}); the identity is kept"
+                         f"({metric}: raw {before:.4g}, calibrated {after:.4g}); "
+                         + ("the bias alone is tried instead" if _may_fall_back(triad, stats) else "the identity is kept")
                          + (" and the PSO-BP stage is off" if triad == "gyr" else "")
                          + (" and the ELM stage is off" if triad == "mag" else ""))
         elif after > BARELY_IMPROVED * before:
             notes.append(f"{triad}: warning: the calibration barely helps on held-out data ({metric}: raw "
                          f"{before:.4g}, calibrated {after:.4g}, {100 * (1 - after / before):.0f} % lower)")
     return worse
+
+
+#: Triads whose gain/bias calibration, worse than raw on held-out data, falls back to the bias B(T)
+#: alone when that beats raw on the same split (`_bias_only_fallback`): the inertial sensors, whose bias
+#: is the largest error and is pinned by every rest. Not the magnetometer: its offset is the hard iron
+#: of the surroundings, which the particle filter (enable_pf) estimates where the FMU runs.
+BIAS_FALLBACK_TRIADS = ("gyr", "acc")
+
+
+def _may_fall_back(triad: str, stats: dict) -> bool:
+    """A triad refused by `_worse_than_raw` gets `_bias_only_fallback`: inertial, against a reference
+    (a self-calibration's held-out score is on invariants, which it already fits bias-first), with a
+    gain/bias fit to drop."""
+    return (triad in BIAS_FALLBACK_TRIADS and stats.get(triad, {}).get("reference", "none") != "none"
+            and not stats[triad].get("bias_only"))
+
+
+def _bias_only_fallback(datasets: list[ImuData], ref: TriadReference, degree, seed: int, stats: dict,
+                        notes: list[str]) -> ThermalModel:
+    """The bias B(T) alone (A = I, G = 1) of a triad whose gain/bias calibration lost to the raw sensor
+    on held-out data, when it beats the raw sensor on the same held-out split; else the identity.
+    stats[triad] and the notes say which, with both held-out scores."""
+    from training.data.earth import STANDARD_GRAVITY
+    from training.models.holdout import held_out
+    triad, rejected = ref.triad, stats[ref.triad]["held_out"]
+    try:
+        score = held_out(datasets, {triad: ref}, lambda r: _fit_with_reference(r, degree, seed, gains=False)[0],
+                         None, None, STANDARD_GRAVITY)[triad]
+    except ValueError as e:
+        notes.append(f"{triad}: the bias alone could not be scored on held-out data ({e}); the identity is kept")
+        return ThermalModel.identity(enabled=False)
+    metric, before, after = score.get("metric", "held-out error"), score["before"], score["after"]
+    if not after < before:
+        notes.append(f"{triad}: the bias alone is no better ({metric}: raw {before:.4g}, bias only {after:.4g}); "
+                     "the identity is kept")
+        return ThermalModel.identity(enabled=False)
+    model, fit_stats, fit_notes = _fit_with_reference(ref, degree, seed, gains=False)
+    stats[triad] = {**fit_stats, "reference": ref.source, "held_out": score, "held_out_gain_bias": rejected}
+    notes.extend(fit_notes)
+    notes.append(f"{triad}: {BIAS_FALLBACK_NOTE}: it beats the raw sensor on the same held-out "
+                 f"data ({metric}: raw {before:.4g}, bias only {after:.4g}); the gains stay 1 and the axes as they are")
+    return _calibrated_range(model, ref.datasets, None)
 
 
 def _refuse_identity(thermal: dict[str, ThermalModel], refs: dict[str, TriadReference], selfcal,
@@ -571,7 +617,8 @@ def train(datasets: list[ImuData], seed: int = 0, degree: int | str = AUTO,
     for triad, score in _held_out(datasets, refs, degree, seed, selfcal, notes, progress, prior or {}).items():
         stats[triad]["held_out"] = score
     for triad in _worse_than_raw(thermal, stats, notes):
-        thermal[triad] = ThermalModel.identity(enabled=False)
+        thermal[triad] = (_bias_only_fallback(datasets, refs[triad], degree, seed, stats, notes)
+                          if _may_fall_back(triad, stats) else ThermalModel.identity(enabled=False))
         elm_on, psobp_on = elm_on and triad != "mag", psobp_on and triad != "gyr"
         psobp_model = psobp_model if psobp_on else None
     stats = {k: v for k, v in stats.items() if v}

@@ -58,6 +58,13 @@ _THERMAL_HEADER = ("| model | residual RMS [°/s] | RMS x / y / z [°/s] | 100 s
                    "bias stability [°/h] (vs uncomp.) | Allan min [°/h] (vs uncomp.) | "
                    "training CPU [s] (CV) | BP epochs (CV) |")
 _BROAD_GROUPS = "| filter | undisturbed | disturbed | all |"
+#: The tables of benchmarks/fleet_prior.py (one unit per row; the ratios against the bounds).
+_FLEET_PRIOR_HEADERS = (
+    "| unit | rate [°/s], full | rate [°/s], # s | rate [°/s], # s + prior | rate, slope-limited | field [µT], full "
+    "| field [µT], # s | field [µT], # s + prior |",
+    "| error | with prior ÷ full calibration (bound ≤ #) | with prior ÷ same # s alone (bound ≤ #) |")
+#: The small form of benchmarks/fleet_prior.py: a 5-unit prior, one new unit, 30 s.
+_FLEET_PRIOR_SMALL = ("benchmarks/fleet_prior.py", "--fleet-units", "5", "--units", "1", "--seconds", "30")
 
 GENERATORS = (
     TableGenerator(
@@ -110,10 +117,13 @@ GENERATORS = (
         small=("benchmarks/train_time.py", "--profile"), trains=True),
     TableGenerator(
         "OMP_NUM_THREADS=1 .venv/bin/python benchmarks/fleet_prior.py --prior FLEET_OUT/fleet.json --units 20",
-        ("| unit | rate [°/s], full | rate [°/s], # s | rate [°/s], # s + prior | rate, slope-limited | field [µT], full "
-         "| field [µT], # s | field [µT], # s + prior |",
-         "| error | with prior ÷ full calibration (bound ≤ #) | with prior ÷ same # s alone (bound ≤ #) |"),
-        small=("benchmarks/fleet_prior.py", "--fleet-units", "5", "--units", "1", "--seconds", "30"), trains=True),
+        _FLEET_PRIOR_HEADERS,
+        small=_FLEET_PRIOR_SMALL, trains=True),
+    TableGenerator(
+        "OMP_NUM_THREADS=1 .venv/bin/python benchmarks/fleet_prior.py --prior FLEET_OUT/fleet.json --units 20 "
+        "--two-temperatures",
+        _FLEET_PRIOR_HEADERS,
+        small=(*_FLEET_PRIOR_SMALL, "--two-temperatures"), trains=True),
     TableGenerator(
         "OMP_NUM_THREADS=1 .venv/bin/python benchmarks/fleet_speed.py --devices 200",
         ("| units | wall, 1 worker [s] | wall, 2 workers [s] | ratio (bound 0.6) | models equal |",),

@@ -87,6 +87,11 @@ def fit_warnings(thermal: dict[str, ThermalModel], settings: dict[str, float]) -
     return out + noise_warnings(settings)
 
 
+#: How the note of a triad whose gain/bias fit lost to raw on held-out data and whose bias alone is
+#: exported instead begins (after "<triad>: "; training.train._bias_only_fallback); the summary quotes it.
+BIAS_FALLBACK_NOTE = "the bias B(T) alone is exported instead"
+
+
 def is_warning(note: str) -> bool:
     """True for a note the summary must repeat as a warning (a warning or a triad not exported)."""
     return ": warning:" in note or ": NOT EXPORTED" in note

@@ -15,7 +15,7 @@ from training.artefact import ModelArtefact
 from training.data.dataset import ImuData
 from training.data.reference_source import SOURCE_TEXT
 from training.display import DISPLAY
-from training.models.fit_quality import at_t0, cross_axis_deg, is_warning
+from training.models.fit_quality import BIAS_FALLBACK_NOTE, at_t0, cross_axis_deg, is_warning
 from training.models.thermal import apply_thermal
 
 UNITS = {"gyr": "rad/s", "acc": "m/s²", "mag": "µT"}
@@ -56,6 +56,9 @@ def triad_summary(artefact: ModelArtefact, triad: str) -> list[str]:
              f"  cross-axis (xy xz yx yz zx zy): [{', '.join(f'{v:+.3f}' for v in cross_axis_deg(a))}] °",
              f"  temperature model: degree {model.degree}" + (
                  f", fitted over {model.t0 - model.ts:.1f} … {model.t0 + model.ts:.1f} °C" if model.degree else "")]
+    fallback = [n.split(": ", 1)[1] for n in artefact.notes if n.startswith(f"{triad}: {BIAS_FALLBACK_NOTE}")]
+    if fallback:
+        lines.insert(1, f"  {fallback[0]}")
     choice = stats.get("degree_choice") or {}
     if choice.get("rule"):
         lines.append(f"  degree choice: {choice['rule']}")
