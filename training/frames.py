@@ -8,7 +8,7 @@ Convention (ARCHITECTURE.md; the C runtime's, sources/ImuQuaternion.h):
   pitch, yaw); a caller that compares with them reverses the columns where it does so.
 - Angles are in radians; differences of angles are wrapped to (−π, π] by `wrap_angle`.
 All functions take stacked arrays: quaternions (N, 4), vectors (N, 3); most broadcast (4,), (3,).
-The one other quaternion code is differentiable: training/selfcal/gyro.py keeps torch versions of
+The one other quaternion code is differentiable: training/selfcal/rotations.py keeps torch versions of
 the product and the exponential map for autograd, in this convention.
 """
 from __future__ import annotations

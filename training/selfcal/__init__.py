@@ -27,7 +27,7 @@ from tqdm import tqdm
 from training.data.dataset import ImuData
 from training.data.earth import STANDARD_GRAVITY
 from training.models.thermal import ThermalModel, apply_thermal
-from training.selfcal import accel, gyro, magnet
+from training.selfcal import accel, gyro, gyro_gain, magnet
 from training.selfcal.rest import RestWindow, count_poses, detect_rest, group_poses
 from training.selfcal.temperature import count_clusters, normalisation, temperature_span
 
@@ -81,9 +81,10 @@ def self_calibrate(datasets: list[ImuData], *, field_norm: float | None, degree:
         mag_fit, alignment, mag_model = _magnetometer(datasets, windows, acc_model, field_norm, t0, ts,
                                                       degree)
     directions = _directions(windows, acc_model, mag_fit, alignment, mag_model)
-    with tqdm(desc="selfcal: gyro gains (L-BFGS evaluations)", disable=not progress) as bar:
+    with _stage("selfcal: gyro gains (rotation between rests, closed turns)", progress):
         noise = _direction_noise(acc_fit, mag_fit, gravity)
-        gain = gyro.fit_gyroscope(datasets, windows, directions, noise, bias, t0, ts, degree, bar)
+        biases = [gyro.bias_at(bias.b, d.temp, t0, ts) for d in datasets]
+        gain = gyro_gain.fit_gyroscope(datasets, windows, directions, noise, biases, t0, ts, degree)
     gyr_model = _gyr_model(bias, gain, t0, ts)
     report = _report(datasets, detections, windows, bias, gain, acc_fit, mag_fit, alignment, gravity,
                      t0, ts)
@@ -106,7 +107,7 @@ def _acc_model(fit: accel.AccelFit, t0: float, ts: float) -> ThermalModel:
     return ThermalModel(True, t0, ts, fit.degree, fit.A, np.zeros((3, fit.degree)), fit.b)
 
 
-def _gyr_model(bias: gyro.GyroBias, gain: gyro.GyroGain, t0: float, ts: float) -> ThermalModel:
+def _gyr_model(bias: gyro.GyroBias, gain: gyro_gain.GyroGain, t0: float, ts: float) -> ThermalModel:
     """ThermalModel of the gyro: A_g, G(T) and B(T), the shorter polynomial padded with zeros to
     the longer one's degree (disabled identity when no rest was found)."""
     if bias.rests == 0 and not gain.fitted:

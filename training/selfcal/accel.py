@@ -19,11 +19,13 @@ symmetric A + B(T), symmetric A + b, diagonal gains + b, bias b only, nothing.
 from __future__ import annotations
 
 from collections import Counter
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import casadi as ca
 import numpy as np
 
+from training.selfcal.faces import FaceSet, find_faces
+from training.selfcal.regularised import Group, RegularisedFit, regularised_fit, uncertainty_report
 from training.selfcal.rest import RestWindow, count_poses
 from training.selfcal.temperature import choose_degree, cluster_labels, powers
 
@@ -31,17 +33,27 @@ from training.selfcal.temperature import choose_degree, cluster_labels, powers
 #: 9.832 m/s² at the poles, less with altitude); the fitted gains scale with the g passed in.
 GRAVITY_NOTE = ("gains scale with the g used; local gravity differs from 9.80665 m/s² by up to "
                 "±0.3 % (latitude, altitude): pass the local value for absolute accuracy")
-#: Largest condition number of the scaled Jacobian (residual / g versus A entries and b / g) for a
-#: model to count as identifiable: beyond it some parameter combination is determined 1000x
-#: worse than the best one — numerically a missing rank, whatever the noise.
+#: Largest condition number of the scaled Jacobian (residual / norm versus the parameters) for the
+#: magnetometer's drift terms to count as identifiable (training.selfcal.magnet uses `judge`): beyond it
+#: some parameter combination is determined 1000x worse than the best one.
 MAX_CONDITION = 1e3
-#: Largest standard error of any parameter (A dimensionless, b relative to g) for a model to be
-#: accepted: 2e-3 = 0.2 % of gain or 2 mg of bias, a fifth of the ~1 % / ~10 mg errors of a MEMS
-#: accelerometer — a parameter the poses pin down worse than that is not worth fitting.
-MAX_PARAM_STD = 2e-3
-#: Levels, richest first: (name, shape of A, has temperature terms).
-LEVELS = (("symmetric A + b(T)", "symmetric", True), ("symmetric A + b", "symmetric", False),
-          ("diagonal scale + b", "diagonal", False), ("bias b only", "identity", False))
+#: Prior widths of the accelerometer model (training.selfcal.regularised: a combination the rests
+#: determine better than half its width is fitted from them alone, a weaker one is held near nominal).
+#: Gain 10 % (MEMS datasheets: ±1-3 %; a wrong range setting is a unit error, caught at import);
+#: cross-axis 0.035 (2°; datasheets ±1°); bias 1 m/s² (0.1 g; datasheets ±20-60 mg) and its drift over
+#: half the temperature span 0.2 m/s² (datasheets ±0.2-1 mg/°C over 35 °C ≈ 0.03-0.2 m/s²).
+PRIOR_GAIN = 0.1
+PRIOR_CROSS = 0.035
+PRIOR_BIAS_MS2 = 1.0
+PRIOR_BIAS_DRIFT_MS2 = 0.2
+#: Prior width of the rotation of the sensor in its box [Gibbs vector ≈ rad/2]: a nuisance, wide.
+PRIOR_FACE_FRAME = 0.3
+#: Noise floor of the gravity-norm residual (relative to g): the norm spread a good calibration leaves
+#: on real data (imucal's Ferraris example: 0.031 %; the simulated protocol 0.01 %) — no rest's norm
+#: is trusted beyond 2e-4, whatever its averaging.
+NORM_FLOOR = 2e-4
+#: Noise floor of a face direction [rad]: a box laid on a flat table sits to ~0.01° (2e-4 rad).
+FACE_FLOOR = 2e-4
 #: Upper-triangle entries of a symmetric A, in parameter order.
 _SYMMETRIC = ((0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2))
 
@@ -61,10 +73,10 @@ class ModelCheck:
 
 @dataclass(frozen=True)
 class AccelFit:
-    """Result: level (one of LEVELS' names or 'nothing'), A (3, 3), b (3, P+1) m/s² in powers of
-    Tn, degree P, reason (why not a richer model), poses and (pose, temperature) groups used,
-    gravity-norm RMS over the rests before/after [m/s²], the check of the accepted model and
-    every level tried [(name, ModelCheck or reason)]."""
+    """Result: level ('symmetric A + b', '... + b(T)' or 'nothing'), A (3, 3), b (3, P+1) m/s² in
+    powers of Tn, degree P, reason (why the degree is lower than asked; why nothing), poses and (pose,
+    temperature) groups used, gravity-norm RMS over the rests before/after [m/s²], the regularised fit
+    (parameters ± standard errors, which the prior held) and the face set (a Ferraris-style box) used."""
 
     level: str
     A: np.ndarray
@@ -75,8 +87,8 @@ class AccelFit:
     groups: int
     rms_before: float
     rms_after: float
-    check: ModelCheck | None
-    tried: list = field(default_factory=list)
+    fit: RegularisedFit | None
+    faces: FaceSet | None = None
 
 
 def gain_summary(A: np.ndarray) -> dict:
@@ -218,9 +230,87 @@ def _noise_floor(windows: list[RestWindow], g: float) -> float:
     return float(np.median([np.linalg.norm(w.acc_std) / np.sqrt(w.count) for w in windows])) / g
 
 
+def _gibbs_rotation(v):
+    """Rotation matrix (casadi 3x3) of the Gibbs vector v (3,): the unit quaternion [1, v] / ‖[1, v]‖
+    (smooth everywhere, v = tan(angle/2) · axis; v = 0 is the identity)."""
+    w, x, y, z = 1, v[0], v[1], v[2]
+    n = 1 + x * x + y * y + z * z
+    return ca.vertcat(ca.horzcat(w + x * x - y * y - z * z, 2 * (x * y - z), 2 * (x * z + y)),
+                      ca.horzcat(2 * (x * y + z), w - x * x + y * y - z * z, 2 * (y * z - x)),
+                      ca.horzcat(2 * (x * z - y), 2 * (y * z + x), w - x * x - y * y + z * z)) / n
+
+
+def _prior(degree: int, faces: bool) -> tuple[np.ndarray, np.ndarray]:
+    """(nominal θ0, prior width σ) of [A upper triangle, B column-major, Gibbs vector of the face frame]."""
+    a0 = np.array([1.0, 0.0, 0.0, 1.0, 0.0, 1.0])
+    a_sigma = np.array([PRIOR_GAIN if i == j else PRIOR_CROSS for i, j in _SYMMETRIC])
+    b_sigma = np.concatenate([np.full(3, PRIOR_BIAS_MS2)] + [np.full(3, PRIOR_BIAS_DRIFT_MS2)] * degree)
+    theta0 = np.concatenate([a0, np.zeros(3 * (degree + 1))] + ([np.zeros(3)] if faces else []))
+    sigma = np.concatenate([a_sigma, b_sigma] + ([np.full(3, PRIOR_FACE_FRAME)] if faces else []))
+    return theta0, sigma
+
+
+def _residual_function(f: np.ndarray, tpow: np.ndarray, weights: np.ndarray, gravity: float, degree: int,
+                       faces: FaceSet | None):
+    """fun(θ) -> (r, dr/dθ) of the accelerometer fit: per window √w (‖A (f - B v)‖ - g) / g, then per
+    face window √w (R(ρ) R0 ŷ - t) (3 rows), ŷ the calibrated unit specific force."""
+    x, A, B, _, names = _parameters("symmetric", degree, sym=ca.SX)
+    y = ca.mtimes(A, ca.DM(f.T) - ca.mtimes(B, ca.DM(tpow[:, :degree + 1].T)))
+    norm = ca.sqrt(ca.sum1(y * y))
+    rows = [(ca.DM(np.sqrt(weights)).T * (norm - gravity) / gravity).T]
+    if faces is not None:
+        rho = ca.SX.sym("rho", 3)
+        x = ca.vertcat(x, rho)
+        at = np.flatnonzero(faces.axis >= 0)
+        rotation = ca.mtimes(_gibbs_rotation(rho), ca.DM(faces.R0))
+        unit = y[:, at.tolist()] / ca.repmat(norm[at.tolist()], 3, 1)
+        diff = (ca.mtimes(rotation, unit) - ca.DM(faces.targets()[at].T)) * ca.repmat(ca.DM(np.sqrt(weights[at])).T, 3, 1)
+        rows.append(ca.reshape(diff, -1, 1))
+        names = names + ["face frame ρx", "face frame ρy", "face frame ρz"]
+    r = ca.vertcat(*rows)
+    fn = ca.Function("acc", [x], [r, ca.jacobian(r, x)])
+
+    def fun(theta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        value, jac = fn(theta)
+        return np.asarray(value).ravel(), np.asarray(ca.densify(jac))
+    return fun, names
+
+
+def norm_repeatability(windows: list[RestWindow], norm: float) -> float:
+    """Pooled standard deviation of the raw specific-force norm between the rests of one pose, relative
+    to `norm` (0 when no pose has two rests): how well a pose repeats its norm, whatever the model."""
+    deviations, dof = 0.0, 0
+    for pose in {w.pose for w in windows if w.pose >= 0}:
+        norms = np.array([np.linalg.norm(w.acc) for w in windows if w.pose == pose])
+        if len(norms) > 1:
+            deviations += float(np.sum((norms - norms.mean()) ** 2))
+            dof += len(norms) - 1
+    return float(np.sqrt(deviations / dof)) / norm if dof else 0.0
+
+
+def _groups(windows: list[RestWindow], weights: np.ndarray, faces: FaceSet | None, gravity: float) -> list[Group]:
+    """The residual groups: gravity norm (K rows), face directions (3 rows per face window, 2 dof).
+
+    With faces, the norm's noise is not estimated from the joint residuals but set to the poses' own
+    repeatability (at least the floors): the norm invariant is exact physics up to noise, while the
+    face directions also carry the box's placement on the table (a table tilted or uneven by 0.1° turns
+    each face differently), and a joint estimate would spread that placement error into the norms."""
+    k = len(weights)
+    floor = max(_noise_floor(windows, gravity), NORM_FLOOR)
+    norm_sigma = max(floor, norm_repeatability(windows, gravity))
+    groups = [Group("gravity norm", np.arange(k), weights, floor, norm_sigma, fixed=faces is not None)]
+    if faces is not None:
+        at = np.flatnonzero(faces.axis >= 0)
+        dof = np.repeat(weights[at], 3).reshape(-1, 3).T.ravel() * (2.0 / 3.0)
+        groups.append(Group("face directions", k + np.arange(3 * len(at)), dof, FACE_FLOOR, FACE_FLOOR))
+    return groups
+
+
 def fit_accelerometer(windows: list[RestWindow], gravity: float, t0: float, ts: float,
                       degree: int) -> AccelFit:
-    """Fit the richest identifiable model to the rests' mean specific force (acc finite).
+    """Fit A (symmetric) and B(T) to the rests' mean specific force (acc finite) by
+    regularised least squares (training.selfcal.regularised): the gravity norm at every rest and,
+    when six rests are the faces of a box (training.selfcal.faces), their directions too.
 
     gravity: local g [m/s²]; t0, ts: temperature normalisation [°C]; degree: largest B(T) degree."""
     use = [w for w in windows if np.all(np.isfinite(w.acc))]
@@ -230,26 +320,17 @@ def fit_accelerometer(windows: list[RestWindow], gravity: float, t0: float, ts: 
     f = np.array([w.acc for w in use])
     temp = np.array([w.temp for w in use])
     weights, groups = group_weights(use)
-    weights = weights * groups / weights.sum()
     before = float(np.sqrt(np.mean((np.linalg.norm(f, axis=1) - gravity) ** 2)))
-    p_temp, why_degree = choose_degree(temp, degree, groups - 6, per_degree=3)
-    floor = _noise_floor(use, gravity)
-    tried = []
-    for name, shape, thermal in LEVELS:
-        p = p_temp if thermal else 0
-        if thermal and p == 0:
-            tried.append((name, why_degree or "no temperature span"))
-            continue
-        sol, res, jac, names = fit_norm_model(f, powers(temp, t0, ts, p), weights, gravity, shape, p)
-        check = judge(jac, res, weights, names, floor, gravity, MAX_CONDITION, MAX_PARAM_STD)
-        tried.append((name, check))
-        if check.accepted:
-            A, b, _ = unpack(shape, p, sol)
-            after = _norm_rms(A, b, f, powers(temp, t0, ts, p), gravity)
-            return AccelFit(name, A, b, p, _why_not_more(tried[:-1]), count_poses(use), groups,
-                            before, after, check, tried)
-    return AccelFit("nothing", np.eye(3), np.zeros((3, 1)), 0, _why_not_more(tried), count_poses(use),
-                    groups, before, before, None, tried)
+    p, why_degree = choose_degree(temp, degree, groups - 6, per_degree=3)
+    faces = find_faces(use)
+    fun, names = _residual_function(f, powers(temp, t0, ts, p), weights, gravity, p, faces)
+    theta0, sigma = _prior(p, faces is not None)
+    fit = regularised_fit(fun, theta0, sigma, names, _groups(use, weights, faces, gravity))
+    A, b, _ = unpack("symmetric", p, fit.theta[:6 + 3 * (p + 1)])
+    after = _norm_rms(A, b, f, powers(temp, t0, ts, p), gravity)
+    level = "symmetric A + b" + ("(T)" if p else "")
+    return AccelFit(level, A, b, p, why_degree, count_poses(use), groups, before, after, fit,
+                    faces=faces)
 
 
 def _norm_rms(A: np.ndarray, b: np.ndarray, x: np.ndarray, tpow: np.ndarray, norm: float) -> float:
@@ -258,29 +339,53 @@ def _norm_rms(A: np.ndarray, b: np.ndarray, x: np.ndarray, tpow: np.ndarray, nor
     return float(np.sqrt(np.mean((np.linalg.norm(y, axis=1) - norm) ** 2)))
 
 
-def _why_not_more(tried: list) -> str:
-    """'; '-joined reasons of the richer levels that were rejected."""
-    return "; ".join(f"{name}: {c if isinstance(c, str) else c.reason}" for name, c in tried)
-
-
 def summarise(fit: AccelFit, gravity: float, t0: float, ts: float) -> dict:
     """Report entries of the accelerometer fit (numpy values; the caller makes them JSON-ready)."""
     out = {"unit": "m/s²", "fitted": fit.level, "why_not_more": fit.reason,
            "poses": fit.poses, "pose_temperature_groups": fit.groups, "degree": fit.degree,
            "bias": fit.b[:, 0], "bias_coefficients": fit.b, "t0_c": t0, "ts_c": ts,
            "gravity_ms2": gravity, "gravity_note": GRAVITY_NOTE,
-           "residual": {"gravity_norm_rms_ms2": {"before": fit.rms_before, "after": fit.rms_after}},
-           "levels_tried": [{"level": name, "accepted": not isinstance(c, str) and c.accepted,
-                             "reason": c if isinstance(c, str) else c.reason,
-                             "condition": None if isinstance(c, str) else c.condition}
-                            for name, c in fit.tried]}
+           "residual": {"gravity_norm_rms_ms2": {"before": fit.rms_before, "after": fit.rms_after}}}
     out.update(gain_summary(fit.A))
-    if fit.check is not None:
-        out["jacobian_condition"] = fit.check.condition
-        out["largest_std"] = {"parameter": fit.check.worst_param, "value": fit.check.worst_std}
-    notes = [f"{fit.level} from {fit.poses} poses ({fit.groups} pose/temperature groups); gravity-norm "
-             f"RMS {fit.rms_before:.4f} -> {fit.rms_after:.4f} m/s²"]
+    if fit.fit is None:
+        out["notes"] = [f"nothing fitted: {fit.reason}"]
+        return out
+    n_ab = 6 + 3 * (fit.degree + 1)
+    out.update(uncertainty_report(fit.fit, lambda th: _derived(th, fit.degree), n_ab))
+    if fit.faces is not None:
+        out["faces"] = face_report(fit.faces, fit.fit)
+    notes = [f"{fit.level} from {fit.poses} poses ({fit.groups} pose/temperature groups)"
+             + (" with six faces of a box (Ferraris)" if fit.faces is not None else "")
+             + f"; gravity-norm RMS {fit.rms_before:.4f} -> {fit.rms_after:.4f} m/s²"]
+    if out["held"]:
+        notes.append("held at nominal by the prior (the rests do not determine them): " + ", ".join(out["held"]))
     if fit.reason:
         notes.append(f"not richer: {fit.reason}")
     out["notes"] = notes
     return out
+
+
+def _derived(theta: np.ndarray, degree: int) -> dict[str, np.ndarray]:
+    """The reported quantities of a parameter vector: scale factors, non-orthogonality [deg] and the
+    bias at t0 [m/s²] (for their standard errors by linear propagation)."""
+    A, b, _ = unpack("symmetric", degree, theta[:6 + 3 * (degree + 1)])
+    summary = gain_summary(A)
+    return {"scale_factors": np.array(summary["scale_factors"]),
+            "nonorthogonality_deg": np.array(list(summary["nonorthogonality_deg"].values())),
+            "bias": b[:, 0]}
+
+
+def face_report(faces: FaceSet, fit: RegularisedFit) -> dict:
+    """What the face set says: its poses, the bias-free departure of the raw faces from a box [deg], the
+    face directions' scatter after the fit [deg], and the rotation of the sensor axes in the box [deg]."""
+    rotation = _gibbs_matrix(fit.theta[-3:]) @ faces.R0
+    return {"poses": {f"{'+' if s > 0 else '-'}{'xyz'[a]}": int(p) for (a, s), p in faces.poses.items()},
+            "raw_departure_deg": faces.departure_deg,
+            "direction_scatter_deg": float(np.degrees(fit.sigma["face directions"])),
+            "direction_scatter_estimated": bool(fit.sigma_estimated["face directions"]),
+            "sensor_in_box_rotation_deg": _angle_deg((np.trace(rotation) - 1) / 2)}
+
+
+def _gibbs_matrix(v: np.ndarray) -> np.ndarray:
+    """Numeric rotation matrix of a Gibbs vector (see _gibbs_rotation)."""
+    return np.asarray(ca.DM(_gibbs_rotation(ca.DM(v))))
