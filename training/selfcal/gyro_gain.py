@@ -147,7 +147,8 @@ def _groups(m: Motions, sigma: np.ndarray) -> list[Group]:
                                 DIRECTION_NOISE_FLOOR, max(start, DIRECTION_NOISE_FLOOR)))
     if m.turns:
         n = len(m.turns)
-        groups.append(Group("closed turns", rows.size + np.arange(n), np.ones(n), TURN_FLOOR_RAD, TURN_SIGMA_RAD))
+        groups.append(Group("closed turns", rows.size + np.arange(n), np.ones(n), TURN_FLOOR_RAD, TURN_SIGMA_RAD,
+                            fixed=True))
     return groups
 
 

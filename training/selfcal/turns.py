@@ -40,7 +40,7 @@ TURN_TOLERANCE_DEG = 25.0
 #: Noise of the heading to which a hand puts the sensor back after a turn [rad] (a box against an edge
 #: of the table: ~0.5°); the starting value of the turn group's noise, which the fit re-estimates
 #: when there are more closed turns than gain parameters they inform ...
-TURN_SIGMA_RAD = float(np.radians(0.5))
+TURN_SIGMA_RAD = float(np.radians(0.2))
 #: ... never below this [rad]: the integration of a MEMS gyro's noise and residual bias over a turn.
 TURN_FLOOR_RAD = float(np.radians(0.02))
 

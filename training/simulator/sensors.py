@@ -60,6 +60,14 @@ class TriadErrors:
     g_sensitivity: np.ndarray = field(default_factory=lambda: np.zeros((3, 3)))
     drift: np.ndarray = field(default_factory=lambda: np.zeros(3))
 
+    def response(self, temp_c: float) -> np.ndarray:
+        """The raw reading per true value (3, 3) at temperature temp_c [°C]: diag(S(T)) (I + M), so that
+        raw = response · truth + bias (noise aside); a calibration A is exact when A · response is a
+        rotation."""
+        dt_c = temp_c - REFERENCE_TEMP_C
+        gain = 1.0 + self.scale + self.scale_t1 * dt_c + self.scale_t2 * dt_c ** 2
+        return gain[:, None] * (np.eye(3) + self.misalignment)
+
     def apply(self, truth: np.ndarray, temp: np.ndarray, temp_rate: np.ndarray, rate_hz: float,
               rng: np.random.Generator, specific_force: np.ndarray | None = None) -> np.ndarray:
         """Measured triad (N, 3) from the true one (N, 3), temperature (N,) [°C] and its rate
