@@ -107,6 +107,15 @@ def cmd_train(args) -> None:
     print(f"wrote {done.model} and {done.report}")
 
 
+def cmd_import(args) -> None:
+    """imufmu import FILE --out NAME.csv.gz [--columns MAP] [--units MAP] [--rate HZ] [sidecar options]."""
+    from training.data.importer import ImportOptions, import_recording
+    options = ImportOptions(columns=tuple(args.columns or ()), units=tuple(args.units or ()), rate_hz=args.rate,
+                            sensor=args.sensor, reference=args.reference, earth_field=args.earth_field,
+                            site=args.site)
+    print(import_recording(args.file, args.out, options).summary)
+
+
 def cmd_build_fmu(args) -> None:
     """imufmu build-fmu --model DIR/model.json --out FILE.fmu."""
     from training.fmu_build import build_fmu_from_model
@@ -202,6 +211,7 @@ EXAMPLES = {
     "simulate": "imufmu simulate scenarios/calibration.toml --out data --seed 1",
     "simulate-fleet": "imufmu simulate-fleet scenarios/fleet/mems_grade.toml --devices 200 --out fleet --seed 0",
     "train": "imufmu train data/calibration.csv.gz --out model",
+    "import": "imufmu import log.csv --out rec.csv.gz --units t=ms,gyr=deg/s,acc=g,mag=uT,temp=C",
     "fleet": "imufmu fleet train fleet --out fleet_models --workers 2",
     "campaign": "imufmu campaign ImuFusion.fmu data/eval_handheld.csv.gz --runs 1000 --vary noise_gyr=uniform(0,0.01) "
                 "--vary declination=normal(0.05,0.01) --out campaign",
@@ -228,6 +238,37 @@ def _add_dask_options(s: argparse.ArgumentParser) -> None:
                        help="worker processes of the local Dask cluster (default: the cores available)")
     where.add_argument("--scheduler", default=None, metavar="ADDRESS",
                        help="address of a running Dask scheduler (tcp://host:8786) instead of a local cluster")
+
+
+def _add_import_verb(sub) -> None:
+    """The parser of `imufmu import` (README.md, 'Bringing your own file')."""
+    s = _add_verb(sub, "import", "turn a CSV or MATLAB .mat file into imu-csv/1 (CSV + sidecar), with train's unit checks")
+    s.add_argument("file", help="delimited text with a header row (',', ';', tab or whitespace; .gz allowed) or a "
+                   "MATLAB .mat file (v4-v7; a v7.3 file is refused)")
+    s.add_argument("--out", required=True, help="the recording to write, NAME.csv.gz or NAME.csv (+ NAME.json)")
+    s.add_argument("--columns", action="append", metavar="MAP",
+                   help="TARGET=COLUMN entries, e.g. t=Time,gyr_x=GyroX,... or per triad gyr=GX,GY,GZ (a .mat file: "
+                        "variable or struct field names; gyr=gyro for an N×3 matrix); targets t, gyr, acc, mag, "
+                        "gyr_x..mag_z, temp, aux_NAME. Unnamed targets are recognised by common column names. Repeatable")
+    s.add_argument("--units", action="append", metavar="MAP",
+                   help="QUANTITY=UNIT entries: gyr=rad/s|deg/s|mdps|rpm, acc=m/s2|g|mg, mag=uT|nT|mT|mG|G, "
+                        "t=s|ms|us|ns|samples, temp=C|K|F; raw ADC counts with the value of one LSB: "
+                        "gyr=counts:0.0152587890625deg/s (or counts:1/65.5deg/s), temp=counts:0.00294118C+36.53. "
+                        "Wins over a unit in the header; a quantity with neither is refused. Repeatable")
+    s.add_argument("--rate", type=float, default=None, metavar="HZ",
+                   help="sample rate: t = n / HZ without a time column, t = (counter − first) / HZ for a sample "
+                        "counter; with a time column it is the sidecar's rate_hz (checked against the median step)")
+    s.add_argument("--sensor", default=None, metavar="TEXT", help="what the sensor is, for the sidecar")
+    s.add_argument("--reference", default="none", metavar="KIND", help="the sidecar's reference kind (default none; "
+                   "training/data/sidecar.py REFERENCES lists them)")
+    field = s.add_mutually_exclusive_group()
+    field.add_argument("--earth-field", default=None, metavar="NORM,DIP,DECL",
+                       help="local field norm [µT], dip [°, down], declination [°, east]; an empty entry is unknown "
+                            "(a leading minus needs '=': --earth-field=-48,-60,3)")
+    field.add_argument("--site", default=None, metavar="LAT,LON,ALT_KM[,DATE]",
+                       help="site (degrees, km, YYYY-MM-DD): train takes the IGRF field there "
+                            "(a leading minus needs '=': --site=-33.9,18.4,0.1)")
+    s.set_defaults(func=cmd_import)
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -268,6 +309,7 @@ def build_parser() -> argparse.ArgumentParser:
                         "most probable unit given this recording (a short recording then calibrates what it "
                         "does not observe from the population)")
     s.set_defaults(func=cmd_train)
+    _add_import_verb(sub)
     s = _add_verb(sub, "fleet", "calibrate every unit of a fleet on Dask and describe the population")
     s.add_argument("action", choices=("train",))
     s.add_argument("fleet_dir", help="folder of unit folders (each with a calibration/ folder of recordings, "

@@ -54,6 +54,7 @@ GAP_STEP_FACTOR = 5.0
 MAX_LINE_CHARS = 100_000     # a longer line is refused (an imu-csv/1 row is a few hundred characters)
 BLOCK_CHARS = 4 * 2**20      # characters of text parsed at a time (about 40 k rows)
 SEGMENT_ROWS = 2**20         # rows per storage segment (8 MiB per column: each one its own memory map)
+WRITE_BLOCK_ROWS = 2**16     # rows formatted at a time when writing
 MAX_SIDECAR_BYTES = 2**20    # a larger sidecar is refused (a sidecar is a few hundred bytes)
 #: The runtime's field_norm setting [µT] when the sidecar gives no earth_field.norm_ut (contract/layout.py).
 DEFAULT_FIELD_NORM_UT = dict(SETTINGS)["field_norm"]
@@ -595,9 +596,11 @@ def write_imu_csv(data: ImuData, path: str | Path) -> Path:
     path = Path(path)
     data.validate()
     names, columns = _output_columns(data)
-    text = ",".join(names) + "\n" + "".join(
-        ",".join(row) + "\n" for row in zip(*(_format_column(c) for c in columns)))
-    _write_bytes(path, text.encode("utf-8"))
+    with _output_stream(path) as out:  # block by block: memory stays near the arrays' size
+        out.write((",".join(names) + "\n").encode("utf-8"))
+        for start in range(0, len(data), WRITE_BLOCK_ROWS):
+            block = [_format_column(c[start:start + WRITE_BLOCK_ROWS]) for c in columns]
+            out.write("".join(",".join(row) + "\n" for row in zip(*block)).encode("utf-8"))
     meta = {"format": FORMAT, **{k: v for k, v in data.meta.items() if k != "format"}}
     sidecar_path(path).write_text(json.dumps(meta, indent=1, ensure_ascii=False) + "\n",
                                   encoding="utf-8")
@@ -634,16 +637,17 @@ def _format_column(values: np.ndarray) -> list[str]:
     return ["" if v != v else repr(v) for v in np.asarray(values, dtype=np.float64).tolist()]
 
 
-def _write_bytes(path: Path, payload: bytes) -> None:
-    """Write `payload`, gzip-compressed without timestamp or file name when path ends in .gz."""
-    if path.name.endswith(".gz"):
-        buffer = io.BytesIO()
-        with gzip.GzipFile(filename="", mode="wb", fileobj=buffer, mtime=0,
-                           compresslevel=GZIP_LEVEL) as gz:
-            gz.write(payload)
-        payload = buffer.getvalue()
+@contextmanager
+def _output_stream(path: Path) -> Iterator[io.BufferedIOBase]:
+    """A binary stream writing `path`, gzip-compressed without timestamp or file name when it ends in
+    .gz (the bytes do not depend on how the payload is split into writes)."""
     path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_bytes(payload)
+    with open(path, "wb") as f:
+        if not path.name.endswith(".gz"):
+            yield f
+            return
+        with gzip.GzipFile(filename="", mode="wb", fileobj=f, mtime=0, compresslevel=GZIP_LEVEL) as gz:
+            yield gz
 
 
 # ---------------------------------------------------------------------------- folders
