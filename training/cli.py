@@ -95,8 +95,11 @@ def cmd_campaign(args) -> None:
     print(f"ran {len(runs)} co-simulations of {fmu} on {data}; wrote {md}")
 
 
-def cmd_train(args) -> None:
-    """imufmu train DATA... --out DIR [--seed N] [--degree auto|P] [--allow-identity]."""
+def cmd_train(args) -> int:
+    """imufmu train DATA... --out DIR [--seed N] [--degree auto|P] [--allow-partial] [--allow-identity]:
+    exit status EXIT_INCOMPLETE (model written) when a recorded triad is not fully calibrated and neither
+    --allow-partial nor --allow-identity was given."""
+    from training.completeness import EXIT_INCOMPLETE
     from training.train import train_to_folder
     done = train_to_folder([_existing_file(p, "data file") for p in args.data], args.out, seed=args.seed,
                            degree=args.degree, allow_identity=args.allow_identity, prior_path=args.prior)
@@ -105,6 +108,11 @@ def cmd_train(args) -> None:
     print()
     print(done.summary)
     print(f"wrote {done.model} and {done.report}")
+    if done.gaps and not (args.allow_partial or args.allow_identity):
+        print(f"imufmu train: {len(done.gaps)} recorded triad(s) not fully calibrated (INCOMPLETE CALIBRATION above); "
+              f"the model was written; exit status {EXIT_INCOMPLETE} — pass --allow-partial to accept it", file=sys.stderr)
+        return EXIT_INCOMPLETE
+    return 0
 
 
 def cmd_import(args) -> None:
@@ -304,6 +312,9 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--allow-identity", action="store_true",
                    help="write the model anyway when nothing can be calibrated (identity) or a log without "
                         "reference shows no motion (gyro bias only), instead of failing")
+    s.add_argument("--allow-partial", action="store_true",
+                   help="exit 0 when a recorded triad is left wholly or partly uncalibrated (the summary opens with "
+                        "it and the WARNINGS name it either way); without it, train writes the model and exits 3")
     s.add_argument("--prior", default=None, metavar="FLEET_JSON",
                    help="fleet.json from 'imufmu fleet train': fit each triad with a reference as the population's "
                         "most probable unit given this recording (a short recording then calibrates what it "
@@ -377,14 +388,14 @@ def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     try:
         with report_load_notes(lambda note: print(note, flush=True)):
-            args.func(args)
+            status = args.func(args)
     except ImuFusionError as e:  # messages embedding a tool's output may span lines: one line
         print(f"imufmu {args.verb}: error: {one_line(str(e))}", file=sys.stderr)
         return 1
     except OSError as e:  # unwritable output folder, disk full, ...
         print(f"imufmu {args.verb}: error: {e.filename or ''}: {one_line(e.strerror or str(e))}", file=sys.stderr)
         return 1
-    return 0
+    return status or 0
 
 
 if __name__ == "__main__":

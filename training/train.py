@@ -13,6 +13,7 @@ from tqdm import tqdm
 from contract.errors import ModelError
 from contract.layout import TRIAD_ORDER
 from training.artefact import ModelArtefact
+from training.completeness import calibration_gaps, is_gap, recorded_triads
 from training.data.dataset import ImuData
 from training.data.reference import matched_raw
 from training.data.reference_source import TriadReference, choose_reference
@@ -21,7 +22,7 @@ from training.models.calibrated_range import range_notes
 from training.models.degree import AUTO, ceiling, choose_degree, parse_degree
 from training.models.prior import TriadPrior, load_prior
 from training.models.elm import MIN_GAIN as ELM_MIN_GAIN, ElmModel
-from training.models.fit_quality import BIAS_FALLBACK_NOTE, fit_warnings
+from training.models.fit_quality import BIAS_FALLBACK_NOTE, SCALE_FACTOR_CONVENTION, fit_warnings, scale_factors
 from training.models.psobp import PsoBpModel
 from training.models.thermal import (GainBiasFitter, ThermalFit, ThermalModel, apply_thermal,
                                      normalised_temperature, temperature_clusters, temperature_normalisation)
@@ -622,10 +623,17 @@ def train(datasets: list[ImuData], seed: int = 0, degree: int | str = AUTO,
         elm_on, psobp_on = elm_on and triad != "mag", psobp_on and triad != "gyr"
         psobp_model = psobp_model if psobp_on else None
     stats = {k: v for k, v in stats.items() if v}
+    for triad in TRIAD_ORDER:
+        if thermal[triad].enabled:
+            stats.setdefault(triad, {}).update(scale_factors=[float(v) for v in scale_factors(thermal[triad])],
+                                               scale_factor_convention=SCALE_FACTOR_CONVENTION)
     settings = recommended_settings(datasets, refs, thermal, selfcal, notes)
     if prior and "mag" in prior and "posterior_sigma" in stats.get("mag", {}):
         settings.update(_prior_pf_spreads(prior["mag"], stats["mag"], notes))
-    notes += fit_warnings(thermal, settings)
+    notes += fit_warnings(thermal, settings, {t: refs[t].source for t in TRIAD_ORDER})
+    if selfcal is not None:
+        stats["protocol"] = selfcal.report["protocol"]
+    notes += [gap.text() for gap in calibration_gaps(thermal, stats, notes, recorded_triads(datasets))]
     settings["enable_elm"] = float(elm_on)
     settings["enable_psobp"] = float(psobp_on)
     notes += range_notes(thermal, elm_model, psobp_model, settings)
@@ -642,6 +650,7 @@ class TrainedFolder:
     report: Path           # OUT/calibration.md
     notes: list[str]       # the artefact's notes
     summary: str           # the calibration summary (plain text)
+    gaps: list[str]        # the notes of recorded triads not fully calibrated (training.completeness)
     artefact: ModelArtefact = field(repr=False)        # what OUT/model.json holds
     datasets: list[ImuData] = field(repr=False)        # the recordings it was trained on
 
@@ -663,4 +672,5 @@ def train_to_folder(paths: list[Path], out_dir: str | Path, seed: int = 0, degre
     model = Path(out_dir) / "model.json"
     artefact.save(model)
     report = write_calibration_report(artefact, datasets, out_dir)
-    return TrainedFolder(model, report, list(artefact.notes), summary_text(artefact, datasets), artefact, datasets)
+    return TrainedFolder(model, report, list(artefact.notes), summary_text(artefact, datasets),
+                         [n for n in artefact.notes if is_gap(n)], artefact, datasets)

@@ -46,13 +46,27 @@ def _pairs() -> list[str]:
     return [_AXES[i] + _AXES[j] for i in range(3) for j in range(3) if i != j]
 
 
-def gain_warnings(triad: str, model: ThermalModel) -> list[str]:
-    """One warning per axis whose gain at t0 is further than SCALE_TOLERANCE from 1."""
+#: What a scale factor means wherever one is written (the summary, model.json's fit_stats).
+SCALE_FACTOR_CONVENTION = "raw reading per true value of each raw axis at t0 (1.01 reads 1 % high; the correction A inverts it)"
+
+
+def scale_factors(model: ThermalModel) -> np.ndarray:
+    """The sensor's scale factor of each raw axis at t0 (3,): its raw reading per true value, the norm of
+    row i of (A·G(t0))⁻¹ — the convention of the summary, model.json's fit_stats and the simulator's
+    sensor files (1.01 = reads 1 % high; the correction A has the inverse)."""
     a, _ = at_t0(model)
+    return np.linalg.norm(np.linalg.inv(a), axis=1)
+
+
+def gain_warnings(triad: str, model: ThermalModel, reference: str = "none") -> list[str]:
+    """One warning per axis whose scale factor at t0 (raw per true) is further than SCALE_TOLERANCE from 1;
+    `reference`: the triad's reference kind ('none' when self-calibrated), which decides what to check."""
     limit = SCALE_TOLERANCE[triad]
-    return [f"{triad}: warning: scale factor {_AXES[i]} = {a[i, i]:.4f} is {100 * abs(a[i, i] - 1):.1f} % from 1 "
-            f"(MEMS class: within {100 * limit:.0f} %): check the reference's unit and the sensor's range setting"
-            for i in range(3) if abs(a[i, i] - 1.0) > limit]
+    check = ("the unit conversion of the raw data (imufmu import --units) and the sensor's range setting"
+             if reference == "none" else "the reference's unit and the sensor's range setting")
+    return [f"{triad}: warning: scale factor {_AXES[i]} = {s:.4f} (raw per true) is {100 * abs(s - 1):.1f} % from 1 "
+            f"(MEMS class: within {100 * limit:.0f} %): check {check}"
+            for i, s in enumerate(scale_factors(model)) if abs(s - 1.0) > limit]
 
 
 def cross_axis_warnings(triad: str, model: ThermalModel) -> list[str]:
@@ -78,12 +92,15 @@ def noise_warnings(settings: dict[str, float]) -> list[str]:
             "is quantised, filtered or in another unit"]
 
 
-def fit_warnings(thermal: dict[str, ThermalModel], settings: dict[str, float]) -> list[str]:
-    """Every plausibility warning of an exported calibration (triads kept at the identity are skipped)."""
+def fit_warnings(thermal: dict[str, ThermalModel], settings: dict[str, float],
+                 references: dict[str, str] | None = None) -> list[str]:
+    """Every plausibility warning of an exported calibration (triads kept at the identity are skipped);
+    references: each triad's reference kind ('none': self-calibrated)."""
     out = []
     for triad in TRIAD_ORDER:
         if thermal[triad].enabled:
-            out += gain_warnings(triad, thermal[triad]) + cross_axis_warnings(triad, thermal[triad])
+            out += (gain_warnings(triad, thermal[triad], (references or {}).get(triad, "none"))
+                    + cross_axis_warnings(triad, thermal[triad]))
     return out + noise_warnings(settings)
 
 

@@ -15,7 +15,8 @@ from training.artefact import ModelArtefact
 from training.data.dataset import ImuData
 from training.data.reference_source import SOURCE_TEXT
 from training.display import DISPLAY
-from training.models.fit_quality import BIAS_FALLBACK_NOTE, at_t0, cross_axis_deg, is_warning
+from training.completeness import gap_headline, is_gap
+from training.models.fit_quality import BIAS_FALLBACK_NOTE, at_t0, cross_axis_deg, is_warning, scale_factors
 from training.models.thermal import apply_thermal
 
 UNITS = {"gyr": "rad/s", "acc": "m/s²", "mag": "µT"}
@@ -51,11 +52,15 @@ def triad_summary(artefact: ModelArtefact, triad: str) -> list[str]:
     unit, factor = DISPLAY[triad]
     a, b = at_t0(model)
     lines = [head,
-             f"  bias at {model.t0:.1f} °C: [{', '.join(f'{v * factor:+.4g}' for v in b)}] {unit}",
-             f"  scale factors (diagonal of A): [{', '.join(f'{v:.5f}' for v in np.diag(a))}]",
-             f"  cross-axis (xy xz yx yz zx zy): [{', '.join(f'{v:+.3f}' for v in cross_axis_deg(a))}] °",
+             f"  bias at {model.t0:.1f} °C: {_with_se(b * factor, _se(stats, 'bias', factor), '+.4g')} {unit}",
+             f"  scale factors (raw per true, 1 = nominal): {_with_se(scale_factors(model), _se(stats, 'scale_factors'), '.5f')}",
+             f"  non-orthogonality (xy xz yz): {_with_se(_nonorthogonality(a), _se(stats, 'nonorthogonality_deg'), '+.3f')} °",
+             f"  correction matrix A (model.json): diagonal [{', '.join(f'{v:.5f}' for v in np.diag(a))}], "
+             f"cross-axis (xy xz yx yz zx zy) [{', '.join(f'{v:+.3f}' for v in cross_axis_deg(a))}] °",
              f"  temperature model: degree {model.degree}" + (
                  f", fitted over {model.t0 - model.ts:.1f} … {model.t0 + model.ts:.1f} °C" if model.degree else "")]
+    if stats.get("held"):
+        lines.append(f"  held at nominal (the recording does not determine them): {', '.join(stats['held'])}")
     fallback = [n.split(": ", 1)[1] for n in artefact.notes if n.startswith(f"{triad}: {BIAS_FALLBACK_NOTE}")]
     if fallback:
         lines.insert(1, f"  {fallback[0]}")
@@ -75,6 +80,46 @@ def triad_summary(artefact: ModelArtefact, triad: str) -> list[str]:
         if stats.get(key) not in (None, ""):
             lines.append(f"  {key.replace('_', ' ')}: {stats[key]}")
     return lines
+
+
+def _se(stats: dict, key: str, factor: float = 1.0) -> np.ndarray | None:
+    """The standard errors stats['<key>_se'] (3,) times `factor`, or None when the fit gave none."""
+    value = stats.get(f"{key}_se")
+    return None if value is None else np.asarray(value, dtype=float) * factor
+
+
+def _with_se(values, se: np.ndarray | None, spec: str) -> str:
+    """'[v ± s, ...]' (or '[v, ...]' without standard errors) of three values."""
+    if se is None:
+        return "[" + ", ".join(f"{v:{spec}}" for v in values) + "]"
+    return "[" + ", ".join(f"{v:{spec}} ± {s:.2g}" for v, s in zip(values, se)) + "]"
+
+
+def _nonorthogonality(a: np.ndarray) -> list[float]:
+    """Non-orthogonality [°] of the raw axes (xy, xz, yz) implied by the correction a (3, 3)."""
+    from training.selfcal.accel import gain_summary
+    return list(gain_summary(a)["nonorthogonality_deg"].values())
+
+
+def _protocol_lines(artefact: ModelArtefact) -> list[str]:
+    """The recognised protocol and what each of its parts identified (self-calibration only)."""
+    protocol = artefact.fit_stats.get("protocol")
+    if not protocol:
+        return []
+    lines = [f"recognised protocol: {protocol['name']}"]
+    for part, params in protocol.get("identified", {}).items():
+        lines.append(f"  {part}: {', '.join(params)}")
+    return lines
+
+
+def incomplete_lines(artefact: ModelArtefact) -> list[str]:
+    """The summary's opening block: every recorded triad left wholly or partly uncalibrated."""
+    gaps = [n for n in artefact.notes if is_gap(n)]
+    if not gaps:
+        return []
+    return [f"INCOMPLETE CALIBRATION ({len(gaps)} triad(s)): the model was written, but not everything the "
+            "recording holds was calibrated (why, and what to record: WARNINGS below)"] + [
+        f"  ! {gap_headline(g)}" for g in gaps]
 
 
 def norm_spreads(artefact: ModelArtefact, datasets: list[ImuData]) -> list[dict]:
@@ -100,6 +145,7 @@ def summary_text(artefact: ModelArtefact, datasets: list[ImuData]) -> str:
     """The calibration summary `train` prints (plain text)."""
     lines = [f"calibration of {', '.join(d.name for d in datasets)} "
              f"({sum(len(d) for d in datasets)} samples, seed {artefact.seed})"]
+    lines += incomplete_lines(artefact) + _protocol_lines(artefact)
     for triad in TRIAD_ORDER:
         lines += triad_summary(artefact, triad)
     for row in norm_spreads(artefact, datasets):
@@ -112,7 +158,9 @@ def summary_text(artefact: ModelArtefact, datasets: list[ImuData]) -> str:
         if name in artefact.settings:
             shown.append(f"{name} = {artefact.settings[name] * factor:.4g}{(' ' + unit) if unit else ''}")
     lines.append("FMU settings written: " + ", ".join(shown))
-    warnings = [n for n in artefact.notes if is_warning(n)]
+    gapped = {n.split(":", 1)[0] for n in artefact.notes if is_gap(n)}
+    warnings = [n for n in artefact.notes if is_warning(n)
+                and not (": NOT EXPORTED" in n and n.split(":", 1)[0] in gapped)]  # the gap repeats it
     if warnings:
         lines.append(f"WARNINGS ({len(warnings)}): the fit is outside what this sensor class or the data support")
         lines += [f"  ! {w}" for w in warnings]

@@ -28,6 +28,7 @@ from training.data.dataset import ImuData
 from training.data.earth import STANDARD_GRAVITY
 from training.models.thermal import ThermalModel, apply_thermal
 from training.selfcal import accel, gyro, gyro_gain, magnet
+from training.selfcal.protocol import recognise, recording_spans
 from training.selfcal.rest import RestWindow, count_poses, detect_rest, group_poses
 from training.selfcal.temperature import count_clusters, normalisation, temperature_span
 
@@ -88,6 +89,7 @@ def self_calibrate(datasets: list[ImuData], *, field_norm: float | None, degree:
     gyr_model = _gyr_model(bias, gain, t0, ts)
     report = _report(datasets, detections, windows, bias, gain, acc_fit, mag_fit, alignment, gravity,
                      t0, ts)
+    report["protocol"] = recognise(report, windows, recording_spans(datasets))
     return SelfCalResult({"gyr": gyr_model, "acc": acc_model, "mag": mag_model}, report, windows,
                          [det.mask for det in detections])
 
