@@ -88,11 +88,11 @@ def recommended_mounting(datasets: list[ImuData], notes: list[str]) -> dict[str,
     if any(d.ref_q is not None for d in datasets):
         return {}  # the attitude reference defines the body axes: identity
     told = {d.name: axis for d in datasets if (axis := gravity_axis(d)) is not None}
-    text = ", ".join(f"{name}: {axis} ({angle:.0f}°)" for name, (axis, angle) in told.items())
+    text = ", ".join(f"sensor {axis} ({angle:.0f}° off it) in {name}" for name, (axis, angle) in told.items())
     clear = all(angle <= AXIS_TOLERANCE_DEG for _, angle in told.values())
     axes = {axis for axis, _ in told.values()}
     if clear and axes == {"+z"}:
-        notes.append(f"mounting: at rest the specific force points along sensor +z ({text}): the board's z axis "
+        notes.append(f"mounting: at rest the specific force points along the sensor's +z axis ({text}): the board's z axis "
                      "points up; mount_x, mount_y, mount_z = 1, -2, -3 (body = x, -y, -z, a 180° turn about x) so "
                      "that the attitude is in FRD/NED; set them with --param if x is not forward")
         return dict(zip(MOUNT_SETTINGS, map(float, Z_UP)))

@@ -396,8 +396,10 @@ def _check_block_unit(path: Path, table: np.ndarray, columns: Sequence[str], col
     prefix = column.rsplit("_", 1)[0]
     if prefix not in (*TRIADS, *REF_TRIADS):
         return
-    norms = _finite_norms(table[:, [columns.index(c) for c in triad_columns(prefix)]])
-    problem = _unit_problem(prefix.removeprefix("ref_"), norms) if norms.size >= MIN_SAMPLES_FOR_UNIT_CHECK else None
+    xyz = table[:, [columns.index(c) for c in triad_columns(prefix)]]
+    norms = _finite_norms(xyz)
+    problem = (_unit_problem(prefix.removeprefix("ref_"), norms, whole_numbers(xyz))
+               if norms.size >= MIN_SAMPLES_FOR_UNIT_CHECK else None)
     if problem:
         raise DataError(path, problem, column=f"{prefix}_*")
 
@@ -543,22 +545,47 @@ def _check_units(path: Path, data: ImuData) -> None:
         norms = _finite_norms(xyz)
         if norms.size < MIN_SAMPLES_FOR_UNIT_CHECK:
             continue
-        problem = _unit_problem(triad.removeprefix("ref_"), norms)
+        problem = _unit_problem(triad.removeprefix("ref_"), norms, whole_numbers(xyz))
         if problem:
             raise DataError(path, problem, column=f"{triad}_*")
 
 
-def _unit_problem(kind: str, norms: np.ndarray) -> str | None:
-    """Description of a suspected unit error of a 'gyr'/'acc'/'mag' triad, or None."""
+#: Share of a triad's finite values that must be whole numbers for it to look like raw ADC counts (a
+#: value converted to a physical unit is a whole number only by chance).
+WHOLE_NUMBER_SHARE = 0.99
+
+
+def whole_numbers(xyz: np.ndarray) -> bool:
+    """True when at least WHOLE_NUMBER_SHARE of the finite values of xyz (N, 3) are whole numbers and
+    some are not zero: raw ADC counts."""
+    values = xyz[np.isfinite(xyz)]
+    return bool(values.size and np.any(values != 0)
+                and np.mean(values == np.round(values)) >= WHOLE_NUMBER_SHARE)
+
+
+def _counts_hint(kind: str) -> str:
+    """How to convert raw counts of a triad (imufmu import's --units syntax)."""
+    unit = {"gyr": "deg/s", "acc": "g", "mag": "uT"}[kind]
+    return (f"every value is a whole number: looks like raw ADC counts; convert them with the sensor's "
+            f"sensitivity, e.g. imufmu import FILE --units {kind}=counts:1/SENSITIVITY{unit}")
+
+
+def _unit_problem(kind: str, norms: np.ndarray, counts: bool = False) -> str | None:
+    """Description of a suspected unit error of a 'gyr'/'acc'/'mag' triad, or None; counts: its values
+    are whole numbers (raw ADC counts are then named instead of a wrong physical unit)."""
     if kind == "mag":
         median = float(np.median(norms))
         if median > MAG_MEDIAN_NORM_MAX_UT:
+            if counts:
+                return f"magnetometer median norm is {median:.4g}, expected µT: {_counts_hint(kind)}"
             return f"magnetometer median norm is {median:.4g}: looks like nT, expected µT"
         if median < MAG_MEDIAN_NORM_MIN_UT:
             return f"magnetometer median norm is {median:.4g}: looks like gauss, expected µT"
     elif kind == "gyr":
         p99 = float(np.percentile(norms, 99))
         if p99 > GYR_P99_NORM_MAX_RAD_S:
+            if counts:
+                return f"gyroscope 99th-percentile rate is {p99:.4g}, expected rad/s: {_counts_hint(kind)}"
             return (f"gyroscope 99th-percentile rate is {p99:.4g}: looks like deg/s given as "
                     f"rad/s, expected rad/s")
     elif kind == "acc":
@@ -567,6 +594,8 @@ def _unit_problem(kind: str, norms: np.ndarray) -> str | None:
         if low <= median <= high:
             return f"accelerometer median norm is {median:.4g}: looks like g, expected m/s²"
         if median > ACC_MEDIAN_NORM_MAX:
+            if counts:
+                return f"accelerometer median norm is {median:.4g}, expected m/s²: {_counts_hint(kind)}"
             return (f"accelerometer median norm is {median:.4g}: looks like mg or raw counts, "
                     f"expected m/s²")
     return None
