@@ -110,6 +110,7 @@ def summarise(bias: GyroBias, gain: GyroGain, t0: float, ts: float) -> dict:
            "recording_bias_offsets_rad_s": bias.recording_offsets, "segments": gain.segments,
            "segments_skipped": gain.skipped, "max_segment_s": MAX_SEGMENT_S,
            "direction_noise_deg": dict(zip(("gravity", "field"), gain.direction_noise_deg)),
+           "full_turns": gain.full_turns,
            "closed_turns": [{"turns": t.turns, "raw_deg": t.raw_deg, "axis_tilt_deg": t.axis_tilt_deg,
                              "axis": t.axis} for t in gain.turns],
            "residual": {"rest_rate_rms_rad_s": {"before": bias.rms_before, "after": bias.rms_after},

@@ -26,7 +26,7 @@ from training.selfcal.rotations import (attitudes, calibrated_increments, direct
                                         rotation_jacobian, winding)
 from training.selfcal.segments import Segments, build_segments
 from training.selfcal.temperature import choose_degree
-from training.selfcal.turns import TURN_FLOOR_RAD, TURN_SIGMA_RAD, ClosedTurn, find_closed_turns
+from training.selfcal.turns import TURN_FLOOR_RAD, TURN_SIGMA_RAD, ClosedTurn, count_full_turns, find_closed_turns
 
 #: Prior widths of the gyro model (training.selfcal.regularised: a combination the motions determine
 #: better than half its width is fitted from them alone, a weaker one is held near nominal): gain 10 %
@@ -55,7 +55,8 @@ class GyroGain:
     when not fitted), fitted flag, reason (why not more), segments used and skipped (by cause),
     direction errors RMS [deg] raw / bias only / after, the regularised fit (parameters ± standard
     errors, which the prior held), the direction noise (D,) [deg] per direction type (gravity, field)
-    that weighted the fit, and the closed turns used as known angles."""
+    that weighted the fit, the closed turns used as known angles, and the full turns about any axis
+    (the ImuFusion protocol's turns from a corner)."""
 
     A: np.ndarray
     g: np.ndarray
@@ -69,6 +70,7 @@ class GyroGain:
     fit: RegularisedFit | None
     direction_noise_deg: np.ndarray
     turns: tuple = ()
+    full_turns: int = 0
 
 
 @dataclass(frozen=True)
@@ -253,4 +255,5 @@ def fit_gyroscope(datasets: list[ImuData], windows: list[RestWindow], directions
         if gain.fit.held.any():
             both = fit_gyro_gain(seg, skipped, noise, p, turns)
             gain = both if both.fit.held.sum() < gain.fit.held.sum() else gain
-    return replace(gain, reason=why_degree)
+    full = count_full_turns(seg.corrected, seg.start[:, 0], seg.end[:, 0], seg.weight[:, 0] > 0)
+    return replace(gain, reason=why_degree, full_turns=full)

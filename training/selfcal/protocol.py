@@ -6,7 +6,8 @@ Protocols (docs/calibration.md, "Recordings train recognises"):
 - **Ferraris** (Ferraris et al., Sensors and Materials 7(5), 1995; imucal): the six faces of a box
   (training.selfcal.faces) and full turns about each axis held vertical (training.selfcal.turns);
 - **multi-pose** (Tedaldi, Pretto, Menegatti, ICRA 2014): at least MULTI_POSE_POSES distinct poses joined
-  by moves; **the ImuFusion protocol** is a multi-pose session with a tumble (the field over the sphere);
+  by moves; **the ImuFusion protocol** (docs/calibration.md) adds full turns about each axis
+  (PROTOCOL_FULL_TURNS, from a corner) and a tumble (the field over TUMBLE_COVERAGE of the sphere);
 - **rests only at the ends** (a robot or vehicle log): every rest within END_SHARE of a recording's
   start or end;
 - **a static log**: one pose, no motion between rests;
@@ -26,6 +27,8 @@ MULTI_POSE_POSES = 9
 END_SHARE = 0.15
 #: Field-direction coverage (share of the sphere's cells, training.selfcal.magnet) of a tumble.
 TUMBLE_COVERAGE = 0.5
+#: Full turns (about any axis, between rests of one pose) of the ImuFusion protocol: one about each axis.
+PROTOCOL_FULL_TURNS = 3
 #: What each residual group of the fits is, in the words of the protocol.
 PARTS = {"gravity norm": "gravity norm at the rests", "face directions": "the six faces of the box",
          "gravity directions": "rotation between rests (gravity)", "field directions": "rotation between rests (field)",
@@ -55,9 +58,12 @@ def protocol_name(report: dict, windows: list[RestWindow], spans: dict[int, tupl
         return f"Ferraris: the six faces of a box and {turns} full turn(s) about a vertical axis" if turns else \
             "the six faces of a box (Ferraris, without its full turns)"
     if poses >= MULTI_POSE_POSES and segments:
-        tumble = float(mag.get("coverage") or 0.0) >= TUMBLE_COVERAGE
-        return (f"{'the ImuFusion protocol (poses, moves and a tumble)' if tumble else 'multi-pose (Tedaldi et al.)'}: "
-                f"{poses} poses, {segments} moves between rests" + (f", {turns} full turn(s)" if turns else ""))
+        coverage = float(mag.get("coverage") or 0.0)
+        full = int(gyr.get("full_turns") or 0)
+        ours = full >= PROTOCOL_FULL_TURNS and coverage >= TUMBLE_COVERAGE
+        return (f"{'the ImuFusion protocol (docs/calibration.md)' if ours else 'multi-pose (Tedaldi et al.)'}: "
+                f"{poses} poses, {segments} moves between rests, {full} full turn(s)"
+                + (f", field directions over {100 * coverage:.0f} % of the sphere" if mag.get("coverage") is not None else ""))
     rests = sum(w.kind == "rest" for w in windows)
     if _ends_only(windows, spans):
         return f"a log with rests only at its ends (robot or vehicle): {rests} rest(s), {segments} usable move(s)"

@@ -66,6 +66,22 @@ def _perpendicular(a: np.ndarray) -> np.ndarray:
     return v / np.linalg.norm(v)
 
 
+#: Least rotation [deg] about a fixed axis between two rests of the same pose for a move to count as a
+#: full turn (about any axis): what the ImuFusion protocol asks for, 360° from a corner.
+FULL_TURN_DEG = 300.0
+
+
+def count_full_turns(increments: list, start: np.ndarray, end: np.ndarray, present: np.ndarray) -> int:
+    """Moves between two rests of the same pose (gravity within CLOSED_TILT_DEG) that turn at least
+    FULL_TURN_DEG about one axis (the norm of the integrated rate), whatever the axis's tilt."""
+    count = 0
+    for k, inc in enumerate(increments):
+        if present[k] and len(inc):
+            tilt = np.degrees(np.arccos(np.clip(start[k] @ end[k], -1, 1)))
+            count += int(tilt <= CLOSED_TILT_DEG and np.degrees(np.linalg.norm(inc.sum(axis=0))) >= FULL_TURN_DEG)
+    return count
+
+
 def find_closed_turns(increments: list, start: np.ndarray, end: np.ndarray, present: np.ndarray) -> list[ClosedTurn]:
     """The closed turns among segments with bias-corrected increments [(L_s, 3) rad], unit gravity
     directions at their start and end rests (S, 3) and whether gravity is known at both (S,) bool."""
