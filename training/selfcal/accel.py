@@ -37,6 +37,11 @@ GRAVITY_NOTE = ("gains scale with the g used; local gravity differs from 9.80665
 #: magnetometer's drift terms to count as identifiable (training.selfcal.magnet uses `judge`): beyond it
 #: some parameter combination is determined 1000x worse than the best one.
 MAX_CONDITION = 1e3
+#: Fewest distinct poses for an accelerometer fit: every rest of a single pose measures one norm along
+#: one direction, which a gain, a bias along it or the local g explain alike.
+MIN_POSES = 2
+ONE_POSE_REASON = ("all rests are in one pose: their gravity norm is one equation along one direction, which a gain, "
+                   "a bias along it or the local g explain alike; nothing fitted")
 #: Prior widths of the accelerometer model (training.selfcal.regularised: a combination the rests
 #: determine better than half its width is fitted from them alone, a weaker one is held near nominal).
 #: Gain 10 % (MEMS datasheets: ±1-3 %; a wrong range setting is a unit error, caught at import);
@@ -317,6 +322,9 @@ def fit_accelerometer(windows: list[RestWindow], gravity: float, t0: float, ts: 
     if not use:
         return AccelFit("nothing", np.eye(3), np.zeros((3, 1)), 0,
                         "no rest with the accelerometer recorded", 0, 0, np.nan, np.nan, None)
+    if count_poses(use) < MIN_POSES:
+        return AccelFit("nothing", np.eye(3), np.zeros((3, 1)), 0, ONE_POSE_REASON, count_poses(use),
+                        len(use), np.nan, np.nan, None)
     f = np.array([w.acc for w in use])
     temp = np.array([w.temp for w in use])
     weights, groups = group_weights(use)
