@@ -12,11 +12,10 @@ import dataclasses
 import numpy as np
 import pytest
 
+from training.bench.textbook import trained_twin, truth_summary
 from training.main_job import SCENARIO_DIR
 from training.reports.calibration_report import summary_text
-from training.selfcal.accel import gain_summary
 from training.simulator import load_scenario, simulate
-from training.train import train
 
 #: Accelerometer scale factor error [%]: a MEMS accelerometer is calibrated to ~0.1 % in a lab; the
 #: protocols' rest means (8 s faces, 3 s poses: ~3e-4 m/s² of noise) pin it to ~0.02 % (measured:
@@ -28,46 +27,29 @@ NONORTH_TOL_DEG = 0.05
 #: exactly (simulated) or moves of 90-180° between poses whose directions are known to ~2e-4 rad
 #: (measured ≤ 0.043 %).
 GYR_SCALE_TOL_PCT = 0.1
-#: The sensor's temperature in both twins [°C] (the truth is evaluated there).
-TEMP_C = 25.0
-
-
-def _trained(name: str):
-    """(scenario, artefact, summary) of a twin trained without its truth columns."""
-    scenario = load_scenario(SCENARIO_DIR / f"{name}.toml")
-    data = simulate(scenario, seed=0)
-    blind = dataclasses.replace(data, ref_q=None, ref_gyr=None, ref_acc=None, ref_mag=None,
-                                meta={**data.meta, "reference": "none"})
-    artefact = train([blind], seed=0, progress=False)
-    return scenario, artefact, summary_text(artefact, [blind])
 
 
 @pytest.fixture(scope="module", params=["ferraris", "multipose"])
 def twin(request):
-    return (request.param, *_trained(request.param))
-
-
-def _truth(scenario, triad: str) -> dict:
-    """gain_summary of the exact calibration of the simulated sensor's triad at TEMP_C."""
-    return gain_summary(np.linalg.inv(getattr(scenario.sensor, triad).response(TEMP_C)))
+    """(name, TwinResult, summary) of a twin trained without its truth columns."""
+    result = trained_twin(SCENARIO_DIR / f"{request.param}.toml")
+    return request.param, result, summary_text(result.artefact, [result.data])
 
 
 @pytest.mark.parametrize("triad, tol_pct", [("acc", ACC_SCALE_TOL_PCT), ("gyr", GYR_SCALE_TOL_PCT)])
 def test_scale_factors_against_truth(twin, triad, tol_pct):
-    _, scenario, artefact, _ = twin
-    error = np.array(artefact.fit_stats[triad]["scale_factors"]) - _truth(scenario, triad)["scale_factors"]
-    assert np.all(np.abs(100 * error) < tol_pct), error
+    _, result, _ = twin
+    assert np.all(np.abs(result.scale_error_pct[triad]) < tol_pct), result.scale_error_pct
 
 
 def test_accelerometer_nonorthogonality_against_truth(twin):
-    _, scenario, artefact, _ = twin
-    fitted = gain_summary(artefact.thermal["acc"].A)["nonorthogonality_deg"]
-    truth = _truth(scenario, "acc")["nonorthogonality_deg"]
-    assert all(abs(fitted[k] - truth[k]) < NONORTH_TOL_DEG for k in truth), (fitted, truth)
+    _, result, _ = twin
+    assert np.all(np.abs(result.nonorthogonality_error_deg["acc"]) < NONORTH_TOL_DEG), result.nonorthogonality_error_deg
 
 
 def test_protocol_recognised_and_its_parts_named(twin):
-    name, _, artefact, summary = twin
+    name, result, summary = twin
+    artefact = result.artefact
     protocol = artefact.fit_stats["protocol"]
     if name == "ferraris":
         assert protocol["name"].startswith("Ferraris") and "3 full turn(s)" in protocol["name"]
@@ -82,7 +64,8 @@ def test_summary_says_what_the_recording_could_not_identify(twin):
     """Both twins determine every bias, gain and cross-axis term (none held, nothing incomplete: the moves
     and turns spread the field over enough of the sphere for the magnetometer too), and both say that one
     temperature leaves the temperature terms out."""
-    _, _, artefact, summary = twin
+    _, result, summary = twin
+    artefact = result.artefact
     assert "INCOMPLETE CALIBRATION" not in summary
     assert not artefact.fit_stats["acc"]["held"] and not artefact.fit_stats["gyr"]["held"]
     for triad in ("acc", "gyr"):
@@ -129,5 +112,5 @@ move_s = 2.0
     from training.selfcal import self_calibrate
     report = self_calibrate([blind], field_norm=None, progress=False).report["gyr"]
     assert len(report["closed_turns"]) == 1 and "gain z" not in report["held"]
-    error = np.array(report["scale_factors"]) - _truth(scenario, "gyr")["scale_factors"]
+    error = np.array(report["scale_factors"]) - truth_summary(scenario, "gyr")["scale_factors"]
     assert abs(100 * error[2]) < GYR_SCALE_TOL_PCT, error

@@ -116,6 +116,48 @@ def rest_to_rest_error_deg(data: ImuData, cal: Calibrated, windows: list[RestWin
     return float(np.sqrt(np.mean(np.square(errors)))), len(errors)
 
 
+@dataclass(frozen=True)
+class TwinResult:
+    """A simulated twin trained without its truth: the scenario, the artefact, the recording trained on,
+    and the errors against the simulator's truth at TWIN_TEMP_C: scale factors [%] and non-orthogonality
+    [°] per triad (3,) each."""
+
+    scenario: object
+    artefact: object
+    data: ImuData
+    scale_error_pct: dict
+    nonorthogonality_error_deg: dict
+
+
+#: The twins' sensor temperature [°C]: the truth of a calibration is evaluated there.
+TWIN_TEMP_C = 25.0
+
+
+def truth_summary(scenario, triad: str, temp_c: float = TWIN_TEMP_C) -> dict:
+    """training.selfcal.accel.gain_summary of the exact calibration of the simulated sensor's triad."""
+    from training.selfcal.accel import gain_summary
+    return gain_summary(np.linalg.inv(getattr(scenario.sensor, triad).response(temp_c)))
+
+
+def trained_twin(path: Path, seed: int = 0) -> TwinResult:
+    """Simulate the scenario at `path`, drop its truth columns, `train` on it and compare with the truth."""
+    from dataclasses import replace
+    from training.selfcal.accel import gain_summary
+    from training.simulator import load_scenario, simulate
+    from training.train import train
+    scenario = load_scenario(path)
+    data = simulate(scenario, seed=seed)
+    blind = replace(data, ref_q=None, ref_gyr=None, ref_acc=None, ref_mag=None, meta={**data.meta, "reference": "none"})
+    artefact = train([blind], seed=seed, progress=False)
+    scale, nonorth = {}, {}
+    for triad in ("acc", "gyr"):
+        truth, fitted = truth_summary(scenario, triad), gain_summary(artefact.thermal[triad].A)
+        scale[triad] = 100.0 * (np.array(fitted["scale_factors"]) - truth["scale_factors"])
+        nonorth[triad] = np.array([fitted["nonorthogonality_deg"][k] - truth["nonorthogonality_deg"][k]
+                                   for k in truth["nonorthogonality_deg"]])
+    return TwinResult(scenario, artefact, blind, scale, nonorth)
+
+
 def rests(data: ImuData) -> list[RestWindow]:
     """The rests (not holds) of `data` found on the raw signals: the pairs both tools are judged on."""
     return [w for w in detect_rest(data).windows if w.kind == "rest"]
