@@ -108,6 +108,17 @@ GENERATORS = (
         small=("benchmarks/bench_xio_handheld.py", "--out", "{tmp}"), trains=True,
         needs=("xio_handheld/xio_handheld.csv.gz",)),
     TableGenerator(
+        "OMP_NUM_THREADS=1 .venv/bin/python benchmarks/bench_ferraris.py",
+        ("| calibration | gravity-norm spread over the # rests [%] | gravity-norm spread over imucal's # face sections [%] "
+         "| rest-to-rest gravity-direction error RMS [°] | rest pairs | ÷ imucal: rests / sections / direction (bound ≤ #) |",
+         "| calibration | accelerometer scale factors x, y, z | gyro scale factors x, y, z |"),
+        small=("benchmarks/bench_ferraris.py",), trains=True, needs=("imucal_ferraris/ferraris_session.csv.gz",)),
+    TableGenerator(
+        "OMP_NUM_THREADS=1 .venv/bin/python benchmarks/bench_twins.py",
+        ("| twin | seed | protocol recognised | acc scale err max [%] | acc non-orth. err max [°] "
+         "| gyr scale err max [%] | gyr non-orth. err max [°] | held at nominal |",),
+        small=("benchmarks/bench_twins.py", "--seeds", "0", "--twins", "ferraris"), trains=True),
+    TableGenerator(
         "OMP_NUM_THREADS=1 .venv/bin/python benchmarks/train_time.py",
         ("| machine | wall [s], median of # | CPU [s], median of # | wall ≤ # s |",),
         small=("benchmarks/train_time.py", "--runs", "1"), trains=True),
