@@ -141,7 +141,7 @@ def test_train_refuses_when_nothing_can_be_calibrated():
     assert any("acc: raw data are all NaN" in n for n in art.notes)
     assert any(n.startswith("gyro_noise") for n in art.notes)
     assert art.settings["gyro_noise"] == settings_defaults()["gyro_noise"]
-    assert {k: v["reference"] for k, v in art.fit_stats.items()} == {"gyr": "none", "acc": "columns", "mag": "none"}
+    assert {k: v["reference"] for k, v in art.fit_stats.items() if k in ("gyr", "acc", "mag")} == {"gyr": "none", "acc": "columns", "mag": "none"}
 
 
 def test_train_rejects_empty_input():
