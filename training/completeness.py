@@ -28,6 +28,8 @@ ADVICE = {
     "gyr gain": "record moves that turn the sensor about its {axis} axis between two rests while that axis is not "
                 "vertical, or a full turn about {axis} held vertical and put back where it started",
     "gyr cross": "record moves about every axis between rests (a multi-pose session, docs/calibration.md)",
+    "gyr stops": "stop still for 1-2 s at least every 30 s of motion (a robot or vehicle: between moves about every "
+                 "axis), so that the motion between two rests can be integrated",
     "mag": "record a slow tumble in which every face, edge and corner points down in turn, away from iron",
     "reference": "record motion about every axis while the reference runs",
 }
@@ -91,8 +93,34 @@ def _selfcal_gap(triad: str, stats: dict) -> Gap | None:
                    stats.get("why_not_more") or "no rest", ADVICE["gyr bias"])
     if not held:
         return None
-    return Gap(triad, "partly calibrated", "held at nominal (not determined by the recording): " + ", ".join(held),
+    every = len(held) == len(_model_labels(stats))
+    if every and triad == "acc":
+        return Gap(triad, "uncalibrated", "every bias, gain and cross-axis term held at nominal",
+                   stats.get("why_not_more") or "the rests do not determine them", ADVICE["acc"])
+    what = "gains and cross-axis terms" if every else ", ".join(held)
+    if triad == "gyr" and not int(stats.get("segments") or 0):
+        return Gap(triad, "partly calibrated", f"held at nominal (not determined by the recording): {what}",
+                   f"no move between two rests could be used ({_skipped_text(stats)})", ADVICE["gyr stops"])
+    return Gap(triad, "partly calibrated", f"held at nominal (not determined by the recording): {what}",
                "the rests and motions recorded do not determine them", _held_advice(triad, held))
+
+
+def _skipped_text(stats: dict) -> str:
+    """Why the rest-to-rest segments were skipped, from the gyro report's segments_skipped counts."""
+    why = {"too_long": f"longer than {stats.get('max_segment_s', 30):g} s", "gap": "a gap in the time stamps",
+           "missing_samples": "missing gyro samples", "no_direction": "no gravity direction at a rest",
+           "small_rotation": "turned less than 10°", "outliers": "inconsistent with the others"}
+    counts = {k: v for k, v in (stats.get("segments_skipped") or {}).items() if v}
+    return ", ".join(f"{n} {why.get(k, k)}" for k, n in counts.items()) or "only one rest"
+
+
+def _model_labels(stats: dict) -> list[str]:
+    """The labels of a self-calibrated triad's bias, gain and cross-axis parameters (no temperature
+    terms; the gyro without any fit: its nine gain and cross-axis entries)."""
+    params = stats.get("parameters")
+    if params is None:
+        return list(stats.get("held") or [])
+    return [p["label"] for p in params if "Tn^" not in p["label"]]
 
 
 def _gap(triad: str, model_enabled: bool, stats: dict, notes: list[str]) -> Gap | None:

@@ -15,7 +15,7 @@ import numpy as np
 
 from training.selfcal.accel import gain_summary
 from training.selfcal.gyro_gain import GyroGain
-from training.selfcal.regularised import uncertainty_report
+from training.selfcal.regularised import parameter_label, uncertainty_report
 from training.selfcal.rest import RestWindow
 from training.selfcal.segments import MAX_SEGMENT_S
 from training.selfcal.temperature import choose_degree, count_clusters, powers
@@ -125,7 +125,7 @@ def summarise(bias: GyroBias, gain: GyroGain, t0: float, ts: float) -> dict:
     if gain.fit is not None:
         out.update(uncertainty_report(gain.fit, lambda th: _derived(th), 9 + 3 * gain.g.shape[1]))
     else:
-        out["held"] = [f"{what} {axis}" for what in ("gain", "cross-axis") for axis in "xyz"]
+        out["held"] = [parameter_label(f"A[{i},{j}]") for i in range(3) for j in range(3)]
     notes = [f"bias from {bias.rests} rests (degree {bias.degree}): rest-mean RMS {bias.rms_before:.2e} -> "
              f"{bias.rms_after:.2e} rad/s; {EARTH_RATE_NOTE}",
              f"gains {'fitted' if gain.fitted else 'not fitted'} from {gain.segments} rest-to-rest segments "
