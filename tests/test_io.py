@@ -255,14 +255,18 @@ def test_wrong_unit_is_rejected(tmp_path, triad, factor, words):
 @pytest.mark.parametrize("triad, counts_per_unit", [("gyr", 16.4 * np.degrees(1.0)), ("acc", 4096 / 9.81),
                                                      ("mag", 1000.0)])
 def test_raw_counts_are_named_as_counts(tmp_path, triad, counts_per_unit):
-    """Whole-number readings beyond a physical unit's range are raw ADC counts (a gyro at 16.4 LSB/(°/s),
-    an accelerometer at 4096 LSB/g, a magnetometer at 1000 LSB/µT): the message says so and how to
-    convert them, instead of naming a wrong physical unit."""
+    """Whole-number readings beyond a physical unit's range may be raw ADC counts (a gyro at 16.4
+    LSB/(°/s), an accelerometer at 4096 LSB/g, a magnetometer at 1000 LSB/µT): beside the physical unit
+    they could be, the message says so and how to convert counts."""
     data = make_data()
     setattr(data, triad, np.round(getattr(data, triad) * counts_per_unit))
     err = rejection(write_imu_csv(data, tmp_path / "counts.csv"))
     assert "raw ADC counts" in str(err) and f"--units {triad}=counts:" in str(err)
-    assert "given as rad/s" not in str(err) and "looks like nT" not in str(err)
+
+
+def test_fractional_readings_are_not_called_counts(tmp_path):
+    err = rejection(write_imu_csv(scaled("mag", 1000.0), tmp_path / "nt.csv"))
+    assert "looks like nT" in str(err) and "counts" not in str(err)
 
 
 def test_wrong_unit_in_reference_triad_is_rejected(tmp_path):

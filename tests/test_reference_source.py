@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from training.cli import main
+from training.completeness import EXIT_INCOMPLETE
 from training.data.dataset import ImuData
 from training.data.io import write_imu_csv
 from training.data.reference_source import choose_reference
@@ -107,7 +108,8 @@ def test_train_cli_refuses_a_still_log_without_reference(tmp_path, capsys):
     # declared static, the same log calibrates the gyro bias and says so
     sidecar = tmp_path / "still.json"
     sidecar.write_text(json.dumps({**json.loads(sidecar.read_text()), "reference": "static"}))
-    assert main(["train", str(path), "--out", str(tmp_path / "m")]) == 0
+    assert main(["train", str(path), "--out", str(tmp_path / "m")]) == EXIT_INCOMPLETE  # acc, mag: nothing
+    assert main(["train", str(path), "--out", str(tmp_path / "m"), "--allow-partial"]) == 0
     out = capsys.readouterr().out
     assert "gyroscope: reference: static log" in out and (tmp_path / "m" / "calibration.md").is_file()
 

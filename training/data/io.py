@@ -566,7 +566,7 @@ def whole_numbers(xyz: np.ndarray) -> bool:
 def _counts_hint(kind: str) -> str:
     """How to convert raw counts of a triad (imufmu import's --units syntax)."""
     unit = {"gyr": "deg/s", "acc": "g", "mag": "uT"}[kind]
-    return (f"every value is a whole number: looks like raw ADC counts; convert them with the sensor's "
+    return (f"; every value is a whole number: if these are raw ADC counts, convert them with the sensor's "
             f"sensitivity, e.g. imufmu import FILE --units {kind}=counts:1/SENSITIVITY{unit}")
 
 
@@ -576,28 +576,22 @@ def _unit_problem(kind: str, norms: np.ndarray, counts: bool = False) -> str | N
     if kind == "mag":
         median = float(np.median(norms))
         if median > MAG_MEDIAN_NORM_MAX_UT:
-            if counts:
-                return f"magnetometer median norm is {median:.4g}, expected µT: {_counts_hint(kind)}"
-            return f"magnetometer median norm is {median:.4g}: looks like nT, expected µT"
+            return f"magnetometer median norm is {median:.4g}: looks like nT, expected µT" + (_counts_hint(kind) if counts else "")
         if median < MAG_MEDIAN_NORM_MIN_UT:
             return f"magnetometer median norm is {median:.4g}: looks like gauss, expected µT"
     elif kind == "gyr":
         p99 = float(np.percentile(norms, 99))
         if p99 > GYR_P99_NORM_MAX_RAD_S:
-            if counts:
-                return f"gyroscope 99th-percentile rate is {p99:.4g}, expected rad/s: {_counts_hint(kind)}"
             return (f"gyroscope 99th-percentile rate is {p99:.4g}: looks like deg/s given as "
-                    f"rad/s, expected rad/s")
+                    f"rad/s, expected rad/s" + (_counts_hint(kind) if counts else ""))
     elif kind == "acc":
         median = float(np.median(norms))
         low, high = ACC_G_UNITS_RANGE
         if low <= median <= high:
             return f"accelerometer median norm is {median:.4g}: looks like g, expected m/s²"
         if median > ACC_MEDIAN_NORM_MAX:
-            if counts:
-                return f"accelerometer median norm is {median:.4g}, expected m/s²: {_counts_hint(kind)}"
             return (f"accelerometer median norm is {median:.4g}: looks like mg or raw counts, "
-                    f"expected m/s²")
+                    f"expected m/s²" + (_counts_hint(kind) if counts else ""))
     return None
 
 
