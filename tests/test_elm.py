@@ -119,7 +119,7 @@ def test_prepare_compass_filters_rejects_and_splits_a_recording():
     q = quat_from_euler(euler[:, ::-1])
     data = ImuData(t=np.arange(n) / 50.0, gyr=np.zeros((n, 3)), acc=acc, mag=field,
                    temp=np.full(n, np.nan), ref_q=q, ref_mag=truth, eval_mask=np.ones(n, bool),
-                   meta={"earth_field": {"norm_ut": FIELD_NORM, "dip_deg": 60.0}})
+                   meta={"earth_field": {"norm_ut": FIELD_NORM, "dip_deg": 60.0, "declination_deg": 0.0}})
     s = elm.prepare_compass(data, None, elm.CompassPrep(median_window=1), seed=0)
     assert s.rejected == 1 and len(s.field) == n - 1
     assert len(s.test) == round(0.1 * (n - 1))
@@ -196,7 +196,8 @@ def test_heading_form_fits_measured_to_reference_heading():
     field, truth, acc, euler = synthetic(3000, 11)
     n = len(field)
     data = ImuData(t=np.arange(n) / 50.0, gyr=np.zeros((n, 3)), acc=acc, mag=field,
-                   temp=np.full(n, np.nan), ref_q=quat_from_euler(euler[:, ::-1]), ref_mag=truth)
+                   temp=np.full(n, np.nan), ref_q=quat_from_euler(euler[:, ::-1]), ref_mag=truth,
+                   meta={"earth_field": {"declination_deg": 0.0}})   # the synthetic attitudes are magnetic
     s = elm.prepare_compass(data, None, elm.CompassPrep(median_window=1), seed=0)
     x, t = elm.heading_form_data(s, s.train)
     model = small_fitter(max_hidden=10).fit(x, t, seed=0)

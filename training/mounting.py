@@ -18,13 +18,12 @@ import numpy as np
 
 from contract.mounting import IDENTITY, MOUNT_SETTINGS, Z_UP, mount_matrix
 from training.data.dataset import ImuData
+from training.data.earth import STANDARD_GRAVITY, local_gravity
 from training.frames import quat_from_matrix, quat_multiply
 
-#: Standard gravity [m/s²].
-GRAVITY = 9.80665
 #: A sample counts as quasi-static for the direction of gravity when its specific force is within
-#: this of 1 g [m/s²] (0.05 g: walking, handling and vibration exceed it)...
-STATIC_ACC_TOLERANCE = 0.05 * GRAVITY
+#: this of the recording's local g [m/s²] (0.05 g: walking, handling and vibration exceed it)...
+STATIC_ACC_TOLERANCE = 0.05 * STANDARD_GRAVITY
 #: ...and its raw rate below this [rad/s] (0.2 rad/s = 11 °/s: far above any MEMS gyro bias, far
 #: below a deliberate turn; centripetal and tangential accelerations then stay small).
 STATIC_RATE = 0.2
@@ -62,7 +61,11 @@ def _static_directions(data: ImuData) -> np.ndarray:
     acc, gyr = np.asarray(data.acc, float), np.asarray(data.gyr, float)
     norm = np.linalg.norm(acc, axis=1)
     rate = np.linalg.norm(gyr, axis=1) if data.has("gyr") else np.zeros(len(data))
-    static = np.isfinite(norm) & (np.abs(norm - GRAVITY) < STATIC_ACC_TOLERANCE) & (np.nan_to_num(rate) < STATIC_RATE)
+    try:
+        g = local_gravity(data.meta)[0]
+    except ValueError:
+        g = STANDARD_GRAVITY
+    static = np.isfinite(norm) & (np.abs(norm - g) < STATIC_ACC_TOLERANCE) & (np.nan_to_num(rate) < STATIC_RATE)
     return acc[static] / norm[static, None]
 
 

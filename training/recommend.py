@@ -40,9 +40,10 @@ REST_BIAS_MARGIN = 2.0
 FIELD_NORM_SPREAD = 1.0
 
 
-def sidecar_values(datasets: list[ImuData], key: str) -> list[float]:
+def sidecar_values(datasets: list[ImuData], key: str, igrf: list[str] | None = None) -> list[float]:
     """earth_field[key] (norm_ut, dip_deg, declination_deg) of every dataset whose sidecar gives it,
-    else of the IGRF field at the sidecar's site (training.data.geomag.site_field) when it gives one."""
+    else of the IGRF field at the sidecar's site (training.data.geomag.site_field) when it gives one;
+    `igrf`, when given, collects the names of the recordings whose value came from IGRF."""
     from training.data.geomag import site_field
     values = []
     for d in datasets:
@@ -53,9 +54,17 @@ def sidecar_values(datasets: list[ImuData], key: str) -> list[float]:
             except ValueError as e:
                 raise ModelError(f"{d.name}: {e}") from None
             value = getattr(field, key) if field is not None else None
+            if value is not None and igrf is not None:
+                igrf.append(d.name)
         if value is not None:
             values.append(float(value))
     return values
+
+
+def _igrf_note(setting: str, key: str, value: float, unit: str, names: list[str]) -> str:
+    """'field_norm: 48.21 µT, from the IGRF model at the sidecar's site of REC (its earth_field.norm_ut is null or absent)'."""
+    return (f"{setting}: {value:.4g} {unit}, from the IGRF model at the sidecar's site of {', '.join(names)} "
+            f"(earth_field.{key} is null or absent there)")
 
 
 def _rate_hz(data: ImuData) -> float:
@@ -116,11 +125,14 @@ def _field_settings(datasets: list[ImuData], selfcal, notes: list[str]) -> dict[
     """field_norm [µT], field_dip [rad] and declination [rad]: from the sidecars, else from the
     self-calibration of the magnetometer, else the defaults (with a note)."""
     settings, mag = {}, (selfcal.report.get("mag", {}) if selfcal else {})
-    norms, dips = sidecar_values(datasets, "norm_ut"), sidecar_values(datasets, "dip_deg")
+    igrf = {"norm_ut": [], "dip_deg": [], "declination_deg": []}
+    norms, dips = sidecar_values(datasets, "norm_ut", igrf["norm_ut"]), sidecar_values(datasets, "dip_deg", igrf["dip_deg"])
     if norms:
         settings["field_norm"] = float(np.mean(norms))
         if max(norms) - min(norms) > FIELD_NORM_SPREAD:
             notes.append(f"field_norm: sidecar values {norms} µT differ; using their mean")
+        if igrf["norm_ut"]:
+            notes.append(_igrf_note("field_norm", "norm_ut", settings["field_norm"], "µT", igrf["norm_ut"]))
     elif mag.get("field_norm_ut"):
         settings["field_norm"] = float(mag["field_norm_ut"])
         notes.append(f"field_norm: {settings['field_norm']:.2f} µT from the magnetometer calibration "
@@ -130,12 +142,23 @@ def _field_settings(datasets: list[ImuData], selfcal, notes: list[str]) -> dict[
                      "calibration; default kept")
     if dips:
         settings["field_dip"] = float(np.deg2rad(np.mean(dips)))
+        if igrf["dip_deg"]:
+            notes.append(_igrf_note("field_dip", "dip_deg", float(np.mean(dips)), "°", igrf["dip_deg"]))
     elif mag.get("dip_deg") is not None:
         settings["field_dip"] = float(np.deg2rad(mag["dip_deg"]))
         notes.append(f"field_dip: {mag['dip_deg']:.2f}° estimated at the rest poses")
-    declinations = sidecar_values(datasets, "declination_deg")
+    declinations = sidecar_values(datasets, "declination_deg", igrf["declination_deg"])
     if declinations:
         settings["declination"] = float(np.deg2rad(np.mean(declinations)))
+        if igrf["declination_deg"]:
+            notes.append(_igrf_note("declination", "declination_deg", float(np.mean(declinations)), "°",
+                                    igrf["declination_deg"]))
+    unknown = [d.name for d in datasets if d.ref_q is not None and (d.meta.get("earth_field") or {}).get("declination_deg") is None
+               and d.name not in igrf["declination_deg"]]
+    if unknown:
+        notes.append(f"declination: {', '.join(unknown)} give no declination nor a site: the FMU's declination "
+                     f"(true minus magnetic heading where it runs) stays {np.rad2deg(settings.get('declination', 0.0)):.4g}°; "
+                     "set it there (an angle estimated from a recording is its reference frame's, not a site's)")
     return settings
 
 

@@ -15,7 +15,9 @@ from contract.layout import TRIAD_ORDER
 from training.artefact import ModelArtefact
 from training.completeness import calibration_gaps, is_gap, recorded_triads
 from training.data.dataset import ImuData
+from training.data.earth import recordings_gravity
 from training.data.reference import matched_raw
+from training.data.reference_field import field_reference_notes
 from training.data.reference_source import TriadReference, choose_reference
 from training.display import DISPLAY
 from training.models.calibrated_range import range_notes
@@ -426,7 +428,7 @@ def _self_calibrated(datasets: list[ImuData], triads: list[str], degree: int, pr
     without any reference; the field norm from the sidecars when they give one."""
     norms = sidecar_values(datasets, "norm_ut")
     result = self_calibrate(datasets, field_norm=float(np.mean(norms)) if norms else None,
-                            degree=degree, progress=progress)
+                            degree=degree, gravity=recordings_gravity(datasets)[0], progress=progress)
     for triad in triads:
         notes += [f"{triad}: {n}" for n in result.report.get(triad, {}).get("notes", [])]
     return result
@@ -451,17 +453,16 @@ def _held_out(datasets: list[ImuData], refs: dict[str, TriadReference], degree, 
               selfcal, notes: list[str], progress: bool, prior: dict[str, TriadPrior]) -> dict[str, dict]:
     """Held-out error per triad (training.models.holdout): the same procedure refitted without the last
     quarter of every recording, scored on it; {} with a note when the recordings are too short."""
-    from training.data.earth import STANDARD_GRAVITY
     from training.models.holdout import held_out
-    norms = sidecar_values(datasets, "norm_ut")
+    norms, gravity = sidecar_values(datasets, "norm_ut"), recordings_gravity(datasets)[0]
     norm = float(np.mean(norms)) if norms else (selfcal.report.get("mag", {}).get("field_norm_ut") if selfcal else None)
 
     def fit_selfcal(parts):
-        return self_calibrate(parts, field_norm=norm, degree=ceiling(degree), progress=False).thermal
+        return self_calibrate(parts, field_norm=norm, degree=ceiling(degree), gravity=gravity, progress=False).thermal
     try:
         with deterministic(seed), _stage("held-out refit", len(refs) + 1, progress) as bar:
             return held_out(datasets, refs, lambda r: _fit_with_reference(r, degree, seed, prior.get(r.triad))[0], fit_selfcal,
-                            norm, STANDARD_GRAVITY, step=bar.update)
+                            norm, gravity, step=bar.update)
     except ValueError as e:
         notes.append(f"held-out error not computed: {e}")
         return {}
@@ -515,12 +516,11 @@ def _bias_only_fallback(datasets: list[ImuData], ref: TriadReference, degree, se
     """The bias B(T) alone (A = I, G = 1) of a triad whose gain/bias calibration lost to the raw sensor
     on held-out data, when it beats the raw sensor on the same held-out split; else the identity.
     stats[triad] and the notes say which, with both held-out scores."""
-    from training.data.earth import STANDARD_GRAVITY
     from training.models.holdout import held_out
     triad, rejected = ref.triad, stats[ref.triad]["held_out"]
     try:
         score = held_out(datasets, {triad: ref}, lambda r: _fit_with_reference(r, degree, seed, gains=False)[0],
-                         None, None, STANDARD_GRAVITY)[triad]
+                         None, None, recordings_gravity(datasets)[0])[triad]
     except ValueError as e:
         notes.append(f"{triad}: the bias alone could not be scored on held-out data ({e}); the identity is kept")
         return ThermalModel.identity(enabled=False)
@@ -597,7 +597,7 @@ def train(datasets: list[ImuData], seed: int = 0, degree: int | str = AUTO,
     except ValueError as e:
         raise ModelError(f"train: {e}") from None
     refs = {triad: choose_reference(datasets, triad) for triad in TRIAD_ORDER}
-    thermal, stats, notes = {}, {}, []
+    thermal, stats, notes = {}, {}, [recordings_gravity(datasets)[1]] + [n for d in datasets for n in field_reference_notes(d)]
     with deterministic(seed):
         _reference_fits(refs, degree, seed, progress, thermal, stats, notes, prior or {})
         notes += _unused_prior_notes(refs, prior or {})

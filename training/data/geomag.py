@@ -25,19 +25,22 @@ class EarthField:
 
 
 def site_field(meta: dict) -> EarthField | None:
-    """The IGRF field at the sidecar's optional site {"latitude_deg", "longitude_deg", "altitude_km"
-    (default 0), "date" (ISO, default today)}; None when the sidecar gives no site. ValueError names
-    a malformed site."""
+    """The IGRF field at the sidecar's optional site {"latitude_deg", "longitude_deg", "altitude_m" or
+    "altitude_km" (default 0), "date" (ISO, default today)}; None when the sidecar gives no site or its
+    latitude or longitude is null (unknown). ValueError names a malformed site."""
+    from training.data.earth import site_altitude_m
     site = meta.get("site")
     if not site:
         return None
     try:
+        lat, lon = (None if site.get(k) is None else float(site[k]) for k in ("latitude_deg", "longitude_deg"))
+        if lat is None or lon is None:
+            return None
         date = datetime.fromisoformat(str(site["date"])) if site.get("date") else datetime.now()
-        return earth_field(float(site["latitude_deg"]), float(site["longitude_deg"]),
-                           float(site.get("altitude_km", 0.0)), date)
-    except (KeyError, TypeError, ValueError) as e:
+        return earth_field(lat, lon, (site_altitude_m(site) or 0.0) / 1000.0, date)
+    except (AttributeError, KeyError, TypeError, ValueError) as e:
         raise ValueError(f"sidecar site {site}: {e!r} (expected latitude_deg, longitude_deg, "
-                         "altitude_km, date)") from None
+                         "altitude_m or altitude_km, date)") from None
 
 
 def earth_field(latitude_deg: float, longitude_deg: float, altitude_km: float,

@@ -1,9 +1,13 @@
 """Derive missing reference columns of a recording from its reference attitude (used for BROAD).
 
     ref_gyr = 2 · vec(q* ⊗ dq/dt)                      body rate [rad/s] (q body -> NED)
-    ref_mag = R(q)ᵀ · m_ned                            body field [µT] from the sidecar earth field
+    ref_mag = R(q)ᵀ · m_ned                            body field [µT] from the earth field in the
+                                                       reference's frame (training.data.reference_field:
+                                                       sidecar, IGRF at the site, or the angle estimated
+                                                       from the magnetometer); left out when unknown
     ref_acc = R(q)ᵀ · (d²p/dt² − g_ned)                 specific force [m/s²] when aux_pos_x/y/z [m]
-                                                       (the optical marker position in NED) is present
+                                                       (the optical marker position in NED) is present;
+                                                       g the recording's local gravity (earth.local_gravity)
 
 Derivatives are Savitzky-Golay (centred, so without delay) over each run of finite reference
 samples; runs shorter than the window stay NaN. The marker's lever arm to the IMU is neglected.
@@ -16,7 +20,8 @@ import numpy as np
 from scipy.signal import savgol_filter
 
 from training.data.dataset import ImuData
-from training.data.earth import GRAVITY_NED, EarthField
+from training.data.earth import gravity_ned, local_gravity
+from training.data.reference_field import reference_field
 from training.frames import (euler_from_quat, make_continuous, quat_multiply, quat_to_matrix, rotate_to_body,
                              wrap_angle)
 
@@ -95,28 +100,32 @@ def derive_references(data: ImuData) -> tuple[ImuData, list[str]]:
     if data.ref_gyr is None:
         fields["ref_gyr"] = rate_from_attitude(data.t, q)
         notes.append(f"ref_gyr derived from ref_q (Savitzky-Golay derivative, {RATE_WINDOW_S} s window)")
-    earth = (data.meta.get("earth_field") or {})
-    if data.ref_mag is None and earth.get("norm_ut") is not None:
-        m_ned = EarthField(float(earth["norm_ut"]), float(earth.get("dip_deg", 0.0)),
-                           float(earth.get("declination_deg", 0.0))).field_ned()
-        fields["ref_mag"] = rotate_to_body(q, m_ned)
-        notes.append("ref_mag = R(ref_q)ᵀ · earth field of the sidecar")
+    if data.ref_mag is None:
+        resolved = reference_field(data)
+        earth = resolved.earth_field()
+        if earth is not None:
+            fields["ref_mag"] = rotate_to_body(q, earth.field_ned())
+            notes.append(f"ref_mag = R(ref_q)ᵀ · earth field ({resolved.text()})")
+        else:
+            notes.append(f"ref_mag: not derived from ref_q, the earth field in its frame is incomplete "
+                         f"({resolved.text()})")
     if data.ref_acc is None and all(c in data.aux for c in POSITION_COLUMNS):
+        g_ned = gravity_ned(local_gravity(data.meta)[0])
         pos = np.column_stack([data.aux[c] for c in POSITION_COLUMNS])
         acc_pos = _derivative(pos, data.t, ACCEL_WINDOW_S, 2)
-        frame = _position_frame(q, acc_pos, data.acc)
-        fields["ref_acc"] = rotate_to_body(q, acc_pos @ frame.T - GRAVITY_NED)
-        notes.append(f"ref_acc = R(ref_q)ᵀ · (C · d²aux_pos/dt² − g) (Savitzky-Golay, {ACCEL_WINDOW_S} s "
-                     f"window); position frame -> NED rotation C = {np.round(frame, 3).tolist()}")
+        frame = _position_frame(q, acc_pos, data.acc, g_ned)
+        fields["ref_acc"] = rotate_to_body(q, acc_pos @ frame.T - g_ned)
+        notes.append(f"ref_acc = R(ref_q)ᵀ · (C · d²aux_pos/dt² − g), g = {g_ned[2]:.5f} m/s² (Savitzky-Golay, "
+                     f"{ACCEL_WINDOW_S} s window); position frame -> NED rotation C = {np.round(frame, 3).tolist()}")
     return replace(data, **fields), notes
 
 
-def _position_frame(q: np.ndarray, acc_pos: np.ndarray, acc: np.ndarray) -> np.ndarray:
+def _position_frame(q: np.ndarray, acc_pos: np.ndarray, acc: np.ndarray, g_ned: np.ndarray) -> np.ndarray:
     """Rotation C (3, 3) from the position frame to NED: least-squares (Kabsch) fit of
     C · a_pos to R(q) · f_measured + g over the samples where both are finite. The recording does
     not say in which frame aux_pos is given; 3 rotation angles fitted to thousands of samples
-    take the frame from the data without fitting the accelerometer's errors."""
-    nav = np.einsum("nij,nj->ni", quat_to_matrix(q), acc) + GRAVITY_NED
+    take the frame from the data without fitting the accelerometer's errors. g_ned (3,) [m/s²]."""
+    nav = np.einsum("nij,nj->ni", quat_to_matrix(q), acc) + g_ned
     ok = np.all(np.isfinite(nav), axis=1) & np.all(np.isfinite(acc_pos), axis=1)
     if ok.sum() < 3:
         return np.eye(3)
@@ -127,14 +136,17 @@ def _position_frame(q: np.ndarray, acc_pos: np.ndarray, acc: np.ndarray) -> np.n
 
 def reference_euler_magnetic(data: ImuData) -> np.ndarray:
     """(N, 3) reference Euler angles relative to magnetic north [rad] in the runtime's output order
-    [roll, pitch, yaw] (training.frames orders them [yaw, pitch, roll]); yaw = true yaw − declination."""
+    [roll, pitch, yaw] (training.frames orders them [yaw, pitch, roll]); yaw = reference yaw − the
+    reference frame's declination (training.data.reference_field: the sidecar's, IGRF's for a geographic
+    frame, or estimated from the magnetometer; 0 when none is known)."""
     e = euler_from_quat(data.ref_q)[:, ::-1]
-    e[:, 2] = wrap_angle(e[:, 2] - data.declination_rad)
+    e[:, 2] = wrap_angle(e[:, 2] - reference_field(data).declination_rad())
     return e
 
 
 def reference_quaternion_magnetic(data: ImuData) -> np.ndarray:
-    """Reference attitude relative to magnetic north: rotate the true-north ref_q by −declination about down."""
-    half = -0.5 * data.declination_rad
+    """Reference attitude relative to magnetic north: ref_q turned by −declination about down (the
+    declination of `reference_euler_magnetic`)."""
+    half = -0.5 * reference_field(data).declination_rad()
     rot = np.tile([np.cos(half), 0.0, 0.0, np.sin(half)], (len(data), 1))
     return quat_multiply(rot, data.ref_q)

@@ -4,9 +4,12 @@ A user's calibration recordings carry whatever they could measure. Per triad, `t
 best source that any recording offers, in this order (SOURCES):
 
 - ``columns``  — the recording has ``ref_gyr_*`` / ``ref_acc_*`` / ``ref_mag_*`` (rate table, simulator);
-- ``attitude`` — the recording has ``ref_q`` (motion capture): rate, field and, with ``aux_pos_*``,
-  specific-force references are derived by `training.data.reference.derive_references`, the same code
-  path that `imufmu diagnose` uses;
+- ``attitude`` — the recording has ``ref_q`` (sidecar ``"reference"``: ``optical`` motion capture,
+  ``robot`` kinematics, ``gnss-ins``): rate, field and, with ``aux_pos_*``, specific-force references are
+  derived by `training.data.reference.derive_references`, the same code path that `imufmu diagnose`
+  uses; the field only when the earth field in the reference's frame is known
+  (`training.data.reference_field`: a frame turned by an unknown angle has it estimated from the
+  magnetometer, or gets no field reference);
 - ``static``   — the sidecar says ``"reference": "static"``: the true rate is zero; gravity and field
   are constant in the body, so only the temperature drift of their biases is identifiable — used for
   the accelerometer and magnetometer only when every recording is static (a recording with motion

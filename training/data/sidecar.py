@@ -7,18 +7,25 @@ FMU settings field_norm, field_dip and declination, so their ranges are those se
 from __future__ import annotations
 
 import math
+from datetime import datetime
 from pathlib import Path
 
 from contract.errors import DataError
 from contract.layout import SETTING_RANGES
 from contract.schema import number_text
+from training.data.earth import GRAVITY_RANGE_MPS2, SITE_ALTITUDE_M
 
 #: Sample rate [Hz]: at least one sample a day (a thermal soak log), at most 100 kHz (the loader's
 #: MIN_MEDIAN_STEP_S of 10 µs, training/data/io.py; pinned by tests/test_value_checks.py).
 RATE_MIN_HZ = 1.0 / 86400.0
 RATE_MAX_HZ = 1.0e5
-#: The reference kinds of imu-csv/1.
-REFERENCES = ("optical", "simulated", "static", "none")
+#: The reference kinds of imu-csv/1 (README.md, 'Data format'): an attitude reference ref_q from motion
+#: capture ('optical'), a robot's forward kinematics ('robot') or a GNSS-aided INS ('gnss-ins', whose
+#: frame is geographic: true north); a simulator's exact truth; a still log; none.
+REFERENCES = ("optical", "robot", "gnss-ins", "simulated", "static", "none")
+#: site entry -> accepted range (latitude and longitude in deg; altitude in m or km).
+SITE_RANGES = {"latitude_deg": (-90.0, 90.0), "longitude_deg": (-180.0, 360.0),
+               "altitude_m": SITE_ALTITUDE_M, "altitude_km": tuple(v / 1000.0 for v in SITE_ALTITUDE_M)}
 #: Free-text fields: a string (or null) when present.
 TEXT_FIELDS = ("sensor", "source", "license", "notes")
 #: earth_field entry -> (FMU setting it becomes, factor from the sidecar's unit to the setting's).
@@ -60,6 +67,39 @@ def _earth_field_problem(field) -> str | None:
     return None
 
 
+def _gravity_problem(g) -> str | None:
+    """Why 'gravity_mps2' is not a local gravity in m/s² (GRAVITY_RANGE_MPS2), or None (absent or null:
+    unknown, then the site or standard gravity is used)."""
+    lo, hi = GRAVITY_RANGE_MPS2
+    if g is None or (_is_number(g) and lo <= g <= hi):
+        return None
+    return (f"sidecar 'gravity_mps2' is {g!r}, expected the local gravity in m/s² within [{lo:g}, {hi:g}] "
+            "(not cm/s², g or ft/s²)")
+
+
+def _site_problem(site) -> str | None:
+    """Why 'site' is not {latitude_deg, longitude_deg, altitude_m or altitude_km, date} within SITE_RANGES,
+    or None (absent entries and null values are unknown, not wrong)."""
+    if site is None:
+        return None
+    if not isinstance(site, dict):
+        return (f"sidecar 'site' is {type(site).__name__}, expected an object {{latitude_deg, longitude_deg, "
+                "altitude_m, date}")
+    for key, (lo, hi) in SITE_RANGES.items():
+        value = site.get(key)
+        if value is not None and not (_is_number(value) and lo <= value <= hi):
+            return f"sidecar 'site.{key}' is {value!r}, expected a number in [{lo:g}, {hi:g}]"
+    if site.get("altitude_m") is not None and site.get("altitude_km") is not None:
+        return "sidecar 'site' gives both altitude_m and altitude_km; give one"
+    date = site.get("date")
+    if date is not None:
+        try:
+            datetime.fromisoformat(str(date))
+        except ValueError:
+            return f"sidecar 'site.date' is {date!r}, expected an ISO date such as 2024-05-17"
+    return None
+
+
 def check_sidecar(side: Path, meta: dict) -> None:
     """DataError naming the sidecar file and the first field of the wrong type or out of range."""
     reference = meta.get("reference")
@@ -68,6 +108,7 @@ def check_sidecar(side: Path, meta: dict) -> None:
     for key in TEXT_FIELDS:
         if not isinstance(meta.get(key, ""), (str, type(None))):
             raise DataError(side, f"sidecar '{key}' is {type(meta[key]).__name__}, expected text")
-    problem = _rate_problem(meta.get("rate_hz")) or _earth_field_problem(meta.get("earth_field"))
+    problem = (_rate_problem(meta.get("rate_hz")) or _earth_field_problem(meta.get("earth_field"))
+               or _gravity_problem(meta.get("gravity_mps2")) or _site_problem(meta.get("site")))
     if problem:
         raise DataError(side, problem)

@@ -28,6 +28,7 @@ import numpy as np
 from contract.layout import INPUTS, TERM_SIGNALS, TERMS_MAX, TRIAD_ORDER, settings_array
 from training.artefact import ModelArtefact, coefficients_array, load_artefact, settings_dict
 from training.data.dataset import ImuData
+from training.data.earth import local_gravity
 from training.data.io import read_imu_csv
 from training.data.reference import derive_references
 from training.diagnosis.candidates import (TRIAD_NAMES, build_candidates, central_differences,
@@ -83,11 +84,15 @@ def targets_of(data: ImuData) -> dict[str, str]:
 
 
 def _reference_norm(target: str, data: ImuData, comp: np.ndarray, rows: np.ndarray) -> float:
-    """Invariant magnitude: sidecar field norm / standard gravity, else the training-block median."""
+    """Invariant magnitude: sidecar field norm / the recording's local gravity (training.data.earth.local_gravity:
+    sidecar gravity_mps2, its site, else standard gravity), else the training-block median."""
     if target == "mag_norm" and data.field_norm_ut is not None:
         return data.field_norm_ut
     if target == "acc_norm":
-        return 9.80665
+        try:
+            return local_gravity(data.meta)[0]
+        except ValueError:
+            pass
     return float(np.nanmedian(np.linalg.norm(comp[rows], axis=1)))
 
 

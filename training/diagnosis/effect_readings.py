@@ -8,11 +8,13 @@ from __future__ import annotations
 
 import numpy as np
 
+from training.data.earth import STANDARD_GRAVITY
 from training.diagnosis.candidates import TRIAD_NAMES
 from training.diagnosis.diagnose_fit import Fit
 from training.display import DISPLAY
 
-G = 9.80665
+#: The unit 'g' of a g-sensitivity [(°/s)/g]: standard gravity, as in datasheets (IEEE Std 528).
+G = STANDARD_GRAVITY
 
 
 def _vector(v, digits: int = 3) -> str:

@@ -616,13 +616,15 @@ def heading_form_rms_deg(model: ElmModel, s: CompassSet, rows: np.ndarray) -> fl
 
 
 def reference_field(data: ImuData) -> np.ndarray:
-    """(N, 3) µT body-frame earth field R(ref_q)ᵀ m_ned from the sidecar norm and dip, magnetic
-    north (declination removed): m_ned = ‖h0‖ [cos dip, 0, sin dip] in the magnetic frame."""
-    ef = data.meta.get("earth_field") or {}
-    norm, dip = float(ef["norm_ut"]), np.deg2rad(float(ef["dip_deg"]))
-    dec = data.declination_rad
-    m_true = norm * np.array([np.cos(dip) * np.cos(dec), np.cos(dip) * np.sin(dec), np.sin(dip)])
-    return np.einsum("nji,j->ni", quat_to_matrix(data.ref_q), m_true)
+    """(N, 3) µT body-frame earth field R(ref_q)ᵀ m_ned, m_ned the field in the reference's frame
+    (training.data.reference_field: sidecar norm, dip and declination, or IGRF at the site, or the
+    angle estimated from the magnetometer). ValueError names the recording when it is incomplete."""
+    from training.data.reference_field import reference_field as resolve
+    resolved = resolve(data)
+    earth = resolved.earth_field()
+    if earth is None:
+        raise ValueError(f"{data.name}: no reference field: {resolved.text()}")
+    return np.einsum("nji,j->ni", quat_to_matrix(data.ref_q), earth.field_ned())
 
 
 #: A validation trial may lose at most this much heading accuracy [°] for the ELM to be enabled

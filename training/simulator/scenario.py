@@ -3,7 +3,8 @@ unit and a sequence of motion segments. See scenarios/calibration.toml for an an
 
 Layout:
     sensor = "sensors/mems_grade.toml"   # sensor file relative to the scenario, or a [sensor] table
-    [scenario]     name, rate_hz, seed, notes
+    [scenario]     name, rate_hz, seed, notes, gravity_mps2 (optional: local g [m/s²], default
+                   standard gravity 9.80665; written to the sidecar when given)
     [earth_field]  norm_ut, dip_deg, declination_deg
     [start]        attitude_deg = [yaw, pitch, roll], temp_c, warmup_rise_c, warmup_tau_s
     [[segment]]    type = hold | positions | rotations | handheld | figure8, per-type keys,
@@ -20,7 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from contract.errors import ScenarioError
-from training.data.earth import EarthField
+from training.data.earth import GRAVITY_RANGE_MPS2, STANDARD_GRAVITY, EarthField
 from training.simulator.population import nominal
 from training.simulator.segments import AXIS_VECTORS, Figure8, Handheld, Hold, Positions, Rotations, Segment
 from training.simulator.sensors import MagDistortion, SensorModel, TriadErrors
@@ -62,6 +63,12 @@ class Scenario:
     warmup_rise_c: float
     warmup_tau_s: float
     segments: tuple[Segment, ...]
+    gravity_mps2: float | None = None   # local g [m/s²]; None: standard gravity, not written to the sidecar
+
+    @property
+    def gravity(self) -> float:
+        """The g the specific force is simulated with [m/s²]."""
+        return STANDARD_GRAVITY if self.gravity_mps2 is None else self.gravity_mps2
 
     @property
     def duration_s(self) -> float:
@@ -92,6 +99,10 @@ def load_scenario(path: str | Path) -> Scenario:
     rate_hz = head.number("rate_hz", low=RATE_RANGE_HZ[0], high=RATE_RANGE_HZ[1])
     seed = head.integer("seed")
     notes = head.string("notes", default="", allow_empty=True)
+    gravity = head.optional_number("gravity_mps2")
+    if gravity is not None and not GRAVITY_RANGE_MPS2[0] <= gravity <= GRAVITY_RANGE_MPS2[1]:
+        raise head.fail("gravity_mps2", f"expected the local gravity in m/s² within {list(GRAVITY_RANGE_MPS2)}, "
+                                        f"got {gravity!r}")
     head.close()
     earth = _earth_field(top.table("earth_field"))
     start = top.table("start")
@@ -105,7 +116,7 @@ def load_scenario(path: str | Path) -> Scenario:
     top.close()
     _check_sample_count(path, sum(s.duration_s for s in segments), rate_hz)
     return Scenario(path, name, rate_hz, seed, notes, earth, sensor, attitude, temp_c, rise_c,
-                    tau_s, segments)
+                    tau_s, segments, gravity)
 
 
 def _check_sample_count(path: Path, duration_s: float, rate_hz: float) -> None:

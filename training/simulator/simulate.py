@@ -6,7 +6,7 @@ from pathlib import Path
 import numpy as np
 
 from training.data.dataset import ImuData
-from training.data.earth import GRAVITY_NED
+from training.data.earth import gravity_ned
 from training.data.io import write_imu_csv
 from training.frames import make_continuous, quat_from_euler, rotate_to_body
 from training.simulator.scenario import Scenario, load_scenario
@@ -41,7 +41,7 @@ def simulate(scenario: Scenario, seed: int | None = None) -> ImuData:
     The seed drives everything random — the handheld trajectories and the sensor noise —
     through independent streams (numpy SeedSequence.spawn), so the same seed gives
     bit-identical arrays. Truth: ref_q body -> NED (true north), ref_gyr [rad/s], ref_acc
-    specific force f_b = R_nbᵀ (a_n − g_n) [m/s²], ref_mag = R_nbᵀ m_n [µT] before any sensor
+    specific force f_b = R_nbᵀ (a_n − g_n) [m/s²] (g_n = [0, 0, scenario.gravity]), ref_mag = R_nbᵀ m_n [µT] before any sensor
     error; temp is the true sensor temperature (the temperature channel is error-free).
     eval_mask is all True: the truth is exact from the first sample, no settling is needed.
     """
@@ -50,7 +50,7 @@ def simulate(scenario: Scenario, seed: int | None = None) -> ImuData:
     t = sample_times(scenario.duration_s, scenario.rate_hz)
     truth = build_motion(scenario, motion_seed).sample(t)
     q = make_continuous(truth.q)
-    ref_acc = rotate_to_body(q, truth.acc_nav - GRAVITY_NED)
+    ref_acc = rotate_to_body(q, truth.acc_nav - gravity_ned(scenario.gravity))
     ref_mag = rotate_to_body(q, scenario.earth.field_ned())
     temp, temp_rate = scenario.temperature_profile().evaluate(t)
     gyr, acc, mag = scenario.sensor.measure(truth.rate, ref_acc, ref_mag, temp, temp_rate,
@@ -68,6 +68,7 @@ def _meta(scenario: Scenario, seed: int) -> dict:
              "the true sensor temperature; eval_mask is 1 everywhere.")
     return {"format": "imu-csv/1", "rate_hz": scenario.rate_hz, "sensor": scenario.sensor.name,
             "reference": "simulated", "earth_field": scenario.earth.as_meta(),
+            **({"gravity_mps2": scenario.gravity_mps2} if scenario.gravity_mps2 is not None else {}),
             "source": f"ImuFusion simulator {scenario.name}, seed {seed}", "license": "MIT",
             "notes": f"{scenario.notes} {notes}".strip()}
 
