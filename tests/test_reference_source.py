@@ -159,3 +159,14 @@ def test_self_calibration_of_a_real_log_does_no_harm(broad_trial):
     errors = [bench.broad_errors(run_batch(c, settings, data.t - data.t[0], data.inputs())[:, q], data)["total"]
               for c in (coefficients_array(artefact), np.array(layout.identity_coefficients()))]
     assert errors[0] <= errors[1] + NO_HARM_DEG, errors
+
+
+def test_a_reference_slice_outside_the_eval_mask_trains_without_an_elm(broad_trial):
+    """BROAD trial 09's first 7 s carry the optical reference but no eval_mask sample: the ELM has no
+    compass row to learn from — the stage is off and says so, where it used to end in a traceback."""
+    from training.data.io import read_imu_csv
+    from training.train import train
+    data = read_imu_csv(broad_trial("09_undisturbed_fast_rotation_with_breaks_B.csv.gz"))
+    part = data.slice(slice(0, int(np.searchsorted(data.t, 7.0))))
+    artefact = train([part], seed=0, progress=False, allow_identity=True)
+    assert not artefact.settings["enable_elm"] and any(n.startswith("elm: fewer than") for n in artefact.notes)

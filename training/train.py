@@ -42,6 +42,9 @@ ELM_STRIDE = 8
 #: The chain's ELM: a node cap and a back-tuning budget that train in seconds on the default
 #: calibration set (docs/elm.md has the study with larger budgets).
 ELM_FITTER = dict(max_hidden=16, tune_steps=60, tune_batch=2048)
+#: Fewest compass rows (after ELM_STRIDE) a recording must give the ELM: its held-out quarter must hold a
+#: few rows, and 16 hidden nodes need more rows than weights to be more than an interpolation.
+ELM_MIN_ROWS = 64
 
 UNITS = {"gyr": "rad/s", "acc": "m/s²", "mag": "µT"}
 #: The gains A·G(T) are identifiable only when the reference moves along every axis. This is the
@@ -237,7 +240,11 @@ def _elm_stage(datasets: list[ImuData], thermal: dict[str, ThermalModel], seed: 
                      "ELM stage off" + ("; the fleet prior's ELM is not used either (nothing to check it on)"
                                         if fleet_elm is not None else ""))
         return None, False, {}
-    sets = _compass_sets(datasets, thermal, seed)
+    sets = [s for s in _compass_sets(datasets, thermal, seed) if len(s.field) >= ELM_MIN_ROWS]
+    if not sets:
+        notes.append(f"elm: fewer than {ELM_MIN_ROWS} compass rows with a reference (eval_mask, optical gaps); "
+                     "ELM stage off")
+        return None, False, {}
     errors, folds = [], _elm_holdout(sets)
     with _stage("ELM (held-out folds, final fit)", len(folds) + 1, progress) as bar:
         for train_x, train_y, test_x, test_y in folds:

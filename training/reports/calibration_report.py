@@ -13,6 +13,7 @@ import numpy as np
 from contract.layout import TRIAD_ORDER
 from training.artefact import ModelArtefact
 from training.data.dataset import ImuData
+from training.data.earth import recordings_gravity
 from training.data.reference_source import SOURCE_TEXT
 from training.display import DISPLAY
 from training.completeness import gap_headline, is_gap
@@ -191,7 +192,7 @@ def _plot_norms(artefact: ModelArtefact, datasets: list[ImuData], path: Path) ->
         axes[2].plot(t, d.temp[k], color="C3", lw=0.8)
         offset = t[-1] + 1.0
     axes[0].axhline(artefact.settings.get("field_norm", np.nan), color="k", ls=":", lw=0.8, label="field_norm")
-    axes[1].axhline(9.80665, color="k", ls=":", lw=0.8, label="g")
+    axes[1].axhline(recordings_gravity(datasets)[0], color="k", ls=":", lw=0.8, label="local g")
     axes[2].set_ylabel("temperature [°C]")
     axes[2].set_xlabel("time [s] (recordings one after another)")
     for ax in axes[:2]:

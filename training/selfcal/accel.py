@@ -31,8 +31,8 @@ from training.selfcal.temperature import choose_degree, cluster_labels, powers
 
 #: Local gravity differs from standard gravity by up to ±0.3 % (9.780 m/s² at the equator,
 #: 9.832 m/s² at the poles, less with altitude); the fitted gains scale with the g passed in.
-GRAVITY_NOTE = ("gains scale with the g used; local gravity differs from 9.80665 m/s² by up to "
-                "±0.3 % (latitude, altitude): pass the local value for absolute accuracy")
+GRAVITY_NOTE = ("gains scale with the g used (the sidecar's gravity_mps2, else the site's normal gravity, else "
+                "9.80665 m/s²; the notes say which): local gravity differs from 9.80665 m/s² by up to ±0.3 %")
 #: Largest condition number of the scaled Jacobian (residual / norm versus the parameters) for the
 #: magnetometer's drift terms to count as identifiable (training.selfcal.magnet uses `judge`): beyond it
 #: some parameter combination is determined 1000x worse than the best one.
