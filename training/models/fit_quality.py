@@ -5,9 +5,10 @@ cross-axis term that absorbs a mounting error, a noise density measured on a mov
 checks compare the fit at its centre temperature t0 (x_c = A·(x − B) there, G(t0) = 1) with what
 the sensor class allows, with a margin over datasheet tolerances so that a warning means "look":
 
-- gain: the diagonal of A is the inverse of the sensor's sensitivity error. Datasheets give ±1–3 %
-  for MEMS gyros and accelerometers (MPU-6050 ±3 %, BMI270 ±2 %, LSM6DSO ±1 %), so |A_ii − 1| >
-  SCALE_TOLERANCE = 5 % is outside the class. Magnetometer gains carry soft iron of the board as
+- gain: the scale factor of each raw axis (its reading per true value, the norm of a row of A⁻¹;
+  `scale_factors`) is the sensor's sensitivity. Datasheets give ±1–3 % for MEMS gyros and
+  accelerometers (MPU-6050 ±3 %, BMI270 ±2 %, LSM6DSO ±1 %), so a scale factor more than
+  SCALE_TOLERANCE = 5 % from 1 is outside the class. Magnetometer gains carry soft iron of the board as
   well (typically up to ±15 %), hence 25 %.
 - cross-axis: atan(A_ij / A_ii); MEMS cross-axis sensitivity is ±1–2 % (0.6–1.1°), so beyond 2° is
   outside the class; soft iron adds to the magnetometer's, hence 5°.

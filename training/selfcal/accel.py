@@ -1,5 +1,6 @@
-"""Accelerometer gains, misalignment and bias from the gravity-norm invariant at rest (and the
-identifiability test `judge` that the magnetometer and gyro fits share).
+"""Accelerometer gains, misalignment and bias from the gravity-norm invariant at rest, and from the
+directions of the six faces of a box where a recording has them (and the norm-model helpers and the
+identifiability test `judge` that the magnetometer fit uses).
 
 At rest the specific force is -gravity whatever the pose, so its calibrated norm is g:
 
@@ -11,10 +12,12 @@ measurement unit", IMEKO XVII 2006).
 
 A symmetric 3x3 (6 unknowns: 3 gains, 3 non-orthogonalities; the antisymmetric part is a
 rotation, which no norm can see, so the body frame is defined as the orthogonal frame closest to
-the sensor axes) and B(T) per-axis polynomials of normalised temperature. Fitted by casadi/IPOPT
-(deterministic). What the poses identify is decided from the Jacobian at the solution: its
-condition number and the parameters' standard errors. Models are tried from the richest down:
-symmetric A + B(T), symmetric A + b, diagonal gains + b, bias b only, nothing.
+the sensor axes) and B(T) per-axis polynomials of normalised temperature. At six rests on the faces
+of a box (training.selfcal.faces, the Ferraris protocol) the calibrated directions must also be ±e_i of
+one orthogonal frame, up to the rotation of the sensor in its box (a nuisance): that pins the
+non-orthogonality, which the norm sees only to second order there. Fitted by regularised least
+squares (training.selfcal.regularised, residuals and Jacobian by casadi): what the rests determine is
+fitted from them, the rest held near nominal, every parameter with its standard error.
 """
 from __future__ import annotations
 
