@@ -55,7 +55,8 @@ CELL_MIN_S = 0.2
 
 def rest_windows(data) -> list:
     """The rests the self-calibration finds in the raw signals (training.selfcal.rest), with poses."""
-    from training.selfcal.rest import detect_rest, group_poses
+    from training.selfcal.poses import group_poses
+    from training.selfcal.rest import detect_rest
     return group_poses(list(detect_rest(data).windows))
 
 

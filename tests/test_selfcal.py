@@ -15,7 +15,8 @@ from training.models.thermal import apply_thermal
 from training.selfcal import SelfCalResult, self_calibrate
 from training.selfcal.accel import fit_accelerometer
 from training.selfcal.magnet import fit_alignment, fit_magnetometer
-from training.selfcal.rest import RestWindow, detect_rest, group_poses
+from training.selfcal.poses import group_poses
+from training.selfcal.rest import RestWindow, detect_rest
 from training.simulator import load_scenario, simulate
 
 G = 9.80665

@@ -29,7 +29,8 @@ from training.data.earth import STANDARD_GRAVITY
 from training.models.thermal import ThermalModel, apply_thermal
 from training.selfcal import accel, gyro, gyro_gain, magnet
 from training.selfcal.protocol import recognise, recording_spans
-from training.selfcal.rest import RestWindow, count_poses, detect_rest, group_poses
+from training.selfcal.poses import count_poses, group_poses
+from training.selfcal.rest import RestWindow, detect_rest
 from training.selfcal.temperature import count_clusters, normalisation, temperature_span
 
 __all__ = ["RestWindow", "SelfCalResult", "self_calibrate"]

@@ -29,7 +29,8 @@ import numpy as np
 
 from training.selfcal.faces import FaceSet, find_faces
 from training.selfcal.regularised import Group, RegularisedFit, regularised_fit, uncertainty_report
-from training.selfcal.rest import RestWindow, count_poses
+from training.selfcal.poses import count_poses
+from training.selfcal.rest import RestWindow
 from training.selfcal.temperature import choose_degree, cluster_labels, powers
 
 #: Local gravity differs from standard gravity by up to ±0.3 % (9.780 m/s² at the equator,

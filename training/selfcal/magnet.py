@@ -31,7 +31,7 @@ from training.models.ellipsoid import MAX_SAMPLES, EllipsoidFit, apply_ellipsoid
 from training.models.thermal import ThermalModel, apply_thermal
 from training.selfcal.accel import (MAX_CONDITION, ModelCheck, fit_norm_model, gain_summary, judge, pack,
                                     unpack)
-from training.selfcal.rest import direction_groups
+from training.selfcal.poses import direction_groups
 from training.selfcal.temperature import choose_degree, cluster_labels, powers
 
 #: Equal-area cells of the coverage check: 6 bands of equal height in z (equal area on a sphere,

@@ -1,4 +1,4 @@
-"""Rest detection on the raw signals and grouping of the rests into poses.
+"""Rest detection on the raw signals (training.selfcal.poses groups the rests into poses).
 
 A sample belongs to a rest when a sliding window of WINDOW_S around it is still on every recorded
 triad: the windowed standard deviation of each axis is below a threshold set from the recording's
@@ -22,8 +22,7 @@ The magnetometer does not take part: a still sensor's field drifts in a disturba
 (xio_handheld, still at 97.6-100.2 s: field heading 0.72 °/s, gyro 0.00 °/s).
 
 Rests are split where the temperature moves by more than REST_TEMP_SPLIT_C (a warm-up changes
-the bias within a long rest) and at gaps in the time stamps; poses group the rests by the
-direction of gravity (the specific force) in the sensor frame.
+the bias within a long rest) and at gaps in the time stamps.
 
 A pose held in the hand is not a rest: tremor (4-12 Hz) lifts the gyro std 10-30x above the
 noise floor. Such a *hold* still gives a good mean specific force (the hand's position is steady)
@@ -112,10 +111,6 @@ GAP_FACTOR = 3.0
 #: MIN_REST_S): a bias drift of ~0.01-0.1 °/s per °C then changes by at most a few thousandths
 #: of a °/s within one window, so the window mean is the bias at the window's mean temperature.
 REST_TEMP_SPLIT_C = 0.5
-#: Rests whose gravity directions are closer than this [deg] are one pose: hand-placed poses of
-#: a calibration protocol differ by 35° or more, while one pose re-placed by hand or seen through
-#: a ~1-2 % uncalibrated accelerometer scatters by a few degrees.
-POSE_SEPARATION_DEG = 12.0
 #: Moving average that removes hand tremor before the hold test [s]: its first zero is at 4 Hz,
 #: the low end of physiological tremor (4-12 Hz).
 TREMOR_S = 0.25
@@ -576,35 +571,3 @@ def detect_rest(data: ImuData, index: int = 0) -> RestDetection:
     windows = _mark_edges(sorted(rests + holds, key=lambda win: win.start), n, w)
     return RestDetection(tuple(windows), mask, floors, thresholds, w, note, rare, tuple(turning),
                          (float(data.t[0]), float(data.t[-1])))
-
-
-def direction_groups(vectors: np.ndarray) -> np.ndarray:
-    """Group index (K,) of each vector (K, 3) by direction: greedy in order, a new group when a
-    direction is more than POSE_SEPARATION_DEG from every group's first member; -1 for a
-    non-finite or zero vector."""
-    cos_limit = np.cos(np.deg2rad(POSE_SEPARATION_DEG))
-    heads: list[np.ndarray] = []
-    labels = np.full(len(vectors), -1, dtype=int)
-    for k, v in enumerate(np.asarray(vectors, dtype=np.float64)):
-        norm = np.linalg.norm(v)
-        if not np.isfinite(norm) or norm == 0:
-            continue
-        u = v / norm
-        match = next((i for i, head in enumerate(heads) if float(u @ head) >= cos_limit), None)
-        if match is None:
-            heads.append(u)
-            match = len(heads) - 1
-        labels[k] = match
-    return labels
-
-
-def group_poses(windows: list[RestWindow]) -> list[RestWindow]:
-    """The windows with `pose` set by `direction_groups` of their mean specific force, in
-    window order (pose -1 where the accelerometer is not recorded)."""
-    labels = direction_groups(np.array([w.acc for w in windows]).reshape(-1, 3))
-    return [replace(w, pose=int(label)) for w, label in zip(windows, labels)]
-
-
-def count_poses(windows: list[RestWindow]) -> int:
-    """Number of distinct poses among windows (pose >= 0)."""
-    return len({w.pose for w in windows if w.pose >= 0})

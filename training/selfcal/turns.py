@@ -26,7 +26,7 @@ from training.selfcal.rotations import attitudes, winding
 
 #: Largest angle [deg] between the gravity directions at the two rests of a closed turn: the sensor is
 #: put back on the same face (a face re-placed on a table repeats to ~0.1-0.5°); two distinct poses of a
-#: multi-pose protocol are at least 12° apart (training.selfcal.rest.POSE_SEPARATION_DEG).
+#: multi-pose protocol are at least 12° apart (training.selfcal.poses.POSE_SEPARATION_DEG).
 CLOSED_TILT_DEG = 3.0
 #: Largest angle [deg] of a closed turn's axis from the vertical: within it, gravity sees less than
 #: sin(30°) = half of a gain error about the axis, so the known angle is what determines it. Turns about
