@@ -9,7 +9,7 @@ Gains, misalignment and their drift come from the motions between rests: trainin
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -34,8 +34,9 @@ MIN_OUTLIER_RATE = 2.0 * EARTH_RATE
 class GyroBias:
     """B(T): coefficients b (3, P+1) rad/s in powers of Tn, degree P, reason the degree is lower
     than requested, distinct temperature clusters, rests used / dropped as outliers, RMS of the
-    rest means before (raw) and after [rad/s], and the mean residual (R, 3) rad/s of each
-    recording's rests (their spread is the run-to-run bias no B(T) can hold)."""
+    rest means before (raw) and after [rad/s], the mean residual (R, 3) rad/s of each
+    recording's rests (their spread is the run-to-run bias no B(T) can hold), and the standard error
+    (3,) rad/s of the bias at t0 (the rests' scatter about B(T) over the dof, through the design)."""
 
     b: np.ndarray
     degree: int
@@ -46,6 +47,7 @@ class GyroBias:
     rms_before: float
     rms_after: float
     recording_offsets: np.ndarray
+    se: np.ndarray = field(default_factory=lambda: np.full(3, np.nan))
 
 
 def bias_at(b: np.ndarray, temp: np.ndarray, t0: float, ts: float) -> np.ndarray:
@@ -70,7 +72,18 @@ def fit_gyro_bias(windows: list[RestWindow], t0: float, ts: float, degree: int) 
     residual = g - bias_at(b, temp, t0, ts)
     offsets = np.array([residual[keep & (recording == i)].mean(axis=0) for i in np.unique(recording[keep])])
     return GyroBias(b, p, reason, count_clusters(temp), int(keep.sum()), int((~keep).sum()),
-                    float(np.sqrt(np.mean(g[keep] ** 2))), float(np.sqrt(np.mean(after ** 2))), offsets)
+                    float(np.sqrt(np.mean(g[keep] ** 2))), float(np.sqrt(np.mean(after ** 2))), offsets,
+                    _bias_se(powers(temp[keep], t0, ts, p), after))
+
+
+def _bias_se(design: np.ndarray, residual: np.ndarray) -> np.ndarray:
+    """Standard error (3,) of the constant term of a least-squares B(T) with design (K, P+1) and
+    residuals (K, 3): σ² (XᵀX)⁻¹[0, 0], σ² per axis over K − (P+1) dof; NaN without a spare rest."""
+    dof = len(design) - design.shape[1]
+    if dof < 1:
+        return np.full(3, np.nan)
+    sigma2 = np.sum(residual ** 2, axis=0) / dof
+    return np.sqrt(sigma2 * np.linalg.pinv(design.T @ design)[0, 0])
 
 
 def _bias_inliers(g: np.ndarray, temp: np.ndarray, recording: np.ndarray, t0: float, ts: float,
@@ -104,7 +117,7 @@ def summarise(bias: GyroBias, gain: GyroGain, t0: float, ts: float) -> dict:
     out = {"unit": "rad/s", "fitted": fitted,
            "why_not_more": "; ".join(r for r in (bias.reason, gain.reason) if r),
            "degree": bias.degree, "temperature_clusters": bias.clusters, "bias": bias.b[:, 0],
-           "bias_dps": np.degrees(bias.b[:, 0]), "bias_coefficients": bias.b, "t0_c": t0, "ts_c": ts,
+           "bias_dps": np.degrees(bias.b[:, 0]), "bias_se": bias.se, "bias_coefficients": bias.b, "t0_c": t0, "ts_c": ts,
            "gain_degree": gain.g.shape[1], "gain_coefficients": gain.g,
            "bias_rests": bias.rests, "bias_outliers": bias.dropped,
            "recording_bias_offsets_rad_s": bias.recording_offsets, "segments": gain.segments,
