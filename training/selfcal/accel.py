@@ -315,11 +315,23 @@ def _groups(windows: list[RestWindow], weights: np.ndarray, faces: FaceSet | Non
     return groups
 
 
+def _fit(f: np.ndarray, tpow: np.ndarray, weights: np.ndarray, gravity: float, degree: int,
+         windows: list[RestWindow], faces: FaceSet | None) -> RegularisedFit:
+    """The regularised fit of the rests' means f (K, 3) (with the faces' directions when given)."""
+    fun, names = _residual_function(f, tpow, weights, gravity, degree, faces)
+    theta0, sigma = _prior(degree, faces is not None)
+    return regularised_fit(fun, theta0, sigma, names, _groups(windows, weights, faces, gravity))
+
+
 def fit_accelerometer(windows: list[RestWindow], gravity: float, t0: float, ts: float,
                       degree: int) -> AccelFit:
     """Fit A (symmetric) and B(T) to the rests' mean specific force (acc finite) by
     regularised least squares (training.selfcal.regularised): the gravity norm at every rest and,
-    when six rests are the faces of a box (training.selfcal.faces), their directions too.
+    when the norm leaves a parameter undetermined and six rests are the faces of a box
+    (training.selfcal.faces), their directions too. The faces' geometry is an assumption (a box laid
+    flat on a flat table: ~0.1-0.2° of placement error on a real session), where the norm is physics
+    up to noise: it is used only where it adds what the norm cannot give (the non-orthogonality of a
+    Ferraris session), never on a multi-pose session whose poses determine everything.
 
     gravity: local g [m/s²]; t0, ts: temperature normalisation [°C]; degree: largest B(T) degree."""
     use = [w for w in windows if np.all(np.isfinite(w.acc))]
@@ -334,10 +346,11 @@ def fit_accelerometer(windows: list[RestWindow], gravity: float, t0: float, ts: 
     weights, groups = group_weights(use)
     before = float(np.sqrt(np.mean((np.linalg.norm(f, axis=1) - gravity) ** 2)))
     p, why_degree = choose_degree(temp, degree, groups - 6, per_degree=3)
-    faces = find_faces(use)
-    fun, names = _residual_function(f, powers(temp, t0, ts, p), weights, gravity, p, faces)
-    theta0, sigma = _prior(p, faces is not None)
-    fit = regularised_fit(fun, theta0, sigma, names, _groups(use, weights, faces, gravity))
+    tpow = powers(temp, t0, ts, p)
+    fit = _fit(f, tpow, weights, gravity, p, use, None)
+    faces = find_faces(use) if fit.held.any() else None
+    if faces is not None:        # the box's geometry is assumed only for what the norm leaves open
+        fit = _fit(f, tpow, weights, gravity, p, use, faces)
     A, b, _ = unpack("symmetric", p, fit.theta[:6 + 3 * (p + 1)])
     after = _norm_rms(A, b, f, powers(temp, t0, ts, p), gravity)
     level = "symmetric A + b" + ("(T)" if p else "")
