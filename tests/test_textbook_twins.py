@@ -25,7 +25,7 @@ ACC_SCALE_TOL_PCT = 0.05
 NONORTH_TOL_DEG = 0.05
 #: Gyro scale factor error [%] where the protocol identifies it: a closed turn of 360° put back
 #: exactly (simulated) or moves of 90-180° between poses whose directions are known to ~2e-4 rad
-#: (measured ≤ 0.043 %).
+#: (measured ≤ 0.065 %).
 GYR_SCALE_TOL_PCT = 0.1
 #: A parameter's error in standard errors where a session determines it only roughly: 4 leaves a 6e-5
 #: chance per parameter for a Gaussian estimate; error bars that are too small fail.
