@@ -12,6 +12,7 @@ import pytest
 from scipy.stats import norm
 
 from conftest import SHARED_DATA
+from scenario_files import turn_scenario
 from training.data.dataset import ImuData
 from training.data.io import read_imu_csv
 from training.data.reference import true_runs
@@ -23,7 +24,6 @@ from training.simulator import load_scenario, simulate
 
 ROBOT = SCENARIO_DIR / "variants" / "robot_log.toml"
 QUANTISED = SCENARIO_DIR / "variants" / "quantised_gyro.toml"
-MEMS_GRADE = SCENARIO_DIR / "sensors" / "mems_grade.toml"
 
 # ----------------------------------------------------------------------------- bounds
 #: A detected rest's start and end lie within one std window (WINDOW_S = 0.25 s) of the truth's:
@@ -189,32 +189,8 @@ def test_slow_turns_of_the_quantised_session_are_reported_turning(quantised):
 def _turn_scenario(tmp_path: Path, axis: str, pitch_deg: float, after_s: float) -> Path:
     """2 s still, a steady 1 °/s turn of 6° about body `axis` (0.5 s ramps), then after_s still,
     with the shared mems_grade sensor (fine LSB, white noise) from a pose pitched by pitch_deg."""
-    text = f'''sensor = "{MEMS_GRADE.as_posix()}"
-[scenario]
-name = "slow_turn"
-rate_hz = 100.0
-seed = 5
-[earth_field]
-norm_ut = 50.0
-dip_deg = 60.0
-declination_deg = 3.0
-[start]
-attitude_deg = [0.0, {pitch_deg}, 0.0]
-temp_c = 25.0
-[[segment]]
-type = "hold"
-duration_s = 2.0
-[[segment]]
-type = "rotations"
-axes = ["{axis}"]
-rates_dps = [1.0]
-angle_deg = 6.0
-ramp_s = 0.5
-rest_s = {after_s}
-'''
-    path = tmp_path / f"turn_{axis}.toml"
-    path.write_text(text)
-    return path
+    return turn_scenario(tmp_path / f"turn_{axis}.toml", axis=axis, rate_dps=1.0, angle_deg=6.0, hold_s=2.0,
+                         rest_s=after_s, pitch_deg=pitch_deg)
 
 
 @pytest.mark.parametrize("axis, pitch_deg, after_s", [("x", 0.0, 0.1), ("y", 0.0, 0.1), ("x", 0.0, 2.0),

@@ -15,6 +15,7 @@ import pytest
 from training.bench.textbook import trained_twin, truth_summary
 from training.main_job import SCENARIO_DIR
 from training.reports.calibration_report import summary_text
+from scenario_files import turn_scenario
 from training.simulator import load_scenario, simulate
 
 #: Accelerometer scale factor error [%]: a MEMS accelerometer is calibrated to ~0.1 % in a lab; the
@@ -80,30 +81,8 @@ def test_gain_about_the_vertical_comes_from_the_closed_turn(tmp_path):
     """A full turn about the vertical z axis, put back, is the only motion about z: gravity cannot see
     the z gain there, the known angle can — the z gain is determined (not held) and within
     GYR_SCALE_TOL_PCT of the truth; the moves about x and y give the other gains."""
-    path = tmp_path / "turn.toml"
-    path.write_text(f'sensor = "{(SCENARIO_DIR / "sensors" / "mems_grade.toml").as_posix()}"\n' + """
-[scenario]
-name = "turn"
-rate_hz = 100.0
-seed = 3
-[earth_field]
-norm_ut = 50.0
-dip_deg = 60.0
-declination_deg = 0.0
-[start]
-attitude_deg = [0.0, 0.0, 0.0]
-temp_c = 25.0
-[[segment]]
-type = "hold"
-duration_s = 4.0
-[[segment]]
-type = "rotations"
-axes = ["z"]
-rates_dps = [-90.0]
-angle_deg = 360.0
-ramp_s = 0.5
-rest_s = 4.0
-[[segment]]
+    path = turn_scenario(tmp_path / "turn.toml", axis="z", rate_dps=-90.0, angle_deg=360.0, hold_s=4.0, rest_s=4.0,
+                         seed=3, declination_deg=0.0, extra="""[[segment]]
 type = "positions"
 attitudes_deg = [[0, 0, 90], [0, 0, 0], [0, 90, 0], [0, 0, 0], [0, 45, 45], [0, 0, 0]]
 hold_s = 3.0
