@@ -226,6 +226,17 @@ _MOUNTING: tuple[Variable, ...] = tuple(
     for k, axis in enumerate("xyz"))
 
 
+#: Parameters added after the mounting (same layout version: a parameter's default keeps older models'
+#: arrays meaningful, contract.layout reads the defaults by name).
+_GYRO_SAMPLING: tuple[Variable, ...] = (
+    _parameter("gyro_hold", 81, 1.0, FLAG,
+               "Attitude filters integrate each rate sample over the interval before it (1: a sensor "
+               "whose samples average the rate over their interval, as MEMS decimation filters and VQF "
+               "assume) or the trapezoid of two samples (0: instantaneous samples); `train` chooses it "
+               "by replaying a reference"),
+)
+
+
 def aux_description(k: int, entry: dict | None) -> str:
     """Description of input aux_k (k from 1): the recording column, unit and meaning a model's
     aux_inputs entry maps to it, or that the model leaves it unused."""
@@ -248,7 +259,7 @@ def variable_table(aux_inputs: Sequence[dict] = ()) -> tuple[Variable, ...]:
     (entry k describes input aux_{k+1})."""
     if len(aux_inputs) > len(AUX_INPUTS):
         raise ValueError(f"{len(aux_inputs)} auxiliary inputs mapped, the FMU has {len(AUX_INPUTS)}")
-    return _LAYOUT_2 + _aux_inputs(aux_inputs) + _LAGS + _LAYOUT_4_OUTPUTS + _MOUNTING
+    return _LAYOUT_2 + _aux_inputs(aux_inputs) + _LAGS + _LAYOUT_4_OUTPUTS + _MOUNTING + _GYRO_SAMPLING
 
 
 VARIABLES: tuple[Variable, ...] = variable_table()

@@ -54,10 +54,9 @@ void ImuAttitudeReset(ImuAttitude *a)
     }
     for (i = 0; i < 3; i++) {
         a->bias[i] = 0.0;
-        a->accLp[0][i] = 0.0;
-        a->accLp[1][i] = 0.0;
     }
     ImuRestDetectorReset(&a->rest);
+    ImuLowPassReset(&a->accLowPass);
     a->headingOffset = 0.0;
     a->magRejected = 0.0;
     a->magSamples = 0.0;

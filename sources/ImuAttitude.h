@@ -19,6 +19,7 @@
 #define IMU_ATTITUDE_H
 
 #include "ImuCommon.h"
+#include "ImuLowPass.h"
 #include "ImuRestDetector.h"
 
 /** Standard gravity [m/s^2]: the specific-force norm at rest. */
@@ -62,6 +63,8 @@ typedef struct {
     double restGyroThreshold; /* rad/s, rest-detection rate threshold (0: no bias estimation) */
     double restAccThreshold; /* m/s^2, rest-detection specific-force threshold (> 0) */
     double magRejectTime;    /* s, longest rejection of a disturbed field (0: no rejection) */
+    int gyroHold;            /* 1: a rate sample holds over the interval before it (a sensor that
+                              * averages over its sample interval); 0: trapezoid of two samples */
     int eulerAdditions;      /* sum of ImuEulerAddition bits in use by the Euler mode (not an FMU
                               * parameter: IMU_EULER_ALL_ADDITIONS except in ImuBatchRunEuler) */
 } ImuAttitudeSettings;
@@ -82,7 +85,7 @@ typedef struct {
     ImuRestDetector rest;   /* rest detection feeding the bias */
     double qGyr[4];         /* 1, quaternion mode: strapdown body -> almost-inertial frame */
     double qAcc[4];         /* 1, quaternion mode: inclination correction, inertial -> level frame */
-    double accLp[2][3];     /* m/s^2, quaternion mode: two-stage low-pass of f in the inertial frame */
+    ImuLowPass accLowPass;  /* m/s^2, quaternion mode: low-pass of f in the inertial frame */
     double headingOffset;   /* rad, quaternion mode: level frame -> magnetic NED about down */
     double magRejected;     /* s, quaternion mode: time the field has been rejected */
     double magSamples;      /* 1, quaternion mode: accepted field samples (start-up averaging) */

@@ -21,8 +21,8 @@
  * correction take to remove, while a single dropped sample at 100 Hz (1e-4 rad^2) stays far below. */
 #define IMU_ATTITUDE_RESTART_VARIANCE 0.0304617420
 
-/** @brief Rate [rad/s] held over the step: the trapezoidal mean of the previous and current
- *         corrected rates, or the one that is finite; 0 if neither is (no propagation). */
+/** @brief Rate [rad/s] held over the step: the current corrected rate (gyro_hold) or the trapezoidal
+ *         mean of the previous and current ones, or the one that is finite; 0 if neither is (no propagation). */
 IMU_HIDDEN int ImuAttitudeStepRate(const ImuAttitude *a, const double gyr[3], double rate[3]);
 /** @brief Mean-square angle error [rad^2] of integrating one step of dt [s] with the trapezoidal
  *         rule beyond the white noise: the rate change within the step, the samples missing from it. */

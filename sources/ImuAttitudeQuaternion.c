@@ -6,9 +6,9 @@
  * Quaternion mode, q = Rz(heading offset) (x) qAcc (x) qGyr:
  * 1. qGyr <- qGyr (x) exp(w dt / 2) with the trapezoidal rate (strapdown into a frame that is
  *    inertial up to the gyro's drift).
- * 2. f is rotated into that frame and low-passed by two first-order stages of time constant
- *    tau_acc / 2: there a linear acceleration, which integrates to a velocity change, averages
- *    out while gravity stays put. qAcc is then turned about a horizontal axis so that the
+ * 2. f is rotated into that frame and low-passed by a second-order Butterworth filter of time
+ *    constant tau_acc (ImuLowPass.h): there a linear acceleration, which integrates to a velocity
+ *    change, averages out while gravity stays put. qAcc is then turned about a horizontal axis so that the
  *    low-passed f points up (-z); the heading is untouched.
  * 3. The field is rotated into the level frame qAcc (x) qGyr; its heading gives the measured
  *    offset -atan2(m_y, m_x). A field whose norm departs from field_norm by more than
@@ -68,19 +68,14 @@ static void ImuAttitudeQuaternionPredict(ImuAttitude *a, const double gyr[3], do
 /** @brief Quaternion mode: low-pass f [m/s^2] in the inertial frame, turn qAcc to level it. */
 static void ImuAttitudeQuaternionTilt(ImuAttitude *a, const double acc[3], double dt)
 {
-    const double alpha = dt > 0.0 ? 1.0 - exp(-2.0 * dt / a->settings.tauAcc) : 0.0;
-    double inertial[3], e[3], turn[4], product[4], n;
+    double inertial[3], lowPassed[3], e[3], turn[4], product[4], n;
     int i;
-    ImuQuaternionRotate(a->qGyr, acc, inertial);
-    for (i = 0; i < 3; i++) {
-        if (!a->tiltInitialised) {
-            a->accLp[0][i] = inertial[i];
-            a->accLp[1][i] = inertial[i];
-        }
-        a->accLp[0][i] += alpha * (inertial[i] - a->accLp[0][i]);
-        a->accLp[1][i] += alpha * (a->accLp[0][i] - a->accLp[1][i]);
+    if (!a->tiltInitialised) {
+        ImuLowPassReset(&a->accLowPass);
     }
-    ImuQuaternionRotate(a->qAcc, a->accLp[1], e);
+    ImuQuaternionRotate(a->qGyr, acc, inertial);
+    ImuLowPassStep(&a->accLowPass, inertial, a->settings.tauAcc, dt, lowPassed);
+    ImuQuaternionRotate(a->qAcc, lowPassed, e);
     n = ImuVectorNorm(e);
     if (!(n > 0.0)) {
         return;
@@ -102,7 +97,7 @@ static void ImuAttitudeQuaternionTilt(ImuAttitude *a, const double acc[3], doubl
         a->qAcc[i] = product[i];
     }
     ImuQuaternionNormalise(a->qAcc);
-    a->gain[0] = a->gain[1] = a->tiltInitialised ? alpha : 1.0;
+    a->gain[0] = a->gain[1] = a->tiltInitialised ? 1.0 - exp(-dt / a->settings.tauAcc) : 1.0;
     a->tiltInitialised = 1;
 }
 

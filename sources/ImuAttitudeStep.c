@@ -18,18 +18,19 @@
 #define IMU_ATTITUDE_SMOOTH_ANGULAR_ACCEL 1000.0
 
 /**
- * @brief Rate [rad/s] held over the step: the mean of the previous and current corrected rates
- *        (trapezoidal rule), or the one that is finite; 0 if neither is.
+ * @brief Rate [rad/s] held over the step: the current corrected rate when gyro_hold is set (the
+ *        sample averages the rate over the interval before it), else the mean of the previous and
+ *        current rates (trapezoidal rule); the one that is finite when only one is; 0 if neither is.
  */
 int ImuAttitudeStepRate(const ImuAttitude *a, const double gyr[3], double rate[3])
 {
     const int previous = ImuAllFinite(a->previousRate, 3), current = ImuAllFinite(gyr, 3);
     int i;
     for (i = 0; i < 3; i++) {
-        if (previous && current) {
+        if (previous && current && !a->settings.gyroHold) {
             rate[i] = 0.5 * (a->previousRate[i] + gyr[i]);
         } else {
-            rate[i] = previous ? a->previousRate[i] : gyr[i];
+            rate[i] = current ? gyr[i] : a->previousRate[i];
         }
     }
     return previous || current;

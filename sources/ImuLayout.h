@@ -116,6 +116,7 @@ typedef enum {
     ImuSetMountX,             /* whole number */
     ImuSetMountY,             /* whole number */
     ImuSetMountZ,             /* whole number */
+    ImuSetGyroHold,           /* 0 or 1 */
     IMU_SETTING_COUNT
 } ImuSetting;
 /* generated:end settings */
@@ -177,7 +178,8 @@ typedef struct {
     {-1.0, 1.0, 0, "lag_mag must be finite and within [-1, 1] s"}, \
     {-3.0, 3.0, 12, "mount_x must be a whole number in -3..3 other than 0"}, \
     {-3.0, 3.0, 12, "mount_y must be a whole number in -3..3 other than 0"}, \
-    {-3.0, 3.0, 12, "mount_z must be a whole number in -3..3 other than 0"} \
+    {-3.0, 3.0, 12, "mount_z must be a whole number in -3..3 other than 0"}, \
+    {0.0, 1.0, 4, "gyro_hold must be 0 or 1"} \
 }
 /* generated:end setting-ranges */
 

@@ -89,6 +89,7 @@ int ImuPipelineSettingsFromArray(ImuPipelineSettings *s, const double *a, size_t
     s->restGyroThreshold = a[ImuSetRestGyroThreshold];
     s->restAccThreshold = a[ImuSetRestAccThreshold];
     s->magRejectTime = a[ImuSetMagRejectTime];
+    s->gyroHold = ImuPipelineFlag(a[ImuSetGyroHold]);
     s->enableElm = ImuPipelineFlag(a[ImuSetEnableElm]);
     s->enablePf = ImuPipelineFlag(a[ImuSetEnablePf]);
     s->pfSeed = ImuPipelineInteger(a[ImuSetPfSeed]);
@@ -161,6 +162,7 @@ static void ImuPipelineAttitudeSettings(const ImuPipelineSettings *s, ImuAttitud
     a->restGyroThreshold = s->restGyroThreshold;
     a->restAccThreshold = s->restAccThreshold;
     a->magRejectTime = s->magRejectTime;
+    a->gyroHold = s->gyroHold;
     a->eulerAdditions = IMU_EULER_ALL_ADDITIONS; /* the FMU's filter; ImuBatchRunEuler ablates them */
 }
 

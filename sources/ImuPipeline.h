@@ -46,6 +46,7 @@ typedef struct {
     double restGyroThreshold; /* rad/s, 0 = no bias estimation */
     double restAccThreshold; /* m/s^2 */
     double magRejectTime;    /* s, 0 = no rejection */
+    int gyroHold;            /* a rate sample holds over the interval before it (else trapezoid) */
     int enableElm;           /* 0 or 1: apply the ELM nonlinear field model */
     int enablePf;            /* 0 or 1: online hard/soft-iron particle filter */
     int pfSeed;              /* particle-filter seed, -1 marks an invalid value for the check */

@@ -12,7 +12,7 @@ from tqdm import tqdm
 
 from contract.errors import ModelError
 from contract.layout import TRIAD_ORDER
-from training.artefact import ModelArtefact
+from training.artefact import ModelArtefact, coefficients_array, settings_dict
 from training.completeness import calibration_gaps, is_gap, recorded_triads
 from training.data.dataset import ImuData
 from training.data.earth import recordings_gravity
@@ -28,6 +28,8 @@ from training.models.fit_quality import BIAS_FALLBACK_NOTE, SCALE_FACTOR_CONVENT
 from training.models.psobp import PsoBpModel
 from training.models.thermal import (GainBiasFitter, ThermalFit, ThermalModel, apply_thermal,
                                      normalised_temperature, temperature_clusters, temperature_normalisation)
+from training.attitude_replay import CANDIDATES as REPLAYED_SETTINGS
+from training.attitude_replay import choose_by_replay
 from training.recommend import recommended_settings, sidecar_values
 from training.selfcal import SelfCalResult, self_calibrate
 
@@ -644,9 +646,12 @@ def train(datasets: list[ImuData], seed: int = 0, degree: int | str = AUTO,
     settings["enable_elm"] = float(elm_on)
     settings["enable_psobp"] = float(psobp_on)
     notes += range_notes(thermal, elm_model, psobp_model, settings)
-    return ModelArtefact(seed=seed, thermal=thermal, settings=settings, fit_stats=stats,
-                         training_data=[{"name": d.name, "samples": len(d)} for d in datasets],
-                         notes=notes, elm=elm_model, psobp=psobp_model)
+    artefact = ModelArtefact(seed=seed, thermal=thermal, settings=settings, fit_stats=stats,
+                             training_data=[{"name": d.name, "samples": len(d)} for d in datasets],
+                             notes=notes, elm=elm_model, psobp=psobp_model)
+    replayed = choose_by_replay(coefficients_array(artefact), settings_dict(artefact), datasets, artefact.notes)
+    artefact.settings.update({name: replayed[name] for name in REPLAYED_SETTINGS})
+    return artefact
 
 
 @dataclass

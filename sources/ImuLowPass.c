@@ -1,0 +1,47 @@
+/**
+ * @file ImuLowPass.c
+ * @brief Second-order Butterworth low-pass of a vector (ImuLowPass.h).
+ */
+#include <math.h>
+#include "ImuLowPass.h"
+#include "ImuMath.h"
+
+#define IMU_LOW_PASS_SQRT2 1.41421356237309504880
+
+void ImuLowPassReset(ImuLowPass *f)
+{
+    int i;
+    for (i = 0; i < 3; i++) {
+        f->state[0][i] = 0.0;
+        f->state[1][i] = 0.0;
+        f->output[i] = 0.0;
+    }
+    f->initialised = 0;
+}
+
+void ImuLowPassStep(ImuLowPass *f, const double x[3], double tau, double dt, double y[3])
+{
+    /* Pre-warped analogue cut-off: c = tan(pi fc dt); b = c^2 [1 2 1] / d, a = [1, 2 (c^2 - 1), 1 - sqrt2 c + c^2] / d. */
+    const double c = tan(IMU_PI * (IMU_LOW_PASS_SQRT2 / (2.0 * IMU_PI * tau)) * dt);
+    const double d = c * c + IMU_LOW_PASS_SQRT2 * c + 1.0;
+    const double b0 = c * c / d, a1 = 2.0 * (c * c - 1.0) / d, a2 = (1.0 - IMU_LOW_PASS_SQRT2 * c + c * c) / d;
+    int i;
+    if (!(dt > 0.0)) {
+        for (i = 0; i < 3; i++) {
+            y[i] = f->initialised ? f->output[i] : x[i];
+        }
+        return;
+    }
+    for (i = 0; i < 3; i++) {
+        if (!f->initialised) {
+            /* Steady state of a constant input x (DC gain 4 b0 = 1 + a1 + a2): the output is x. */
+            f->state[0][i] = x[i] * (1.0 - b0);
+            f->state[1][i] = x[i] * (b0 - a2);
+        }
+        y[i] = b0 * x[i] + f->state[0][i];
+        f->state[0][i] = 2.0 * b0 * x[i] - a1 * y[i] + f->state[1][i];
+        f->state[1][i] = b0 * x[i] - a2 * y[i];
+        f->output[i] = y[i];
+    }
+    f->initialised = 1;
+}

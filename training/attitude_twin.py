@@ -1,0 +1,212 @@
+"""Numpy twin of the FMU's quaternion attitude filter (attitude_mode = 1; sources/ImuAttitude.c,
+ImuAttitudeQuaternion.c, ImuAttitudeStep.c, ImuLowPass.c, ImuRestDetector.c), sample by sample.
+
+It reads as the algorithm (q = Rz(heading offset) ⊗ qAcc ⊗ qGyr): the rest-detector gyro bias, the
+strapdown qGyr with the rate held over the step (gyro_hold) or its trapezoid, the specific force
+low-passed in the almost-inertial frame by a second-order Butterworth filter that levels qAcc, the
+heading offset from the field with norm/dip rejection, and the restart after integration-error
+bursts. tests/test_attitude_twin.py pins it to the C filter sample for sample; it is the reference to
+read and to try changes on, not a second runtime (the pipeline around the filter — calibration,
+mounting, time alignment, gaps — stays in C only).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+# Constants of the C sources (each named there; tests/test_attitude_twin.py fails when they part).
+GRAVITY = 9.80665                 # ImuAttitude.h IMU_ATTITUDE_GRAVITY
+REST_BIAS_TIME = 2.0              # ImuAttitude.c IMU_ATTITUDE_REST_BIAS_TIME [s]
+REST_FILTER_TIME = 0.5            # ImuRestDetector.h IMU_REST_FILTER_TIME [s]
+REST_MIN_TIME = 1.5               # ImuRestDetector.h IMU_REST_MIN_TIME [s]
+UNTRACKED_MOTION = 1.0            # ImuAttitudePrivate.h IMU_ATTITUDE_UNTRACKED_MOTION [rad/s]
+RESTART_VARIANCE = 0.0304617420   # ImuAttitudePrivate.h IMU_ATTITUDE_RESTART_VARIANCE [rad²]
+MISSING_STEPS = 1.5               # ImuAttitudeStep.c IMU_ATTITUDE_MISSING_STEPS
+SMOOTH_ANGULAR_ACCEL = 1000.0     # ImuAttitudeStep.c IMU_ATTITUDE_SMOOTH_ANGULAR_ACCEL [rad/s²]
+MAG_NORM_TOLERANCE = 0.1          # ImuAttitudeQuaternion.c IMU_ATTITUDE_MAG_NORM_TOLERANCE
+MAG_DIP_TOLERANCE = 0.1745329252  # ImuAttitudeQuaternion.c IMU_ATTITUDE_MAG_DIP_TOLERANCE [rad]
+MAG_RECOVERY = 2.0                # ImuAttitudeQuaternion.c IMU_ATTITUDE_MAG_RECOVERY
+
+
+def quat_multiply(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Hamilton product a ⊗ b of two [w, x, y, z] quaternions."""
+    return np.array([a[0] * b[0] - a[1] * b[1] - a[2] * b[2] - a[3] * b[3],
+                     a[0] * b[1] + a[1] * b[0] + a[2] * b[3] - a[3] * b[2],
+                     a[0] * b[2] - a[1] * b[3] + a[2] * b[0] + a[3] * b[1],
+                     a[0] * b[3] + a[1] * b[2] - a[2] * b[1] + a[3] * b[0]])
+
+
+def quat_rotate(q: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """v turned by the unit quaternion q (q ⊗ [0, v] ⊗ q*)."""
+    u = q[1:]
+    t = 2.0 * np.cross(u, v)
+    return v + q[0] * t + np.cross(u, t)
+
+
+def _normalised(q: np.ndarray) -> np.ndarray:
+    n = float(np.linalg.norm(q))
+    return q / n if n > 0.0 and math.isfinite(n) else np.array([1.0, 0.0, 0.0, 0.0])
+
+
+def quat_integrate(q: np.ndarray, w: np.ndarray, dt: float) -> np.ndarray:
+    """q ⊗ exp(w dt / 2), normalised."""
+    angle = float(np.linalg.norm(w)) * dt
+    s = 0.5 - angle * angle / 48.0 if angle < 1e-4 else math.sin(0.5 * angle) / angle
+    return _normalised(quat_multiply(q, np.concatenate([[math.cos(0.5 * angle)], s * w * dt])))
+
+
+def wrap(angle: float) -> float:
+    """angle [rad] wrapped into (-π, π] (ImuMath.c ImuWrapAngle)."""
+    wrapped = math.remainder(angle, 2.0 * math.pi)
+    return math.pi if wrapped == -math.pi else wrapped
+
+
+@dataclass
+class LowPass:
+    """Second-order Butterworth low-pass of a 3-vector (ImuLowPass.c)."""
+
+    state: np.ndarray = field(default_factory=lambda: np.zeros((2, 3)))
+    output: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    initialised: bool = False
+
+    def step(self, x: np.ndarray, tau: float, dt: float) -> np.ndarray:
+        """The filtered x after a step dt [s] with time constant tau [s]."""
+        if not dt > 0.0:
+            return self.output.copy() if self.initialised else x.copy()
+        c = math.tan(math.pi * (math.sqrt(2.0) / (2.0 * math.pi * tau)) * dt)
+        d = c * c + math.sqrt(2.0) * c + 1.0
+        b0, a1, a2 = c * c / d, 2.0 * (c * c - 1.0) / d, (1.0 - math.sqrt(2.0) * c + c * c) / d
+        if not self.initialised:
+            self.state = np.stack([x * (1.0 - b0), x * (b0 - a2)])
+        y = b0 * x + self.state[0]
+        self.state = np.stack([2.0 * b0 * x - a1 * y + self.state[1], b0 * x - a2 * y])
+        self.output, self.initialised = y, True
+        return y.copy()
+
+
+@dataclass
+class RestDetector:
+    """Rate and specific force low-passed; rest once both stay near them long enough (ImuRestDetector.c)."""
+
+    gyr_lp: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    acc_lp: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    rest_time: float = 0.0
+    initialised: bool = False
+
+    def update(self, gyr: np.ndarray, acc: np.ndarray, dt: float, gyro_threshold: float,
+               acc_threshold: float) -> bool:
+        """True while at rest."""
+        if not self.initialised:
+            self.gyr_lp, self.acc_lp, self.initialised = gyr.copy(), acc.copy(), True
+            return False
+        alpha = 1.0 - math.exp(-dt / REST_FILTER_TIME) if dt > 0.0 else 0.0
+        self.gyr_lp = self.gyr_lp + alpha * (gyr - self.gyr_lp)
+        self.acc_lp = self.acc_lp + alpha * (acc - self.acc_lp)
+        quiet = (not np.any(np.abs(self.gyr_lp) > gyro_threshold)
+                 and float(np.sum((gyr - self.gyr_lp) ** 2)) < gyro_threshold ** 2
+                 and float(np.sum((acc - self.acc_lp) ** 2)) < acc_threshold ** 2)
+        self.rest_time = self.rest_time + dt if quiet else 0.0
+        return self.rest_time >= REST_MIN_TIME
+
+
+class QuaternionFilter:
+    """The quaternion attitude filter; settings by their FMU names (contract/variables.py)."""
+
+    def __init__(self, settings: dict[str, float]):
+        self.s = settings
+        self.q_gyr = np.array([1.0, 0.0, 0.0, 0.0])
+        self.q_acc = np.array([1.0, 0.0, 0.0, 0.0])
+        self.acc_lp = LowPass()
+        self.rest = RestDetector()
+        self.bias = np.zeros(3)
+        self.previous_rate = np.zeros(3)
+        self.previous_step = 0.0
+        self.heading_offset = 0.0
+        self.mag_rejected = 0.0
+        self.mag_samples = 0.0
+        self.step_error = 0.0
+        self.tilt_initialised = False
+        self.yaw_initialised = False
+
+    def _step_rate(self, gyr: np.ndarray) -> np.ndarray:
+        if self.s["gyro_hold"]:
+            return gyr
+        return 0.5 * (self.previous_rate + gyr)
+
+    def _step_variance(self, gyr: np.ndarray, dt: float) -> float:
+        change = 0.5 * np.maximum(np.abs(gyr - self.previous_rate) - SMOOTH_ANGULAR_ACCEL * dt, 0.0) * dt
+        variance = float(np.sum(change ** 2))
+        if self.previous_step > 0.0 and dt > MISSING_STEPS * self.previous_step:
+            variance += (UNTRACKED_MOTION * (dt - self.previous_step)) ** 2
+        return variance
+
+    def _predict(self, gyr: np.ndarray, dt: float) -> None:
+        if not dt > 0.0:
+            return
+        self.step_error *= math.exp(-dt / self.s["tau_acc"])
+        self.q_gyr = quat_integrate(self.q_gyr, self._step_rate(gyr), dt)
+        self.step_error += self._step_variance(gyr, dt)
+        self.previous_step = dt
+        if self.step_error > RESTART_VARIANCE:
+            self.step_error, self.tilt_initialised = 0.0, False
+            self.mag_samples = self.mag_rejected = 0.0
+
+    def _tilt(self, acc: np.ndarray, dt: float) -> None:
+        if not self.tilt_initialised:
+            self.acc_lp = LowPass()
+        e = quat_rotate(self.q_acc, self.acc_lp.step(quat_rotate(self.q_gyr, acc), self.s["tau_acc"], dt))
+        n = float(np.linalg.norm(e))
+        if not n > 0.0:
+            return
+        turn = np.array([1.0 - e[2] / n, -e[1] / n, e[0] / n, 0.0])  # shortest turn of e onto up (0, 0, -1)
+        if turn[0] < 1e-12:
+            turn = np.array([0.0, 1.0, 0.0, 0.0])
+        self.q_acc = _normalised(quat_multiply(_normalised(turn), self.q_acc))
+        self.tilt_initialised = True
+
+    def _disturbed(self, m: np.ndarray) -> bool:
+        norm = float(np.linalg.norm(m))
+        dip = math.atan2(m[2], math.hypot(m[0], m[1]))
+        return (abs(norm - self.s["field_norm"]) > MAG_NORM_TOLERANCE * self.s["field_norm"]
+                or abs(dip - self.s["field_dip"]) > MAG_DIP_TOLERANCE)
+
+    def _heading(self, mag: np.ndarray, dt: float) -> None:
+        m = quat_rotate(quat_multiply(self.q_acc, self.q_gyr), mag)
+        if not np.linalg.norm(m) > 0.0:
+            return
+        if self.yaw_initialised and self.s["mag_reject_time"] > 0.0 and self._disturbed(m):
+            if self.mag_rejected < self.s["mag_reject_time"]:
+                self.mag_rejected += dt
+                return
+        else:
+            self.mag_rejected = max(0.0, self.mag_rejected - MAG_RECOVERY * dt)
+        self.mag_samples += 1.0
+        k = max(1.0 - math.exp(-dt / self.s["tau_mag"]) if dt > 0.0 else 0.0, 1.0 / self.mag_samples)
+        self.heading_offset = wrap(self.heading_offset + k * wrap(-math.atan2(m[1], m[0]) - self.heading_offset))
+        self.yaw_initialised = True
+
+    def update(self, gyr: np.ndarray, acc: np.ndarray, mag: np.ndarray, dt: float) -> np.ndarray:
+        """One sample of corrected gyr [rad/s], acc [m/s²], mag [µT] (finite), dt [s] after the
+        previous (0 first); returns the body -> magnetic NED quaternion [w, x, y, z], w ≥ 0."""
+        if self.s["rest_gyro_threshold"] > 0.0 and dt > 0.0:
+            if self.rest.update(gyr, acc, dt, self.s["rest_gyro_threshold"], self.s["rest_acc_threshold"]):
+                self.bias = self.bias + (1.0 - math.exp(-dt / REST_BIAS_TIME)) * (self.rest.gyr_lp - self.bias)
+        rate = gyr - self.bias
+        self._predict(rate, dt)
+        self._tilt(acc, dt)
+        self._heading(mag, dt)
+        self.previous_rate = rate
+        half = 0.5 * self.heading_offset
+        q = quat_multiply(np.array([math.cos(half), 0.0, 0.0, math.sin(half)]),
+                          quat_multiply(self.q_acc, self.q_gyr))
+        return q if q[0] >= 0.0 else -q
+
+
+def run_twin(settings: dict[str, float], t: np.ndarray, gyr: np.ndarray, acc: np.ndarray,
+             mag: np.ndarray) -> np.ndarray:
+    """(N, 4) body -> magnetic NED quaternions of the filter over a recording of finite samples."""
+    f = QuaternionFilter(settings)
+    steps = np.diff(t, prepend=t[0])
+    return np.array([f.update(gyr[k], acc[k], mag[k], float(steps[k])) for k in range(len(t))])
