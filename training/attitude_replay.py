@@ -17,6 +17,10 @@ from training.data.dataset import ImuData
 
 #: Setting -> the values replayed, the FMU's default first (a tie keeps it).
 CANDIDATES = {"gyro_hold": (1.0, 0.0)}
+#: How the notes of keep_better_attitude begin (the calibration summary opens with them).
+REFERENCE_JUDGED = "ATTITUDE REFERENCE USED TO JUDGE, NOT TO CALIBRATE"
+REFERENCE_KEPT = "calibration derived from the attitude reference kept"
+REFERENCE_DECISIONS = (REFERENCE_JUDGED, REFERENCE_KEPT)
 #: Fewest reference samples (summed over the recordings) for a replay to decide.
 MIN_REFERENCE_SAMPLES = 1000
 
@@ -73,3 +77,24 @@ def choose_by_replay(coefficients: np.ndarray, settings: dict[str, float], datas
         notes.append(f"{name} = {best:g}: chosen by replaying {len(sets)} recording(s) with an attitude "
                      f"reference through the FMU's filter (total attitude RMSE {measured})")
     return chosen
+
+
+def keep_better_attitude(with_reference, without_reference, datasets: list[ImuData]):
+    """Of two models of the same recordings — one calibrated from references derived from their
+    attitude reference, one as if they had none — the one whose attitude replays closer to that
+    reference (replay_rmse over every referenced recording; a tie keeps the first). The kept model's
+    notes open with both figures; when the model without the reference wins, it says loudly that the
+    reference-derived calibration was not exported."""
+    from training.artefact import coefficients_array, settings_dict
+    sets = referenced(datasets)
+    scores = [replay_rmse(coefficients_array(a), settings_dict(a), sets) for a in (with_reference, without_reference)]
+    figures = (f"total attitude RMSE against the reference over {len(sets)} recording(s): "
+               f"{scores[0]:.3f}° with the calibration derived from the attitude reference, "
+               f"{scores[1]:.3f}° with the one fitted without it")
+    if scores[1] < scores[0]:
+        without_reference.notes.insert(0, f"{REFERENCE_JUDGED}: the calibration fitted without it gives the better attitude ({figures}); the "
+                                          "reference-derived calibration is NOT exported")
+        return without_reference
+    with_reference.notes.insert(0, f"{REFERENCE_KEPT}: it gives the better "
+                                   f"attitude ({figures})")
+    return with_reference

@@ -18,7 +18,7 @@ from training.data.dataset import ImuData
 from training.data.earth import recordings_gravity
 from training.data.reference import matched_raw
 from training.data.reference_field import field_reference_notes
-from training.data.reference_source import TriadReference, choose_reference
+from training.data.reference_source import TriadReference, choose_reference, strip_references
 from training.display import DISPLAY
 from training.models.calibrated_range import range_notes
 from training.models.degree import AUTO, ceiling, choose_degree, parse_degree
@@ -29,7 +29,7 @@ from training.models.psobp import PsoBpModel
 from training.models.thermal import (GainBiasFitter, ThermalFit, ThermalModel, apply_thermal,
                                      normalised_temperature, temperature_clusters, temperature_normalisation)
 from training.attitude_replay import CANDIDATES as REPLAYED_SETTINGS
-from training.attitude_replay import choose_by_replay
+from training.attitude_replay import choose_by_replay, keep_better_attitude
 from training.recommend import recommended_settings, sidecar_values
 from training.selfcal import SelfCalResult, self_calibrate
 
@@ -586,6 +586,12 @@ def train(datasets: list[ImuData], seed: int = 0, degree: int | str = AUTO,
           prior: dict[str, TriadPrior] | None = None, fleet_elm: ElmModel | None = None) -> ModelArtefact:
     """Fit the gain/bias temperature model of every triad and return the model artefact.
 
+    When a triad's reference is derived from an attitude reference (ref_q only), the recordings are
+    also calibrated as if they had none, and the model whose attitude replays closer to the reference
+    is kept (training.attitude_replay.keep_better_attitude): a derived reference carries the
+    reference system's own errors (timing, lever arm, marker alignment), and it must never give a
+    worse filter than the recordings alone.
+
     datasets: calibration recordings. Per triad the best reference any recording offers is used
     (training.data.reference_source: reference columns, an attitude reference, a static log); a triad
     without any is self-calibrated from invariants (training.selfcal). degree: 'auto' (default) or
@@ -599,6 +605,22 @@ def train(datasets: list[ImuData], seed: int = 0, degree: int | str = AUTO,
     Deterministic given `seed`. Raises ModelError when `datasets` is empty,
     and when no triad can be calibrated unless allow_identity (then an identity model is returned).
     """
+    artefact = _fit(datasets, seed, degree, progress, allow_identity, prior, fleet_elm)
+    if any(artefact.fit_stats.get(triad, {}).get("reference") == "attitude" for triad in TRIAD_ORDER):
+        try:
+            blind = _fit([strip_references(d) for d in datasets], seed, degree, progress, allow_identity, prior,
+                         fleet_elm, replayed=datasets)
+        except ModelError:
+            return artefact
+        artefact = keep_better_attitude(artefact, blind, datasets)
+    return artefact
+
+
+def _fit(datasets: list[ImuData], seed: int, degree: int | str, progress: bool, allow_identity: bool,
+         prior: dict[str, TriadPrior] | None, fleet_elm: ElmModel | None,
+         replayed: list[ImuData] | None = None) -> ModelArtefact:
+    """train's fit of every triad from the references the recordings offer (arguments as train's);
+    the filter settings are chosen by replaying `replayed` (default: datasets)."""
     if not datasets:
         raise ModelError("train: no training data given")
     try:
@@ -649,8 +671,9 @@ def train(datasets: list[ImuData], seed: int = 0, degree: int | str = AUTO,
     artefact = ModelArtefact(seed=seed, thermal=thermal, settings=settings, fit_stats=stats,
                              training_data=[{"name": d.name, "samples": len(d)} for d in datasets],
                              notes=notes, elm=elm_model, psobp=psobp_model)
-    replayed = choose_by_replay(coefficients_array(artefact), settings_dict(artefact), datasets, artefact.notes)
-    artefact.settings.update({name: replayed[name] for name in REPLAYED_SETTINGS})
+    chosen = choose_by_replay(coefficients_array(artefact), settings_dict(artefact), replayed or datasets,
+                              artefact.notes)
+    artefact.settings.update({name: chosen[name] for name in REPLAYED_SETTINGS})
     return artefact
 
 

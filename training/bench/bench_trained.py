@@ -17,7 +17,6 @@ VQF 9D (defaults) runs on the same trials in the same process. Metric: BROAD's (
 from __future__ import annotations
 
 import csv
-from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -27,6 +26,7 @@ from training.bench.bench import (BROAD_CITATION, GROUPS, _group_means, broad_er
                                   trial_paths)
 from training.data.dataset import ImuData
 from training.data.io import read_imu_csv
+from training.data.reference_source import strip_references
 
 #: Calibration trials of the acceptance: the first two undisturbed trials (one of each BROAD IMU
 #: mounting, A and B).
@@ -35,13 +35,6 @@ TRAIN_TRIALS = ("01", "02")
 MAGNET_TRIALS = (32, 33, 35)
 _Q = [layout.OUTPUTS.index(n) for n in ("q_w", "q_x", "q_y", "q_z")]
 _FIELD = [layout.OUTPUTS.index(n) for n in ("field_x", "field_y", "field_z")]
-
-
-def strip_references(data: ImuData) -> ImuData:
-    """The recording as a user without any reference has it: no ref_* columns, no eval mask,
-    sidecar reference 'none'."""
-    meta = {**data.meta, "reference": "none"}
-    return replace(data, ref_q=None, ref_gyr=None, ref_acc=None, ref_mag=None, eval_mask=None, meta=meta)
 
 
 def field_norm_spread(field: np.ndarray, data: ImuData) -> float:

@@ -46,6 +46,13 @@ class TriadReference:
     notes: tuple[str, ...] = ()
 
 
+def strip_references(data: ImuData) -> ImuData:
+    """The recording as a user without any reference has it: no ref_* columns, no eval mask,
+    sidecar reference 'none'."""
+    meta = {**data.meta, "reference": "none"}
+    return replace(data, ref_q=None, ref_gyr=None, ref_acc=None, ref_mag=None, eval_mask=None, meta=meta)
+
+
 def is_static(data: ImuData) -> bool:
     """True when the sidecar declares the recording static ("reference": "static")."""
     return str(data.meta.get("reference", "")).lower() == "static"

@@ -17,6 +17,7 @@ from training.data.earth import recordings_gravity
 from training.data.reference_source import SOURCE_TEXT
 from training.display import DISPLAY
 from training.completeness import gap_headline, is_gap
+from training.attitude_replay import REFERENCE_DECISIONS
 from training.models.fit_quality import BIAS_FALLBACK_NOTE, at_t0, cross_axis_deg, is_warning, scale_factors
 from training.models.thermal import apply_thermal
 
@@ -27,7 +28,7 @@ SETTINGS_SHOWN = {"attitude_mode": ("", 1.0), "rest_gyro_threshold": ("°/s", fl
                   "gyro_noise": ("°/s/√Hz", float(np.rad2deg(1.0))), "field_norm": ("µT", 1.0),
                   "field_dip": ("°", float(np.rad2deg(1.0))), "declination": ("°", float(np.rad2deg(1.0))),
                   "pf_measurement_noise": ("µT", 1.0), "enable_elm": ("", 1.0), "enable_psobp": ("", 1.0),
-                  "mount_x": ("", 1.0), "mount_y": ("", 1.0), "mount_z": ("", 1.0)}
+                  "mount_x": ("", 1.0), "mount_y": ("", 1.0), "mount_z": ("", 1.0), "gyro_hold": ("", 1.0)}
 #: Rows of a recording plotted at most (evenly thinned): enough to show every rest and motion.
 PLOT_ROWS = 20000
 
@@ -146,6 +147,7 @@ def summary_text(artefact: ModelArtefact, datasets: list[ImuData]) -> str:
     """The calibration summary `train` prints (plain text)."""
     lines = [f"calibration of {', '.join(d.name for d in datasets)} "
              f"({sum(len(d) for d in datasets)} samples, seed {artefact.seed})"]
+    lines += [n for n in artefact.notes if n.startswith(REFERENCE_DECISIONS)]
     lines += incomplete_lines(artefact) + _protocol_lines(artefact)
     for triad in TRIAD_ORDER:
         lines += triad_summary(artefact, triad)
