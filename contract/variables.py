@@ -226,14 +226,19 @@ _MOUNTING: tuple[Variable, ...] = tuple(
     for k, axis in enumerate("xyz"))
 
 
-#: Parameters added after the mounting (same layout version: a parameter's default keeps older models'
+#: Variables added after the mounting (same layout version: a parameter's default keeps older models'
 #: arrays meaningful, contract.layout reads the defaults by name).
-_GYRO_SAMPLING: tuple[Variable, ...] = (
+_FILTER_FROM_DATA: tuple[Variable, ...] = (
     _parameter("gyro_hold", 81, 1.0, FLAG,
                "Attitude filters integrate each rate sample over the interval before it (1: a sensor "
                "whose samples average the rate over their interval, as MEMS decimation filters and VQF "
                "assume) or the trapezoid of two samples (0: instantaneous samples); `train` chooses it "
                "by replaying a reference"),
+    _output("mag_disturbed", 82, "1", "1 while the attitude filter rejects the field as disturbed (its norm or dip "
+            "off field_norm, field_dip; quaternion filter), 0 while it uses it or has none"),
+    _parameter("mag_heading", 83, 1.0, FLAG,
+               "Attitude filters correct the heading with the magnetometer (0: 6D, heading from the gyro alone, "
+               "for a field too non-uniform to trust); `train` decides from the calibration recordings"),
 )
 
 
@@ -259,7 +264,7 @@ def variable_table(aux_inputs: Sequence[dict] = ()) -> tuple[Variable, ...]:
     (entry k describes input aux_{k+1})."""
     if len(aux_inputs) > len(AUX_INPUTS):
         raise ValueError(f"{len(aux_inputs)} auxiliary inputs mapped, the FMU has {len(AUX_INPUTS)}")
-    return _LAYOUT_2 + _aux_inputs(aux_inputs) + _LAGS + _LAYOUT_4_OUTPUTS + _MOUNTING + _GYRO_SAMPLING
+    return _LAYOUT_2 + _aux_inputs(aux_inputs) + _LAGS + _LAYOUT_4_OUTPUTS + _MOUNTING + _FILTER_FROM_DATA
 
 
 VARIABLES: tuple[Variable, ...] = variable_table()

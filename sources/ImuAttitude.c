@@ -60,6 +60,7 @@ void ImuAttitudeReset(ImuAttitude *a)
     a->headingOffset = 0.0;
     a->magRejected = 0.0;
     a->magSamples = 0.0;
+    a->magDisturbed = 0.0;
     a->stepError = 0.0;
 }
 
@@ -99,8 +100,12 @@ static void ImuAttitudeUpdateBias(ImuAttitude *a, const double gyr[3], const dou
 void ImuAttitudeUpdate(ImuAttitude *a, const double gyr[3], const double acc[3], const double mag[3],
                        double dt)
 {
+    static const double unused[3] = {NAN, NAN, NAN};
     double rate[3];
     int i;
+    if (!a->settings.magHeading) {
+        mag = unused; /* 6D: as without a magnetometer */
+    }
     if (a->settings.restGyroThreshold > 0.0 && dt > 0.0 && ImuAllFinite(gyr, 3) && ImuAllFinite(acc, 3)) {
         ImuAttitudeUpdateBias(a, gyr, acc, dt);
     }
@@ -131,6 +136,12 @@ void ImuAttitudeGetEuler(const ImuAttitude *a, double euler[3])
 void ImuAttitudeGetQuaternion(const ImuAttitude *a, double q[4])
 {
     ImuQuaternionFromMatrix(a->rotation, q);
+}
+
+/** @brief 1 while the filter rejects the field as disturbed (quaternion mode), else 0. */
+int ImuAttitudeMagDisturbed(const ImuAttitude *a)
+{
+    return a->magDisturbed > 0.0;
 }
 
 /** @brief Fusion gains [1] of roll, pitch, yaw from the last update. */

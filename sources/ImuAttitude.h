@@ -13,7 +13,8 @@
  *   rejection of fields whose norm or dip disagree with the earth field (with recovery after
  *   mag_reject_time). Ideas of VQF (Laidig & Seel, Information Fusion 91, 2023).
  *
- * Both modes subtract a gyro bias estimated while a rest detector (gyro + accelerometer) holds.
+ * Both modes subtract a gyro bias estimated while a rest detector (gyro + accelerometer) holds,
+ * and both run as without a magnetometer when magHeading is 0 (6D: a field too non-uniform to trust).
  */
 #ifndef IMU_ATTITUDE_H
 #define IMU_ATTITUDE_H
@@ -65,6 +66,7 @@ typedef struct {
     double magRejectTime;    /* s, longest rejection of a disturbed field (0: no rejection) */
     int gyroHold;            /* 1: a rate sample holds over the interval before it (a sensor that
                               * averages over its sample interval); 0: trapezoid of two samples */
+    int magHeading;          /* 1: the field corrects the heading; 0: 6D (the field is not used) */
     int eulerAdditions;      /* sum of ImuEulerAddition bits in use by the Euler mode (not an FMU
                               * parameter: IMU_EULER_ALL_ADDITIONS except in ImuBatchRunEuler) */
 } ImuAttitudeSettings;
@@ -89,6 +91,7 @@ typedef struct {
     double headingOffset;   /* rad, quaternion mode: level frame -> magnetic NED about down */
     double magRejected;     /* s, quaternion mode: time the field has been rejected */
     double magSamples;      /* 1, quaternion mode: accepted field samples (start-up averaging) */
+    double magDisturbed;    /* 1, quaternion mode: 1 when the last field sample was rejected as disturbed */
     double stepError;       /* rad^2, summed integration-error bounds of the recent steps, decaying
                              * with mse_time_constant (Euler) or tau_acc (quaternion); beyond
                              * IMU_ATTITUDE_RESTART_VARIANCE the corrections restart */
@@ -117,6 +120,8 @@ IMU_HIDDEN void ImuAttitudeUpdate(ImuAttitude *a, const double gyr[3], const dou
 IMU_HIDDEN void ImuAttitudeGetEuler(const ImuAttitude *a, double euler[3]);
 /** @brief Attitude quaternion [w, x, y, z] body -> magnetic NED, w >= 0. */
 IMU_HIDDEN void ImuAttitudeGetQuaternion(const ImuAttitude *a, double q[4]);
+/** @brief 1 while the filter rejects the field as disturbed (quaternion mode), else 0. */
+IMU_HIDDEN int ImuAttitudeMagDisturbed(const ImuAttitude *a);
 /** @brief Fusion gains [1] of roll, pitch, yaw from the last update. */
 IMU_HIDDEN void ImuAttitudeGetGains(const ImuAttitude *a, double gains[3]);
 

@@ -16,7 +16,8 @@
  *    IMU_ATTITUDE_MAG_DIP_TOLERANCE is rejected for at most mag_reject_time (the rejection time
  *    decays IMU_ATTITUDE_MAG_RECOVERY times faster while the field is clean, so a persistent new
  *    field is accepted again); an accepted one moves the offset with gain 1 - exp(-dt/tau_mag)
- *    (1/n over the first n samples, so the start averages instead of trusting one sample).
+ *    (1/n over the first n samples, so the start averages instead of trusting one sample). A
+ *    rejected sample sets magDisturbed (the FMU output mag_disturbed).
  * 4. Restart (issue 15): when the summed integration-error bounds of the recent steps
  *    (ImuAttitudeStepError, decaying with tau_acc) exceed IMU_ATTITUDE_RESTART_VARIANCE (a rate
  *    spike, lost samples, a clock jump), the strapdown frame may have turned by more than 10 deg
@@ -102,7 +103,7 @@ static void ImuAttitudeQuaternionTilt(ImuAttitude *a, const double acc[3], doubl
 }
 
 /** @brief 1 if the level-frame field m [uT] disagrees with field_norm or field_dip. */
-static int ImuAttitudeMagDisturbed(const ImuAttitude *a, const double m[3])
+static int ImuAttitudeMagOff(const ImuAttitude *a, const double m[3])
 {
     const double norm = ImuVectorNorm(m);
     const double dip = atan2(m[2], sqrt(m[0] * m[0] + m[1] * m[1]));
@@ -119,9 +120,10 @@ static void ImuAttitudeQuaternionHeading(ImuAttitude *a, const double mag[3], do
     if (!(ImuVectorNorm(m) > 0.0)) {
         return;
     }
-    if (a->yawInitialised && a->settings.magRejectTime > 0.0 && ImuAttitudeMagDisturbed(a, m)) {
+    if (a->yawInitialised && a->settings.magRejectTime > 0.0 && ImuAttitudeMagOff(a, m)) {
         if (a->magRejected < a->settings.magRejectTime) {
             a->magRejected += dt;
+            a->magDisturbed = 1.0;
             return;
         }
     } else {
@@ -139,6 +141,7 @@ void ImuAttitudeQuaternionUpdate(ImuAttitude *a, const double gyr[3], const doub
                                  const double mag[3], double dt)
 {
     double q[4];
+    a->magDisturbed = 0.0;
     ImuAttitudeQuaternionPredict(a, gyr, dt);
     if (ImuAllFinite(acc, 3)) {
         ImuAttitudeQuaternionTilt(a, acc, dt);

@@ -70,6 +70,7 @@ typedef enum {
     ImuOutSoftIronZz,       /* 1 */
     ImuOutPfNeff,           /* 1 */
     ImuOutCalibrationValid, /* 1 */
+    ImuOutMagDisturbed,     /* 1 */
     IMU_OUTPUT_COUNT
 } ImuOutput;
 /* generated:end outputs */
@@ -117,6 +118,7 @@ typedef enum {
     ImuSetMountY,             /* whole number */
     ImuSetMountZ,             /* whole number */
     ImuSetGyroHold,           /* 0 or 1 */
+    ImuSetMagHeading,         /* 0 or 1 */
     IMU_SETTING_COUNT
 } ImuSetting;
 /* generated:end settings */
@@ -179,7 +181,8 @@ typedef struct {
     {-3.0, 3.0, 12, "mount_x must be a whole number in -3..3 other than 0"}, \
     {-3.0, 3.0, 12, "mount_y must be a whole number in -3..3 other than 0"}, \
     {-3.0, 3.0, 12, "mount_z must be a whole number in -3..3 other than 0"}, \
-    {0.0, 1.0, 4, "gyro_hold must be 0 or 1"} \
+    {0.0, 1.0, 4, "gyro_hold must be 0 or 1"}, \
+    {0.0, 1.0, 4, "mag_heading must be 0 or 1"} \
 }
 /* generated:end setting-ranges */
 

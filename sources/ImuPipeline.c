@@ -90,6 +90,7 @@ int ImuPipelineSettingsFromArray(ImuPipelineSettings *s, const double *a, size_t
     s->restAccThreshold = a[ImuSetRestAccThreshold];
     s->magRejectTime = a[ImuSetMagRejectTime];
     s->gyroHold = ImuPipelineFlag(a[ImuSetGyroHold]);
+    s->magHeading = ImuPipelineFlag(a[ImuSetMagHeading]);
     s->enableElm = ImuPipelineFlag(a[ImuSetEnableElm]);
     s->enablePf = ImuPipelineFlag(a[ImuSetEnablePf]);
     s->pfSeed = ImuPipelineInteger(a[ImuSetPfSeed]);
@@ -163,6 +164,7 @@ static void ImuPipelineAttitudeSettings(const ImuPipelineSettings *s, ImuAttitud
     a->restAccThreshold = s->restAccThreshold;
     a->magRejectTime = s->magRejectTime;
     a->gyroHold = s->gyroHold;
+    a->magHeading = s->magHeading;
     a->eulerAdditions = IMU_EULER_ALL_ADDITIONS; /* the FMU's filter; ImuBatchRunEuler ablates them */
 }
 
@@ -302,6 +304,7 @@ void ImuPipelineUpdate(ImuPipeline *p, double t, double dt, const double in[IMU_
     out[ImuOutHeading] = ImuWrapAngle(out[ImuOutYaw] + p->settings.declination);
     ImuAttitudeGetQuaternion(&p->attitude, &out[ImuOutQW]);
     ImuAttitudeGetGains(&p->attitude, &out[ImuOutGainRoll]);
+    out[ImuOutMagDisturbed] = ImuAttitudeMagDisturbed(&p->attitude) ? 1.0 : 0.0;
 }
 
 /** @brief The end of the NUL-terminated text in a buffer of size bytes; *left = bytes from there on (>= 1). */

@@ -95,13 +95,15 @@ typedef enum {
     vr_mount_x = 78,
     vr_mount_y = 79,
     vr_mount_z = 80,
-    vr_gyro_hold = 81
+    vr_gyro_hold = 81,
+    vr_mag_disturbed = 82,
+    vr_mag_heading = 83
 } ValueReference;
 
-#define VR_COUNT 82
+#define VR_COUNT 84
 
 /** Parameters of type Boolean (FMI 3: Boolean). */
-#define VR_IS_BOOLEAN(vr) ((vr) == vr_enable_thermal || (vr) == vr_enable_elm || (vr) == vr_enable_pf || (vr) == vr_enable_psobp || (vr) == vr_pf_rao_blackwell || (vr) == vr_pf_hold_prior || (vr) == vr_gyro_hold)
+#define VR_IS_BOOLEAN(vr) ((vr) == vr_enable_thermal || (vr) == vr_enable_elm || (vr) == vr_enable_pf || (vr) == vr_enable_psobp || (vr) == vr_pf_rao_blackwell || (vr) == vr_pf_hold_prior || (vr) == vr_gyro_hold || (vr) == vr_mag_heading)
 /** Parameters of type Integer (FMI 3: Int32), stored as whole numbers in the settings array. */
 #define VR_IS_INTEGER(vr) ((vr) == vr_attitude_mode || (vr) == vr_pf_particles || (vr) == vr_pf_decimation || (vr) == vr_pf_seed || (vr) == vr_pf_sphere_bins || (vr) == vr_mount_x || (vr) == vr_mount_y || (vr) == vr_mount_z)
 
@@ -188,12 +190,14 @@ typedef enum {
     {'s', ImuSetMountX}, \
     {'s', ImuSetMountY}, \
     {'s', ImuSetMountZ}, \
-    {'s', ImuSetGyroHold} \
+    {'s', ImuSetGyroHold}, \
+    {'o', ImuOutMagDisturbed}, \
+    {'s', ImuSetMagHeading} \
 }
 /** The value references of the inputs, in ImuInput order. */
 #define IMU_INPUT_VRS {vr_gyr_x, vr_gyr_y, vr_gyr_z, vr_acc_x, vr_acc_y, vr_acc_z, vr_mag_x, vr_mag_y, vr_mag_z, vr_temp, vr_aux_1, vr_aux_2, vr_aux_3, vr_aux_4}
 /** The value references of the outputs, in ImuOutput order. */
-#define IMU_OUTPUT_VRS {vr_rate_x, vr_rate_y, vr_rate_z, vr_accel_x, vr_accel_y, vr_accel_z, vr_field_x, vr_field_y, vr_field_z, vr_roll, vr_pitch, vr_yaw, vr_heading, vr_q_w, vr_q_x, vr_q_y, vr_q_z, vr_gain_roll, vr_gain_pitch, vr_gain_yaw, vr_hard_iron_x, vr_hard_iron_y, vr_hard_iron_z, vr_soft_iron_xx, vr_soft_iron_yy, vr_soft_iron_zz, vr_pf_neff, vr_calibration_valid}
+#define IMU_OUTPUT_VRS {vr_rate_x, vr_rate_y, vr_rate_z, vr_accel_x, vr_accel_y, vr_accel_z, vr_field_x, vr_field_y, vr_field_z, vr_roll, vr_pitch, vr_yaw, vr_heading, vr_q_w, vr_q_x, vr_q_y, vr_q_z, vr_gain_roll, vr_gain_pitch, vr_gain_yaw, vr_hard_iron_x, vr_hard_iron_y, vr_hard_iron_z, vr_soft_iron_xx, vr_soft_iron_yy, vr_soft_iron_zz, vr_pf_neff, vr_calibration_valid, vr_mag_disturbed}
 /* generated:end value-references */
 
 /** FMI 3 only: the independent variable "time" [s], outside the variable table's range. */

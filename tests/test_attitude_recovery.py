@@ -43,9 +43,10 @@ RECOVERY_RATIO = 2.0
 #: equally good path: 1.5x allows for that and still rejects a lasting offset (old: 7–60x).
 SETTLED_WINDOW_S = (180.0, 240.0)
 SETTLED_RATIO = 1.5
-#: Euler mode as the method defines it (tests/test_runtime.py EULER_METHOD); quaternion mode with
-#: every setting at its default.
-MODES = {"euler": {"attitude_mode": 0.0, "rest_gyro_threshold": 0.0},
+#: Euler mode as the method defines it (tests/test_runtime.py EULER_METHOD), its rates integrated with
+#: the trapezoidal rule its additions were measured with (gyro_hold = 0: with 1 the trapezoid addition
+#: has nothing to act on); quaternion mode with every setting at its default.
+MODES = {"euler": {"attitude_mode": 0.0, "rest_gyro_threshold": 0.0, "gyro_hold": 0.0},
          "quaternion": {"attitude_mode": 1.0}}
 CASES = ("spike", "five_spikes", "rows_dropped", "time_jump", "hour_gap")
 #: s, the clock of case (e) jumps by an hour (a logger paused mid-file; issue 15: "a 1-h gap is

@@ -1,6 +1,7 @@
-"""The numpy twin of the quaternion attitude filter (training.attitude_twin) equals the C filter the FMU
+"""The numpy twin of the quaternion attitude filter (training.models.attitude_twin) equals the C filter the FMU
 runs, sample for sample, on a real recording (BROAD: hand-held motion, rests, an undisturbed field) and
-on a simulated one whose field is disturbed part of the time, for both gyro_hold rules. The C filter runs
+on a simulated one whose field is disturbed part of the time, for both gyro_hold rules and in 6D
+(mag_heading = 0); the output mag_disturbed equals the twin's rejection flag. The C filter runs
 inside the pipeline with the identity calibration, so its inputs are the raw samples.
 
 Bound: 1e-9 rad between the two attitudes. Both compute the same double-precision operations in a
@@ -16,7 +17,7 @@ import numpy as np
 import pytest
 
 from contract import layout
-from training import attitude_twin
+from training.models import attitude_twin
 from training.runtime import run_batch
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -38,12 +39,10 @@ CONSTANTS = {
 }
 
 
-def _c_attitude(settings: dict, t, gyr, acc, mag) -> np.ndarray:
+def _c_outputs(settings: dict, t, gyr, acc, mag) -> np.ndarray:
     inputs = np.zeros((len(t), len(layout.INPUTS)))
     inputs[:, 0:3], inputs[:, 3:6], inputs[:, 6:9], inputs[:, 9] = gyr, acc, mag, 25.0
-    out = run_batch(layout.identity_coefficients(), layout.settings_array(settings), t, inputs)
-    q = out[:, [layout.OUTPUTS.index(n) for n in ("q_w", "q_x", "q_y", "q_z")]]
-    return q * np.where(q[:, :1] < 0.0, -1.0, 1.0)
+    return run_batch(layout.identity_coefficients(), layout.settings_array(settings), t, inputs)
 
 
 def _angle(q1: np.ndarray, q2: np.ndarray) -> float:
@@ -88,26 +87,39 @@ def _disturbed_simulation():
                               "field_dip": float(np.arctan2(45.0, 20.0)), "mag_reject_time": 8.0}
 
 
-@pytest.mark.parametrize("gyro_hold", [1.0, 0.0])
+@pytest.mark.parametrize("options", [{"gyro_hold": 1.0}, {"gyro_hold": 0.0}, {"mag_heading": 0.0}],
+                         ids=["gyro_hold", "trapezoid", "6D"])
 @pytest.mark.parametrize("recording", [_broad_slice, _disturbed_simulation], ids=["broad", "disturbed"])
-def test_twin_equals_the_c_filter(recording, gyro_hold):
+def test_twin_equals_the_c_filter(recording, options):
     t, gyr, acc, mag, extra = recording()
-    settings = {**layout.settings_defaults(), **extra, "gyro_hold": gyro_hold, "attitude_mode": 1.0}
-    q_c = _c_attitude(settings, t, gyr, acc, mag)
-    q_twin = attitude_twin.run_twin(settings, t, gyr, acc, mag)
-    assert _angle(q_c, q_twin) < BOUND_RAD
+    settings = {**layout.settings_defaults(), **extra, **options, "attitude_mode": 1.0}
+    out = _c_outputs(settings, t, gyr, acc, mag)
+    q_c = out[:, [layout.OUTPUTS.index(n) for n in ("q_w", "q_x", "q_y", "q_z")]]
+    q_c = q_c * np.where(q_c[:, :1] < 0.0, -1.0, 1.0)
+    f = attitude_twin.QuaternionFilter(settings)
+    steps = np.diff(t, prepend=t[0])
+    q_twin, disturbed = [], []
+    for k in range(len(t)):
+        q_twin.append(f.update(gyr[k], acc[k], mag[k], float(steps[k])))
+        disturbed.append(float(f.mag_disturbed))
+    assert _angle(q_c, np.array(q_twin)) < BOUND_RAD
+    assert np.array_equal(out[:, layout.OUTPUTS.index("mag_disturbed")], np.array(disturbed))
 
 
-def test_the_disturbed_field_is_rejected_by_both():
+def test_the_disturbed_field_is_rejected_and_said():
     """The simulated magnet (field 30 % too strong) is rejected for mag_reject_time, then accepted; the
-    second one is rejected again (the cases the comparison above covers, checked to be exercised)."""
+    second one is rejected again (the cases the comparison above covers, checked to be exercised), and
+    the FMU's output mag_disturbed is 1 exactly while a field is rejected."""
     t, gyr, acc, mag, extra = _disturbed_simulation()
-    f = attitude_twin.QuaternionFilter({**layout.settings_defaults(), **extra, "attitude_mode": 1.0})
-    offsets = []
+    settings = {**layout.settings_defaults(), **extra, "attitude_mode": 1.0}
+    f = attitude_twin.QuaternionFilter(settings)
+    rejected = []
     for k in range(len(t)):
         f.update(gyr[k], acc[k], mag[k], float(t[k] - t[k - 1]) if k else 0.0)
-        offsets.append((f.heading_offset, f.mag_rejected))
-    rejected = np.array([r for _, r in offsets])
+        rejected.append(f.mag_rejected)
+    rejected = np.array(rejected)
+    said = _c_outputs(settings, t, gyr, acc, mag)[:, layout.OUTPUTS.index("mag_disturbed")]
+    assert np.all(said[3010:3790] == 1.0) and np.all(said[3900:4000] == 0.0) and np.all(said[:3000] == 0.0)
     assert np.all(rejected[3010:3790] > 0.0) and rejected[3999] >= 8.0   # budget used up: accepted
     assert rejected[4299] < 4.0                                           # recovered in the clean 3 s
     assert np.all(rejected[4310:4400] > rejected[4299])                   # rejected again

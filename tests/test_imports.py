@@ -28,7 +28,8 @@ LAYERS = (
     ("training.simulator",),                                    # simulated recordings
     ("training.models", "training.selfcal"),                    # models, twins, self-calibration
     ("training.artefact", "training.evaluate", "training.mounting", "training.recommend",
-     "training.completeness", "training.train", "training.fmu_build", "training.reports", "training.main_job"),  # workflows
+     "training.completeness", "training.train", "training.fmu_build", "training.reports", "training.main_job",
+     "training.attitude"),  # workflows
     ("training.diagnosis", "training.bench", "training.fleet"),  # diagnosis, benchmarks, fleets
     ("training.cli",),                                          # the command line
 )

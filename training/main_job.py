@@ -14,7 +14,7 @@ import numpy as np
 
 from contract.errors import ImuFusionError
 from contract.mounting import array_codes
-from training.data.dataset import ImuData
+from training.data.dataset import ImuData, recording_parameters
 from training.evaluate import (ACCEPTANCE, absent_outputs, compute_metrics, max_abs_difference,
                                raw_sensor_metrics)
 from training.mounting import body_references
@@ -94,14 +94,6 @@ def evaluate_recording(fmu_path: Path, coefficients: np.ndarray, settings: np.nd
     write_outputs_csv(out_csv, data.t, out_fmu)
     return ScenarioResult(data.name, len(data), compute_metrics(out_fmu, body).as_dict(), raw,
                           diff, str(out_csv), data, out_fmu, raw_out, absent_outputs(out_fmu))
-
-
-def recording_parameters(data: ImuData) -> dict[str, float]:
-    """FMU parameters that a recording's sidecar fixes: declination [rad] and field_norm [µT]."""
-    params = {"declination": data.declination_rad}
-    if data.field_norm_ut is not None:
-        params["field_norm"] = data.field_norm_ut
-    return params
 
 
 def settings_with(settings: np.ndarray, overrides: dict[str, float]) -> np.ndarray:

@@ -15,6 +15,7 @@ from contract.layout import settings_defaults
 from training.data.dataset import ImuData
 from training.data.reference import true_runs
 from training.data.reference_source import TriadReference
+from training.attitude.magnetic_trust import mag_heading_setting
 from training.models.thermal import ThermalModel, apply_thermal
 from training.mounting import recommended_mounting
 
@@ -196,6 +197,7 @@ def recommended_settings(datasets: list[ImuData], refs: dict[str, TriadReference
     else:
         notes.append("gyro_noise, gyro_bias_residual, rest_gyro_threshold: no gyro at rest after "
                      "calibration; defaults kept")
+    settings.update(mag_heading_setting(datasets, thermal["mag"], settings, notes))
     settings.update(_pf_settings(datasets, thermal["mag"], settings["field_norm"], notes))
     settings.update(recommended_mounting(datasets, notes))
     return settings

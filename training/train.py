@@ -28,8 +28,8 @@ from training.models.fit_quality import BIAS_FALLBACK_NOTE, SCALE_FACTOR_CONVENT
 from training.models.psobp import PsoBpModel
 from training.models.thermal import (GainBiasFitter, ThermalFit, ThermalModel, apply_thermal,
                                      normalised_temperature, temperature_clusters, temperature_normalisation)
-from training.attitude_replay import CANDIDATES as REPLAYED_SETTINGS
-from training.attitude_replay import choose_by_replay, keep_better_attitude
+from training.attitude.replay import CANDIDATES as REPLAYED_SETTINGS
+from training.attitude.replay import choose_by_replay, keep_better_attitude
 from training.recommend import recommended_settings, sidecar_values
 from training.selfcal import SelfCalResult, self_calibrate
 

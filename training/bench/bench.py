@@ -171,13 +171,14 @@ EULER_ADDITIONS = {
 
 def _euler_ablation() -> dict[str, dict[str, float]]:
     """The Euler fusion without rest bias in the source's pure form (issue 2), then with each of
-    EULER_ADDITIONS added cumulatively; the last row is today's attitude_mode 0."""
-    rows = {"Euler adaptive gains, the source's form (issue 2), no bias":
-            {"attitude_mode": 0.0, "rest_gyro_threshold": 0.0, EULER_SWITCH: 0}}
+    EULER_ADDITIONS added cumulatively; the last row is today's attitude_mode 0 with instantaneous rate
+    samples (gyro_hold 0, so that the trapezoid addition acts)."""
+    euler = {"attitude_mode": 0.0, "rest_gyro_threshold": 0.0, "gyro_hold": 0.0}
+    rows = {"Euler adaptive gains, the source's form (issue 2), no bias": {**euler, EULER_SWITCH: 0}}
     bits = 0
     for label, bit in EULER_ADDITIONS.items():
         bits |= bit
-        rows[f"  + {label}, no bias"] = {"attitude_mode": 0.0, "rest_gyro_threshold": 0.0, EULER_SWITCH: bits}
+        rows[f"  + {label}, no bias"] = {**euler, EULER_SWITCH: bits}
     return rows
 
 
@@ -187,6 +188,7 @@ ABLATION = {
     "Euler adaptive gains + rest bias": {"attitude_mode": 0.0, "rest_gyro_threshold": 0.035},
     "quaternion, no rest bias, no rejection": {"rest_gyro_threshold": 0.0, "mag_reject_time": 0.0},
     "quaternion + rest bias, no rejection": {"mag_reject_time": 0.0},
+    "quaternion + rest bias + field rejection, trapezoid (gyro_hold 0)": {"gyro_hold": 0.0},
     "quaternion + rest bias + field rejection (BROAD set)": {},
     "  same, tau_acc 1.5 s": {"tau_acc": 1.5},
     "  same, tau_mag 20 s": {"tau_mag": 20.0},

@@ -105,3 +105,11 @@ class ImuData:
         dt = np.diff(self.t)
         if n and (not np.all(np.isfinite(self.t)) or np.any(dt <= 0)):
             raise ValueError(f"{self.name}: time is not finite and strictly increasing")
+
+
+def recording_parameters(data: ImuData) -> dict[str, float]:
+    """FMU parameters that a recording's sidecar fixes: declination [rad] and field_norm [µT]."""
+    params = {"declination": data.declination_rad}
+    if data.field_norm_ut is not None:
+        params["field_norm"] = data.field_norm_ut
+    return params

@@ -17,7 +17,7 @@ from training.data.earth import recordings_gravity
 from training.data.reference_source import SOURCE_TEXT
 from training.display import DISPLAY
 from training.completeness import gap_headline, is_gap
-from training.attitude_replay import REFERENCE_DECISIONS
+from training.attitude.replay import REFERENCE_DECISIONS
 from training.models.fit_quality import BIAS_FALLBACK_NOTE, at_t0, cross_axis_deg, is_warning, scale_factors
 from training.models.thermal import apply_thermal
 
@@ -28,7 +28,8 @@ SETTINGS_SHOWN = {"attitude_mode": ("", 1.0), "rest_gyro_threshold": ("°/s", fl
                   "gyro_noise": ("°/s/√Hz", float(np.rad2deg(1.0))), "field_norm": ("µT", 1.0),
                   "field_dip": ("°", float(np.rad2deg(1.0))), "declination": ("°", float(np.rad2deg(1.0))),
                   "pf_measurement_noise": ("µT", 1.0), "enable_elm": ("", 1.0), "enable_psobp": ("", 1.0),
-                  "mount_x": ("", 1.0), "mount_y": ("", 1.0), "mount_z": ("", 1.0), "gyro_hold": ("", 1.0)}
+                  "mount_x": ("", 1.0), "mount_y": ("", 1.0), "mount_z": ("", 1.0), "gyro_hold": ("", 1.0),
+                  "mag_heading": ("", 1.0)}
 #: Rows of a recording plotted at most (evenly thinned): enough to show every rest and motion.
 PLOT_ROWS = 20000
 

@@ -4,7 +4,7 @@ ImuAttitudeQuaternion.c, ImuAttitudeStep.c, ImuLowPass.c, ImuRestDetector.c), sa
 It reads as the algorithm (q = Rz(heading offset) ⊗ qAcc ⊗ qGyr): the rest-detector gyro bias, the
 strapdown qGyr with the rate held over the step (gyro_hold) or its trapezoid, the specific force
 low-passed in the almost-inertial frame by a second-order Butterworth filter that levels qAcc, the
-heading offset from the field with norm/dip rejection, and the restart after integration-error
+heading offset from the field with norm/dip rejection (none with mag_heading = 0), and the restart after integration-error
 bursts. tests/test_attitude_twin.py pins it to the C filter sample for sample; it is the reference to
 read and to try changes on, not a second runtime (the pipeline around the filter — calibration,
 mounting, time alignment, gaps — stays in C only).
@@ -129,6 +129,7 @@ class QuaternionFilter:
         self.step_error = 0.0
         self.tilt_initialised = False
         self.yaw_initialised = False
+        self.mag_disturbed = False
 
     def _step_rate(self, gyr: np.ndarray) -> np.ndarray:
         if self.s["gyro_hold"]:
@@ -179,6 +180,7 @@ class QuaternionFilter:
         if self.yaw_initialised and self.s["mag_reject_time"] > 0.0 and self._disturbed(m):
             if self.mag_rejected < self.s["mag_reject_time"]:
                 self.mag_rejected += dt
+                self.mag_disturbed = True
                 return
         else:
             self.mag_rejected = max(0.0, self.mag_rejected - MAG_RECOVERY * dt)
@@ -194,9 +196,11 @@ class QuaternionFilter:
             if self.rest.update(gyr, acc, dt, self.s["rest_gyro_threshold"], self.s["rest_acc_threshold"]):
                 self.bias = self.bias + (1.0 - math.exp(-dt / REST_BIAS_TIME)) * (self.rest.gyr_lp - self.bias)
         rate = gyr - self.bias
+        self.mag_disturbed = False
         self._predict(rate, dt)
         self._tilt(acc, dt)
-        self._heading(mag, dt)
+        if self.s["mag_heading"]:
+            self._heading(mag, dt)
         self.previous_rate = rate
         half = 0.5 * self.heading_offset
         q = quat_multiply(np.array([math.cos(half), 0.0, 0.0, math.sin(half)]),

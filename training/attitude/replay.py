@@ -36,7 +36,7 @@ def _squared_errors(coefficients: np.ndarray, settings: dict[str, float], data: 
     from contract.layout import OUTPUTS, settings_array
     from training.data.reference import reference_quaternion_magnetic
     from training.frames import quat_multiply
-    from training.main_job import recording_parameters
+    from training.data.dataset import recording_parameters
     from contract.mounting import array_codes
     from training.mounting import body_references
     from training.runtime import run_batch
