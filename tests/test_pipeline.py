@@ -64,6 +64,14 @@ def test_report_and_summary_written(summary):
         assert (out / "plots" / f"{s.name}.png").stat().st_size > 10_000
 
 
+def test_the_uniform_simulated_field_keeps_the_magnetometer(summary):
+    """The simulated earth field is uniform: train keeps the magnetometer for the heading and says why
+    (the non-uniform case: tests/test_magnetic_trust.py)."""
+    model = json.loads((Path(summary.out_dir) / "model" / "model.json").read_text())
+    assert model["settings"]["mag_heading"] == 1.0
+    assert any(n.startswith("mag_heading = 1: the magnetometer corrects the heading") for n in model["notes"])
+
+
 def test_main_job_reproduces_the_golden_record(summary):
     """The main job's artefact and FMU outputs equal the record taken before the redesign of issue
     17 (tests/golden.py: to 1e-12, angles modulo 2π): moving code changes no number."""
