@@ -6,6 +6,7 @@ acceptance bounds of issue 2 (training.evaluate.ACCEPTANCE, justified there).
 from __future__ import annotations
 
 import json
+from pathlib import Path
 
 import numpy as np
 import pytest

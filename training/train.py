@@ -613,6 +613,8 @@ def train(datasets: list[ImuData], seed: int = 0, degree: int | str = AUTO,
         except ModelError:
             return artefact
         artefact = keep_better_attitude(artefact, blind, datasets)
+        if artefact is blind:  # what the reference itself showed (e.g. its frame's declination) still holds
+            blind.notes[1:1] = [n for d in datasets for n in field_reference_notes(d)]
     return artefact
 
 
