@@ -55,7 +55,6 @@ def test_outputs_finite(summary):
 
 
 def test_report_and_summary_written(summary):
-    from pathlib import Path
     out = Path(summary.out_dir)
     report = (out / "report.md").read_text()
     assert "ImuFusion FMU" in report and "plots/" in report
