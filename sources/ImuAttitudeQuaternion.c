@@ -4,8 +4,8 @@
  *        (ideas of VQF, Laidig & Seel, Information Fusion 91, 2023).
  *
  * Quaternion mode, q = Rz(heading offset) (x) qAcc (x) qGyr:
- * 1. qGyr <- qGyr (x) exp(w dt / 2) with the trapezoidal rate (strapdown into a frame that is
- *    inertial up to the gyro's drift).
+ * 1. qGyr <- qGyr (x) exp(w dt / 2) with the rate held over the step (gyro_hold) or the
+ *    trapezoidal rate (strapdown into a frame that is inertial up to the gyro's drift).
  * 2. f is rotated into that frame and low-passed by a second-order Butterworth filter of time
  *    constant tau_acc (ImuLowPass.h): there a linear acceleration, which integrates to a velocity
  *    change, averages out while gravity stays put. qAcc is then turned about a horizontal axis so that the
