@@ -20,12 +20,11 @@ import math
 import numpy as np
 
 from training.data.dataset import ImuData
+from training.data.reference_field import robust_sigma
 from training.models.thermal import ThermalModel, apply_thermal
 
 #: Fewest finite field samples for a verdict.
 MIN_FIELD_SAMPLES = 200
-#: Robust standard deviation of a normal sample: 1.4826 × its median absolute deviation.
-MAD_TO_SIGMA = 1.4826
 #: A norm spread up to this many times the sensor noise is noise (3σ: white noise alone exceeds it
 #: with probability 0.3 %).
 NOISE_FACTOR = 3.0
@@ -45,8 +44,8 @@ def relative_norm_spread(datasets: list[ImuData], mag: ThermalModel) -> tuple[fl
         return float("nan"), float("nan"), 0
     norm, step = np.concatenate(norms), np.concatenate(steps)
     median = float(np.median(norm))
-    noise = MAD_TO_SIGMA * float(np.median(np.abs(step - np.median(step)))) / np.sqrt(2.0) if step.size else 0.0
-    return MAD_TO_SIGMA * float(np.median(np.abs(norm - median))) / median, noise / median, int(norm.size)
+    noise = robust_sigma(step) / np.sqrt(2.0) if step.size else 0.0
+    return robust_sigma(norm) / median, noise / median, int(norm.size)
 
 
 def longest_duration(datasets: list[ImuData]) -> float:

@@ -99,7 +99,7 @@ class HeadingEstimate:
                 f"an undisturbed field, fit residual {self.residual_ut:.2g} µT RMS)")
 
 
-def _robust_sigma(x: np.ndarray) -> float:
+def robust_sigma(x: np.ndarray) -> float:
     """1.4826 · median |x − median x| (the σ of a normal distribution)."""
     return float(1.4826 * np.median(np.abs(x - np.median(x))))
 
@@ -168,7 +168,7 @@ def _undisturbed(rot: np.ndarray, mag: np.ndarray) -> tuple[np.ndarray, np.ndarr
     for _ in range(2):
         n, k, b = _fit_field(rot[keep], mag[keep])
         norm = np.linalg.norm(np.linalg.solve(k, (mag - b).T), axis=0)
-        keep = np.abs(norm - np.median(norm[keep])) <= NORM_SIGMAS * max(_robust_sigma(norm[keep]), 1e-9)
+        keep = np.abs(norm - np.median(norm[keep])) <= NORM_SIGMAS * max(robust_sigma(norm[keep]), 1e-9)
     return keep, n, k, b
 
 
