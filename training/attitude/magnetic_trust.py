@@ -2,7 +2,8 @@
 setting mag_heading, 1 (9D) or 0 (6D, heading from the gyro alone).
 
 A spread of the corrected field norm within NOISE_FACTOR times the sensor's own noise (from the
-sample-to-sample differences of the norm, which a field fixed in the room does not change) is noise,
+sample-to-sample differences of the norm, which a field fixed in the room does not change; a repeated
+reading of a magnetometer slower than the IMU is not a new sample and left out) is noise,
 not a non-uniform field: the magnetometer is kept. Beyond it, a field perturbation δB of no preferred direction changes the field norm by about its component along
 the field, and turns the horizontal field — the heading — by about its horizontal perpendicular
 component over the horizontal field strength. So the corrected field's relative norm spread σ (robust:
@@ -39,7 +40,8 @@ def relative_norm_spread(datasets: list[ImuData], mag: ThermalModel) -> tuple[fl
         if ok.any():
             norm = np.linalg.norm(apply_thermal(mag, d.mag[ok], d.temp[ok]), axis=1)
             norms.append(norm)
-            steps.append(np.diff(norm))
+            step = np.diff(norm)
+            steps.append(step[step != 0.0])  # a repeated reading (a slower magnetometer held) is no new sample
     if not norms:
         return float("nan"), float("nan"), 0
     norm, step = np.concatenate(norms), np.concatenate(steps)
