@@ -239,6 +239,9 @@ _FILTER_FROM_DATA: tuple[Variable, ...] = (
     _parameter("mag_heading", 83, 1.0, FLAG,
                "Attitude filters correct the heading with the magnetometer (0: 6D, heading from the gyro alone, "
                "for a field too non-uniform to trust); `train` decides from the calibration recordings"),
+    _parameter("motion_bias", 84, 1.0, FLAG,
+               "The quaternion filter also estimates the gyro bias in motion, from its inclination "
+               "correction (VQF's motion bias estimation; 0: at rest only)"),
 )
 
 

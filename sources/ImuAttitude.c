@@ -5,7 +5,8 @@
  *
  * Gyro bias (both modes): while the rest detector holds (ImuRestDetector.h; enabled by
  * rest_gyro_threshold > 0), the bias follows the low-passed rate with time constant
- * IMU_ATTITUDE_REST_BIAS_TIME; every rate is used minus the bias.
+ * IMU_ATTITUDE_REST_BIAS_TIME; in motion the quaternion mode's inclination correction moves it
+ * (motion_bias: ImuMotionBias.h). Every rate is used minus the bias.
  *
  * Files, dependencies one way: ImuAttitude.c (this facade) -> ImuAttitudeEuler.c (adaptive-gain
  * Euler fusion, the method) and ImuAttitudeQuaternion.c (quaternion filter) -> ImuAttitudeStep.c
@@ -56,6 +57,8 @@ void ImuAttitudeReset(ImuAttitude *a)
         a->bias[i] = 0.0;
     }
     ImuRestDetectorReset(&a->rest);
+    a->atRest = 0;
+    ImuMotionBiasReset(&a->motionBias);
     ImuLowPassReset(&a->accLowPass);
     a->headingOffset = 0.0;
     a->magRejected = 0.0;
@@ -76,6 +79,7 @@ void ImuAttitudeRestart(ImuAttitude *a, double gap)
     a->tiltInitialised = 0;
     a->yawInitialised = 0;
     ImuRestDetectorReset(&a->rest);
+    a->atRest = 0;
     a->magRejected = 0.0;
     a->magSamples = 0.0;
     a->stepError = 0.0;
@@ -88,7 +92,8 @@ static void ImuAttitudeUpdateBias(ImuAttitude *a, const double gyr[3], const dou
     const double k = 1.0 - exp(-dt / IMU_ATTITUDE_REST_BIAS_TIME);
     double rate[3];
     int i;
-    if (ImuRestDetectorUpdate(&a->rest, gyr, acc, dt, s->restGyroThreshold, s->restAccThreshold)) {
+    a->atRest = ImuRestDetectorUpdate(&a->rest, gyr, acc, dt, s->restGyroThreshold, s->restAccThreshold);
+    if (a->atRest) {
         ImuRestDetectorGetRate(&a->rest, rate);
         for (i = 0; i < 3; i++) {
             a->bias[i] += k * (rate[i] - a->bias[i]);

@@ -13,14 +13,15 @@
  *   rejection of fields whose norm or dip disagree with the earth field (with recovery after
  *   mag_reject_time). Ideas of VQF (Laidig & Seel, Information Fusion 91, 2023).
  *
- * Both modes subtract a gyro bias estimated while a rest detector (gyro + accelerometer) holds,
- * and both run as without a magnetometer when magHeading is 0 (6D: a field too non-uniform to trust).
+ * Both modes subtract a gyro bias estimated while a rest detector (gyro + accelerometer) holds
+ * (the quaternion mode, with motionBias, also in motion from its inclination correction), and both run as without a magnetometer when magHeading is 0 (6D: a field too non-uniform to trust).
  */
 #ifndef IMU_ATTITUDE_H
 #define IMU_ATTITUDE_H
 
 #include "ImuCommon.h"
 #include "ImuLowPass.h"
+#include "ImuMotionBias.h"
 #include "ImuRestDetector.h"
 
 /** Standard gravity [m/s^2]: the specific-force norm at rest. */
@@ -67,6 +68,7 @@ typedef struct {
     int gyroHold;            /* 1: a rate sample holds over the interval before it (a sensor that
                               * averages over its sample interval); 0: trapezoid of two samples */
     int magHeading;          /* 1: the field corrects the heading; 0: 6D (the field is not used) */
+    int motionBias;          /* 1: quaternion mode also estimates the gyro bias in motion (ImuMotionBias.h) */
     int eulerAdditions;      /* sum of ImuEulerAddition bits in use by the Euler mode (not an FMU
                               * parameter: IMU_EULER_ALL_ADDITIONS except in ImuBatchRunEuler) */
 } ImuAttitudeSettings;
@@ -85,6 +87,8 @@ typedef struct {
     int yawInitialised;     /* yaw was set from the magnetometer */
     double bias[3];         /* rad/s, gyro bias estimated at rest */
     ImuRestDetector rest;   /* rest detection feeding the bias */
+    int atRest;             /* the rest detector held at the last sample */
+    ImuMotionBias motionBias; /* quaternion mode: the bias estimate in motion */
     double qGyr[4];         /* 1, quaternion mode: strapdown body -> almost-inertial frame */
     double qAcc[4];         /* 1, quaternion mode: inclination correction, inertial -> level frame */
     ImuLowPass accLowPass;  /* m/s^2, quaternion mode: low-pass of f in the inertial frame */

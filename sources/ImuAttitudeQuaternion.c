@@ -9,7 +9,8 @@
  * 2. f is rotated into that frame and low-passed by a second-order Butterworth filter of time
  *    constant tau_acc (ImuLowPass.h): there a linear acceleration, which integrates to a velocity
  *    change, averages out while gravity stays put. qAcc is then turned about a horizontal axis so that the
- *    low-passed f points up (-z); the heading is untouched.
+ *    low-passed f points up (-z); the heading is untouched. With motion_bias, the turn's rate also
+ *    measures the gyro bias in motion (ImuMotionBias.h).
  * 3. The field is rotated into the level frame qAcc (x) qGyr; its heading gives the measured
  *    offset -atan2(m_y, m_x). A field whose norm departs from field_norm by more than
  *    IMU_ATTITUDE_MAG_NORM_TOLERANCE or whose dip departs from field_dip by more than
@@ -73,6 +74,7 @@ static void ImuAttitudeQuaternionTilt(ImuAttitude *a, const double acc[3], doubl
     int i;
     if (!a->tiltInitialised) {
         ImuLowPassReset(&a->accLowPass);
+        ImuMotionBiasRestart(&a->motionBias);
     }
     ImuQuaternionRotate(a->qGyr, acc, inertial);
     ImuLowPassStep(&a->accLowPass, inertial, a->settings.tauAcc, dt, lowPassed);
@@ -99,6 +101,14 @@ static void ImuAttitudeQuaternionTilt(ImuAttitude *a, const double acc[3], doubl
     }
     ImuQuaternionNormalise(a->qAcc);
     a->gain[0] = a->gain[1] = a->tiltInitialised ? 1.0 - exp(-dt / a->settings.tauAcc) : 1.0;
+    if (a->settings.motionBias && dt > 0.0) {
+        for (i = 0; i < 3; i++) {
+            e[i] /= n;
+        }
+        ImuQuaternionMultiply(a->qAcc, a->qGyr, product);
+        ImuMotionBiasUpdate(&a->motionBias, product, e, a->settings.tauAcc, dt, a->tiltInitialised && !a->atRest,
+                            a->bias);
+    }
     a->tiltInitialised = 1;
 }
 

@@ -119,6 +119,7 @@ typedef enum {
     ImuSetMountZ,             /* whole number */
     ImuSetGyroHold,           /* 0 or 1 */
     ImuSetMagHeading,         /* 0 or 1 */
+    ImuSetMotionBias,         /* 0 or 1 */
     IMU_SETTING_COUNT
 } ImuSetting;
 /* generated:end settings */
@@ -182,7 +183,8 @@ typedef struct {
     {-3.0, 3.0, 12, "mount_y must be a whole number in -3..3 other than 0"}, \
     {-3.0, 3.0, 12, "mount_z must be a whole number in -3..3 other than 0"}, \
     {0.0, 1.0, 4, "gyro_hold must be 0 or 1"}, \
-    {0.0, 1.0, 4, "mag_heading must be 0 or 1"} \
+    {0.0, 1.0, 4, "mag_heading must be 0 or 1"}, \
+    {0.0, 1.0, 4, "motion_bias must be 0 or 1"} \
 }
 /* generated:end setting-ranges */
 

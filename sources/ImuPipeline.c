@@ -91,6 +91,7 @@ int ImuPipelineSettingsFromArray(ImuPipelineSettings *s, const double *a, size_t
     s->magRejectTime = a[ImuSetMagRejectTime];
     s->gyroHold = ImuPipelineFlag(a[ImuSetGyroHold]);
     s->magHeading = ImuPipelineFlag(a[ImuSetMagHeading]);
+    s->motionBias = ImuPipelineFlag(a[ImuSetMotionBias]);
     s->enableElm = ImuPipelineFlag(a[ImuSetEnableElm]);
     s->enablePf = ImuPipelineFlag(a[ImuSetEnablePf]);
     s->pfSeed = ImuPipelineInteger(a[ImuSetPfSeed]);
@@ -165,6 +166,7 @@ static void ImuPipelineAttitudeSettings(const ImuPipelineSettings *s, ImuAttitud
     a->magRejectTime = s->magRejectTime;
     a->gyroHold = s->gyroHold;
     a->magHeading = s->magHeading;
+    a->motionBias = s->motionBias;
     a->eulerAdditions = IMU_EULER_ALL_ADDITIONS; /* the FMU's filter; ImuBatchRunEuler ablates them */
 }
 

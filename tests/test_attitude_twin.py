@@ -1,7 +1,7 @@
 """The numpy twin of the quaternion attitude filter (training.models.attitude_twin) equals the C filter the FMU
 runs, sample for sample, on a real recording (BROAD: hand-held motion, rests, an undisturbed field) and
-on a simulated one whose field is disturbed part of the time, for both gyro_hold rules and in 6D
-(mag_heading = 0); the output mag_disturbed equals the twin's rejection flag. The C filter runs
+on a simulated one whose field is disturbed part of the time, for both gyro_hold rules, in 6D
+(mag_heading = 0) and without the bias estimate in motion (motion_bias = 0); the output mag_disturbed equals the twin's rejection flag. The C filter runs
 inside the pipeline with the identity calibration, so its inputs are the raw samples.
 
 Bound: 1e-9 rad between the two attitudes. Both compute the same double-precision operations in a
@@ -36,6 +36,8 @@ CONSTANTS = {
     "MAG_NORM_TOLERANCE": ("ImuAttitudeQuaternion.c", "IMU_ATTITUDE_MAG_NORM_TOLERANCE"),
     "MAG_DIP_TOLERANCE": ("ImuAttitudeQuaternion.c", "IMU_ATTITUDE_MAG_DIP_TOLERANCE"),
     "MAG_RECOVERY": ("ImuAttitudeQuaternion.c", "IMU_ATTITUDE_MAG_RECOVERY"),
+    **{name: ("ImuMotionBias.c", f"IMU_MOTION_BIAS_{name[5:]}") for name in (
+        "BIAS_SIGMA_INIT", "BIAS_FORGETTING_TIME", "BIAS_SIGMA_MOTION", "BIAS_VERTICAL_FORGETTING", "BIAS_CLIP")},
 }
 
 
@@ -87,8 +89,9 @@ def _disturbed_simulation():
                               "field_dip": float(np.arctan2(45.0, 20.0)), "mag_reject_time": 8.0}
 
 
-@pytest.mark.parametrize("options", [{"gyro_hold": 1.0}, {"gyro_hold": 0.0}, {"mag_heading": 0.0}],
-                         ids=["gyro_hold", "trapezoid", "6D"])
+@pytest.mark.parametrize("options", [{"gyro_hold": 1.0}, {"gyro_hold": 0.0}, {"mag_heading": 0.0},
+                                     {"motion_bias": 0.0}],
+                         ids=["gyro_hold", "trapezoid", "6D", "rest_bias_only"])
 @pytest.mark.parametrize("recording", [_broad_slice, _disturbed_simulation], ids=["broad", "disturbed"])
 def test_twin_equals_the_c_filter(recording, options):
     t, gyr, acc, mag, extra = recording()

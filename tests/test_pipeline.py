@@ -6,11 +6,13 @@ acceptance bounds of issue 2 (training.evaluate.ACCEPTANCE, justified there).
 from __future__ import annotations
 
 import json
+import re
 from pathlib import Path
 
 import numpy as np
 import pytest
 
+from training.attitude.replay import CANDIDATES
 from training.evaluate import ACCEPTANCE
 from training.main_job import DEFAULT_EVALUATIONS, run_main_job
 
@@ -70,6 +72,20 @@ def test_the_uniform_simulated_field_keeps_the_magnetometer(summary):
     model = json.loads((Path(summary.out_dir) / "model" / "model.json").read_text())
     assert model["settings"]["mag_heading"] == 1.0
     assert any(n.startswith("mag_heading = 1: the magnetometer corrects the heading") for n in model["notes"])
+
+
+def test_train_writes_the_filter_settings_its_replay_measured_best(summary):
+    """The simulated calibration recording carries an attitude reference: train replays it through the
+    FMU's filter for every replayed setting (training.attitude.replay.CANDIDATES), writes the value with
+    the lower total attitude error and notes both figures; the simulator's samples are instantaneous, so
+    gyro_hold is 0 (the trapezoid)."""
+    model = json.loads((Path(summary.out_dir) / "model" / "model.json").read_text())
+    assert model["settings"]["gyro_hold"] == 0.0
+    for name in CANDIDATES:
+        note = next(n for n in model["notes"] if n.startswith(f"{name} = ") and "chosen by replaying" in n)
+        figures = dict(re.findall(r"([0-9.]+): ([0-9.]+)°", note.split("RMSE", 1)[1]))
+        best = min(figures, key=lambda v: float(figures[v]))
+        assert model["settings"][name] == float(best), note
 
 
 def test_main_job_reproduces_the_golden_record(summary):

@@ -8,6 +8,10 @@ The candidates are physical alternatives the data decide between, not a search g
 - gyro_hold: whether a rate sample is the mean over the interval before it (MEMS decimation filters;
   the FMU's default, as real recordings show: BROAD's 20 trials, inclination 0.90° → 0.72°) or an
   instantaneous value (the simulator's samples), integrated with the trapezoidal rule.
+- motion_bias: whether the gyro's error in motion is worth estimating from the inclination correction
+  (sources/ImuMotionBias.h: a real gyro's scale-factor and cross-axis residuals show there; BROAD's
+  20 trials, inclination 0.719° → 0.695°) or the rest estimate alone is better (a gyro whose errors
+  the calibration removed, where the estimate only adds the correction's noise).
 """
 from __future__ import annotations
 
@@ -16,7 +20,7 @@ import numpy as np
 from training.data.dataset import ImuData
 
 #: Setting -> the values replayed, the FMU's default first (a tie keeps it).
-CANDIDATES = {"gyro_hold": (1.0, 0.0)}
+CANDIDATES = {"gyro_hold": (1.0, 0.0), "motion_bias": (1.0, 0.0)}
 #: How the notes of keep_better_attitude begin (the calibration summary opens with them).
 REFERENCE_JUDGED = "ATTITUDE REFERENCE USED TO JUDGE, NOT TO CALIBRATE"
 REFERENCE_KEPT = "calibration derived from the attitude reference kept"

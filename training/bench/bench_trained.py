@@ -33,6 +33,8 @@ from training.data.reference_source import strip_references
 TRAIN_TRIALS = ("01", "02")
 #: Trials with a magnet attached to the IMU (a hard-iron change the particle filter must follow).
 MAGNET_TRIALS = (32, 33, 35)
+#: The anchor every FMU row is compared with, run in the same process.
+VQF_LABEL = "VQF 9D (defaults)"
 _Q = [layout.OUTPUTS.index(n) for n in ("q_w", "q_x", "q_y", "q_z")]
 _FIELD = [layout.OUTPUTS.index(n) for n in ("field_x", "field_y", "field_z")]
 
@@ -77,7 +79,7 @@ def _rows(fmus: dict[str, Path], datas: list[ImuData]) -> tuple[list[dict], list
     rows, spreads = [], []
     for data in tqdm(datas, desc="BROAD trials through the FMUs"):
         base = {"name": data.name, "trial": trial_number(data)}
-        rows.append({**base, "filter": "VQF 9D (defaults)", **broad_errors(run_vqf(data), data)})
+        rows.append({**base, "filter": VQF_LABEL, **broad_errors(run_vqf(data), data)})
         for label, path in fmus.items():
             out = _run(path, data)
             out_pf = _run(path, data, {"enable_pf": 1.0})
@@ -92,6 +94,15 @@ def _rows(fmus: dict[str, Path], datas: list[ImuData]) -> tuple[list[dict], list
     return rows, spreads
 
 
+def inclination_wins(rows: list[dict], name: str) -> tuple[int, int]:
+    """(trials where filter `name` has a lower inclination RMSE than VQF_LABEL, trials of both)."""
+    by_trial: dict[str, dict[str, float]] = {}
+    for r in rows:
+        by_trial.setdefault(r["name"], {})[r["filter"]] = r["inclination"]
+    pairs = [v for v in by_trial.values() if name in v and VQF_LABEL in v]
+    return sum(v[name] < v[VQF_LABEL] for v in pairs), len(pairs)
+
+
 def _markdown(groups: dict, rows: list[dict], spreads: list[dict], train_names: list[str]) -> str:
     """The report: group means, per-trial totals, magnet-trial spreads and heading."""
     lines = [f"BROAD data: {BROAD_CITATION}.", "",
@@ -104,6 +115,9 @@ def _markdown(groups: dict, rows: list[dict], spreads: list[dict], train_names: 
             f"{g[k]['total']:.2f} / {g[k]['heading']:.2f} / {g[k]['inclination']:.2f} (n={g[k]['n_trials']})"
             if k in g else "–" for k in GROUPS) + " |")
     names = list(groups)
+    lines += ["", f"Inclination RMSE lower than {VQF_LABEL}'s:", ""]
+    lines += [f"- {n}: on {won} of {total} trials" for n in names if n != VQF_LABEL
+              for won, total in [inclination_wins(rows, n)]]
     lines += ["", "Total RMSE [°] per trial:", "", "| trial | " + " | ".join(names) + " |",
               "|---|" + "---|" * len(names)]
     for trial in dict.fromkeys(r["name"] for r in rows):

@@ -1,10 +1,11 @@
 """Numpy twin of the FMU's quaternion attitude filter (attitude_mode = 1; sources/ImuAttitude.c,
-ImuAttitudeQuaternion.c, ImuAttitudeStep.c, ImuLowPass.c, ImuRestDetector.c), sample by sample.
+ImuAttitudeQuaternion.c, ImuAttitudeStep.c, ImuLowPass.c, ImuMotionBias.c, ImuRestDetector.c), sample by
+sample.
 
 It reads as the algorithm (q = Rz(heading offset) ⊗ qAcc ⊗ qGyr): the rest-detector gyro bias, the
 strapdown qGyr with the rate held over the step (gyro_hold) or its trapezoid, the specific force
-low-passed in the almost-inertial frame by a second-order Butterworth filter that levels qAcc, the
-heading offset from the field with norm/dip rejection (none with mag_heading = 0), and the restart after integration-error
+low-passed in the almost-inertial frame by a second-order Butterworth filter that levels qAcc (its
+turn also updates the gyro bias in motion with motion_bias), the heading offset from the field with norm/dip rejection (none with mag_heading = 0), and the restart after integration-error
 bursts. tests/test_attitude_twin.py pins it to the C filter sample for sample; it is the reference to
 read and to try changes on, not a second runtime (the pipeline around the filter — calibration,
 mounting, time alignment, gaps — stays in C only).
@@ -28,6 +29,11 @@ SMOOTH_ANGULAR_ACCEL = 1000.0     # ImuAttitudeStep.c IMU_ATTITUDE_SMOOTH_ANGULA
 MAG_NORM_TOLERANCE = 0.1          # ImuAttitudeQuaternion.c IMU_ATTITUDE_MAG_NORM_TOLERANCE
 MAG_DIP_TOLERANCE = 0.1745329252  # ImuAttitudeQuaternion.c IMU_ATTITUDE_MAG_DIP_TOLERANCE [rad]
 MAG_RECOVERY = 2.0                # ImuAttitudeQuaternion.c IMU_ATTITUDE_MAG_RECOVERY
+BIAS_SIGMA_INIT = 0.5             # ImuMotionBias.c IMU_MOTION_BIAS_SIGMA_INIT [°/s]
+BIAS_FORGETTING_TIME = 100.0      # ImuMotionBias.c IMU_MOTION_BIAS_FORGETTING_TIME [s]
+BIAS_SIGMA_MOTION = 0.1           # ImuMotionBias.c IMU_MOTION_BIAS_SIGMA_MOTION [°/s]
+BIAS_VERTICAL_FORGETTING = 1e-4   # ImuMotionBias.c IMU_MOTION_BIAS_VERTICAL_FORGETTING
+BIAS_CLIP = 2.0                   # ImuMotionBias.c IMU_MOTION_BIAS_CLIP [°/s]
 
 
 def quat_multiply(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -111,6 +117,48 @@ class RestDetector:
         return self.rest_time >= REST_MIN_TIME
 
 
+def rotation_matrix(q: np.ndarray) -> np.ndarray:
+    """3×3 rotation matrix of the unit quaternion q (ImuQuaternion.c ImuQuaternionToMatrix)."""
+    w, x, y, z = q
+    return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+                     [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+                     [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]])
+
+
+class MotionBias:
+    """Kalman estimate of the gyro bias from the inclination correction's rate (ImuMotionBias.c)."""
+
+    def __init__(self):
+        self.covariance = math.radians(BIAS_SIGMA_INIT) ** 2 * np.eye(3)
+        self.restart()
+
+    def restart(self) -> None:
+        """The low-passes restart with the next step; the covariance is kept."""
+        self.rotation_lp, self.rotated_bias_lp = LowPass(), LowPass()
+
+    def update(self, q6d: np.ndarray, up: np.ndarray, tau: float, dt: float, observe: bool,
+               bias: np.ndarray) -> np.ndarray:
+        """The bias [rad/s] after one step dt [s]: q6d body -> level frame after the correction, up the
+        unit low-passed specific force before it; measured only with observe."""
+        r = rotation_matrix(q6d)
+        h = self.rotation_lp.step(r.ravel(), tau, dt).reshape(3, 3)
+        rotated_bias = self.rotated_bias_lp.step(r @ bias, tau, dt)
+        p = math.radians(BIAS_SIGMA_MOTION) ** 2
+        v = p * dt / BIAS_FORGETTING_TIME
+        ceiling = math.radians(BIAS_SIGMA_INIT) ** 2
+        for i in range(3):
+            if self.covariance[i, i] < ceiling:
+                self.covariance[i, i] += v
+        if not observe:
+            return bias
+        e = np.array([up[1] / dt, -up[0] / dt, 0.0]) + np.array([rotated_bias[0], rotated_bias[1], 0.0]) - h @ bias
+        e = np.clip(e, -math.radians(BIAS_CLIP), math.radians(BIAS_CLIP))
+        w = p * p / v + p
+        gain = self.covariance @ h.T @ np.linalg.inv(h @ self.covariance @ h.T + np.diag([w, w, w / BIAS_VERTICAL_FORGETTING]))
+        self.covariance = self.covariance - gain @ h @ self.covariance
+        return bias + gain @ e
+
+
 class QuaternionFilter:
     """The quaternion attitude filter; settings by their FMU names (contract/variables.py)."""
 
@@ -120,6 +168,8 @@ class QuaternionFilter:
         self.q_acc = np.array([1.0, 0.0, 0.0, 0.0])
         self.acc_lp = LowPass()
         self.rest = RestDetector()
+        self.at_rest = False
+        self.motion_bias = MotionBias()
         self.bias = np.zeros(3)
         self.previous_rate = np.zeros(3)
         self.previous_step = 0.0
@@ -157,6 +207,7 @@ class QuaternionFilter:
     def _tilt(self, acc: np.ndarray, dt: float) -> None:
         if not self.tilt_initialised:
             self.acc_lp = LowPass()
+            self.motion_bias.restart()
         e = quat_rotate(self.q_acc, self.acc_lp.step(quat_rotate(self.q_gyr, acc), self.s["tau_acc"], dt))
         n = float(np.linalg.norm(e))
         if not n > 0.0:
@@ -165,6 +216,9 @@ class QuaternionFilter:
         if turn[0] < 1e-12:
             turn = np.array([0.0, 1.0, 0.0, 0.0])
         self.q_acc = _normalised(quat_multiply(_normalised(turn), self.q_acc))
+        if self.s["motion_bias"] and dt > 0.0:
+            self.bias = self.motion_bias.update(quat_multiply(self.q_acc, self.q_gyr), e / n, self.s["tau_acc"], dt,
+                                                self.tilt_initialised and not self.at_rest, self.bias)
         self.tilt_initialised = True
 
     def _disturbed(self, m: np.ndarray) -> bool:
@@ -193,7 +247,8 @@ class QuaternionFilter:
         """One sample of corrected gyr [rad/s], acc [m/s²], mag [µT] (finite), dt [s] after the
         previous (0 first); returns the body -> magnetic NED quaternion [w, x, y, z], w ≥ 0."""
         if self.s["rest_gyro_threshold"] > 0.0 and dt > 0.0:
-            if self.rest.update(gyr, acc, dt, self.s["rest_gyro_threshold"], self.s["rest_acc_threshold"]):
+            self.at_rest = self.rest.update(gyr, acc, dt, self.s["rest_gyro_threshold"], self.s["rest_acc_threshold"])
+            if self.at_rest:
                 self.bias = self.bias + (1.0 - math.exp(-dt / REST_BIAS_TIME)) * (self.rest.gyr_lp - self.bias)
         rate = gyr - self.bias
         self.mag_disturbed = False

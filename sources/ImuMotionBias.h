@@ -1,0 +1,49 @@
+/**
+ * @file ImuMotionBias.h
+ * @brief The gyro bias during motion, from the quaternion filter's inclination correction (the
+ *        motion bias estimation of VQF: Laidig & Seel, Information Fusion 91, 2023).
+ *
+ * A bias b left in the rate turns the strapdown frame by R b per second (R: body -> level frame);
+ * the inclination correction undoes it, so its rate c about the level frame's x and y axes,
+ * seen through the same low-pass as the specific force, measures the bias: -c + LP(R b_hat)
+ * = LP(R) b. A Kalman filter on b takes that measurement with variance W for x and y and a far
+ * larger one for the vertical row (nothing measures a vertical bias there: the row only keeps it from
+ * wandering), and its covariance P grows by V per second towards IMU_MOTION_BIAS_SIGMA_INIT^2.
+ * W = p^2 / V + p makes p = IMU_MOTION_BIAS_SIGMA_MOTION^2 the covariance P settles at under a steady
+ * stream of measurements (VQF's parametrisation, its default constants).
+ *
+ * One deliberate departure from VQF: rest does not shrink P. At rest the rest detector measures the
+ * bias itself (ImuAttitude.c); in motion the rate also carries what the calibration left of the
+ * gyro's motion-dependent errors (scale factor, cross-axis, g-sensitivity), which rest cannot see,
+ * so the motion estimate keeps its own uncertainty. BROAD, 20 trials, identity calibration, VQF's
+ * full Kalman (rest shrinking P): inclination 0.716 deg; this form 0.695 deg; without motion
+ * estimation 0.719 deg (docs/BENCHMARKS.md).
+ */
+#ifndef IMU_MOTION_BIAS_H
+#define IMU_MOTION_BIAS_H
+
+#include "ImuCommon.h"
+#include "ImuLowPass.h"
+
+/** Evolving state (plain struct: copy = save state). */
+typedef struct {
+    double covariance[9];       /* (rad/s)^2, P of the bias estimate, row-major */
+    ImuLowPass rotation[3];     /* 1, the rows of R (body -> level frame), low-passed with tau_acc */
+    ImuLowPass rotatedBias;     /* rad/s, R b_hat low-passed with tau_acc (x and y are used) */
+} ImuMotionBias;
+
+/** @brief Forget everything: P = IMU_MOTION_BIAS_SIGMA_INIT^2 I, the low-passes restart. */
+IMU_HIDDEN void ImuMotionBiasReset(ImuMotionBias *m);
+/** @brief The low-passes restart with the next step (with the inclination correction's low-pass); P is kept. */
+IMU_HIDDEN void ImuMotionBiasRestart(ImuMotionBias *m);
+/**
+ * @brief One step dt [s] (> 0) after the inclination correction: q6d [w, x, y, z] body -> level
+ *        frame after the correction, up [1] the unit low-passed specific force in the level frame
+ *        before it (the correction turned it onto (0, 0, -1)), tau [s] the low-pass time constant.
+ *        With observe set (in motion, after the correction's first step) the measurement updates
+ *        bias [rad/s]; otherwise only the low-passes and P advance.
+ */
+IMU_HIDDEN void ImuMotionBiasUpdate(ImuMotionBias *m, const double q6d[4], const double up[3], double tau,
+                                    double dt, int observe, double bias[3]);
+
+#endif
