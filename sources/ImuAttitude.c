@@ -62,6 +62,7 @@ void ImuAttitudeReset(ImuAttitude *a)
     ImuLowPassReset(&a->accLowPass);
     a->headingOffset = 0.0;
     a->magRejected = 0.0;
+    a->magClean = IMU_ATTITUDE_MAG_MIN_CLEAN_TIME;
     a->magSamples = 0.0;
     a->magDisturbed = 0.0;
     a->stepError = 0.0;
@@ -81,6 +82,7 @@ void ImuAttitudeRestart(ImuAttitude *a, double gap)
     ImuRestDetectorReset(&a->rest);
     a->atRest = 0;
     a->magRejected = 0.0;
+    a->magClean = IMU_ATTITUDE_MAG_MIN_CLEAN_TIME;
     a->magSamples = 0.0;
     a->stepError = 0.0;
 }

@@ -94,6 +94,7 @@ typedef struct {
     ImuLowPass accLowPass;  /* m/s^2, quaternion mode: low-pass of f in the inertial frame */
     double headingOffset;   /* rad, quaternion mode: level frame -> magnetic NED about down */
     double magRejected;     /* s, quaternion mode: time the field has been rejected */
+    double magClean;        /* s, quaternion mode: time the field has stayed within the tolerances */
     double magSamples;      /* 1, quaternion mode: accepted field samples (start-up averaging) */
     double magDisturbed;    /* 1, quaternion mode: 1 when the last field sample was rejected as disturbed */
     double stepError;       /* rad^2, summed integration-error bounds of the recent steps, decaying

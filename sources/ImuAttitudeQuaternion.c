@@ -14,7 +14,8 @@
  * 3. The field is rotated into the level frame qAcc (x) qGyr; its heading gives the measured
  *    offset -atan2(m_y, m_x). A field whose norm departs from field_norm by more than
  *    IMU_ATTITUDE_MAG_NORM_TOLERANCE or whose dip departs from field_dip by more than
- *    IMU_ATTITUDE_MAG_DIP_TOLERANCE is rejected for at most mag_reject_time (the rejection time
+ *    IMU_ATTITUDE_MAG_DIP_TOLERANCE, or has been within them for less than
+ *    IMU_ATTITUDE_MAG_MIN_CLEAN_TIME, is rejected for at most mag_reject_time (the rejection time
  *    decays IMU_ATTITUDE_MAG_RECOVERY times faster while the field is clean, so a persistent new
  *    field is accepted again); an accepted one moves the offset with gain 1 - exp(-dt/tau_mag)
  *    (1/n over the first n samples, so the start averages instead of trusting one sample). A
@@ -64,6 +65,7 @@ static void ImuAttitudeQuaternionPredict(ImuAttitude *a, const double gyr[3], do
         a->tiltInitialised = 0;
         a->magSamples = 0.0;
         a->magRejected = 0.0;
+        a->magClean = IMU_ATTITUDE_MAG_MIN_CLEAN_TIME;
     }
 }
 
@@ -125,12 +127,16 @@ static int ImuAttitudeMagOff(const ImuAttitude *a, const double m[3])
 static void ImuAttitudeQuaternionHeading(ImuAttitude *a, const double mag[3], double dt)
 {
     double level[4], m[3], k;
+    int off;
     ImuQuaternionMultiply(a->qAcc, a->qGyr, level);
     ImuQuaternionRotate(level, mag, m);
     if (!(ImuVectorNorm(m) > 0.0)) {
         return;
     }
-    if (a->yawInitialised && a->settings.magRejectTime > 0.0 && ImuAttitudeMagOff(a, m)) {
+    off = ImuAttitudeMagOff(a, m);
+    a->magClean = off ? 0.0 : a->magClean + dt;
+    if (a->yawInitialised && a->settings.magRejectTime > 0.0
+        && (off || a->magClean < IMU_ATTITUDE_MAG_MIN_CLEAN_TIME)) {
         if (a->magRejected < a->settings.magRejectTime) {
             a->magRejected += dt;
             a->magDisturbed = 1.0;

@@ -36,6 +36,7 @@ CONSTANTS = {
     "MAG_NORM_TOLERANCE": ("ImuAttitudeQuaternion.c", "IMU_ATTITUDE_MAG_NORM_TOLERANCE"),
     "MAG_DIP_TOLERANCE": ("ImuAttitudeQuaternion.c", "IMU_ATTITUDE_MAG_DIP_TOLERANCE"),
     "MAG_RECOVERY": ("ImuAttitudeQuaternion.c", "IMU_ATTITUDE_MAG_RECOVERY"),
+    "MAG_MIN_CLEAN_TIME": ("ImuAttitudePrivate.h", "IMU_ATTITUDE_MAG_MIN_CLEAN_TIME"),
     **{name: ("ImuMotionBias.c", f"IMU_MOTION_BIAS_{name[5:]}") for name in (
         "BIAS_SIGMA_INIT", "BIAS_FORGETTING_TIME", "BIAS_SIGMA_MOTION", "BIAS_VERTICAL_FORGETTING", "BIAS_CLIP")},
 }
@@ -65,8 +66,9 @@ def _broad_slice():
 
 def _disturbed_simulation():
     """A still start, turns and tilts, a field 30 % stronger for 10 s (a nearby magnet: longer than the
-    8 s mag_reject_time, so it is accepted in the end) and again for 6 s after 3 s of clean field (the
-    rejection budget left then depends on the recovery)."""
+    8 s mag_reject_time, so it is accepted in the end), again for 6 s after 3 s of clean field (the
+    rejection budget left then depends on the recovery) and for 1 s after 3 s more (rejected, and for
+    IMU_ATTITUDE_MAG_MIN_CLEAN_TIME after it)."""
     rng = np.random.default_rng(7)
     n, dt = 6000, 0.01
     t = np.arange(n) * dt
@@ -82,6 +84,7 @@ def _disturbed_simulation():
     mag = np.array([attitude_twin.quat_rotate(c, field) for c in conj])
     mag[3000:4000] *= 1.3
     mag[4300:4900] *= 1.3
+    mag[5200:5300] *= 1.3
     gyr = rate + 0.01 + 0.002 * rng.standard_normal((n, 3))
     acc = acc + 0.05 * rng.standard_normal((n, 3))
     mag = mag + 0.3 * rng.standard_normal((n, 3))
@@ -111,7 +114,8 @@ def test_twin_equals_the_c_filter(recording, options):
 
 def test_the_disturbed_field_is_rejected_and_said():
     """The simulated magnet (field 30 % too strong) is rejected for mag_reject_time, then accepted; the
-    second one is rejected again (the cases the comparison above covers, checked to be exercised), and
+    second one is rejected again, the third, short one until the field has been clean for 0.5 s (the
+    cases the comparison above covers, checked to be exercised), and
     the FMU's output mag_disturbed is 1 exactly while a field is rejected."""
     t, gyr, acc, mag, extra = _disturbed_simulation()
     settings = {**layout.settings_defaults(), **extra, "attitude_mode": 1.0}
@@ -126,6 +130,7 @@ def test_the_disturbed_field_is_rejected_and_said():
     assert np.all(rejected[3010:3790] > 0.0) and rejected[3999] >= 8.0   # budget used up: accepted
     assert rejected[4299] < 4.0                                           # recovered in the clean 3 s
     assert np.all(rejected[4310:4400] > rejected[4299])                   # rejected again
+    assert np.all(said[5201:5345] == 1.0) and np.all(said[5355:5500] == 0.0)  # and 0.5 s after it ends
 
 
 @pytest.mark.parametrize("name", sorted(CONSTANTS))

@@ -29,6 +29,7 @@ SMOOTH_ANGULAR_ACCEL = 1000.0     # ImuAttitudeStep.c IMU_ATTITUDE_SMOOTH_ANGULA
 MAG_NORM_TOLERANCE = 0.1          # ImuAttitudeQuaternion.c IMU_ATTITUDE_MAG_NORM_TOLERANCE
 MAG_DIP_TOLERANCE = 0.1745329252  # ImuAttitudeQuaternion.c IMU_ATTITUDE_MAG_DIP_TOLERANCE [rad]
 MAG_RECOVERY = 2.0                # ImuAttitudeQuaternion.c IMU_ATTITUDE_MAG_RECOVERY
+MAG_MIN_CLEAN_TIME = 0.5          # ImuAttitudePrivate.h IMU_ATTITUDE_MAG_MIN_CLEAN_TIME [s]
 BIAS_SIGMA_INIT = 0.5             # ImuMotionBias.c IMU_MOTION_BIAS_SIGMA_INIT [°/s]
 BIAS_FORGETTING_TIME = 100.0      # ImuMotionBias.c IMU_MOTION_BIAS_FORGETTING_TIME [s]
 BIAS_SIGMA_MOTION = 0.1           # ImuMotionBias.c IMU_MOTION_BIAS_SIGMA_MOTION [°/s]
@@ -175,6 +176,7 @@ class QuaternionFilter:
         self.previous_step = 0.0
         self.heading_offset = 0.0
         self.mag_rejected = 0.0
+        self.mag_clean = MAG_MIN_CLEAN_TIME  # a field never rejected counts as clean
         self.mag_samples = 0.0
         self.step_error = 0.0
         self.tilt_initialised = False
@@ -203,6 +205,7 @@ class QuaternionFilter:
         if self.step_error > RESTART_VARIANCE:
             self.step_error, self.tilt_initialised = 0.0, False
             self.mag_samples = self.mag_rejected = 0.0
+            self.mag_clean = MAG_MIN_CLEAN_TIME
 
     def _tilt(self, acc: np.ndarray, dt: float) -> None:
         if not self.tilt_initialised:
@@ -231,7 +234,9 @@ class QuaternionFilter:
         m = quat_rotate(quat_multiply(self.q_acc, self.q_gyr), mag)
         if not np.linalg.norm(m) > 0.0:
             return
-        if self.yaw_initialised and self.s["mag_reject_time"] > 0.0 and self._disturbed(m):
+        off = self._disturbed(m)
+        self.mag_clean = 0.0 if off else self.mag_clean + dt
+        if self.yaw_initialised and self.s["mag_reject_time"] > 0.0 and (off or self.mag_clean < MAG_MIN_CLEAN_TIME):
             if self.mag_rejected < self.s["mag_reject_time"]:
                 self.mag_rejected += dt
                 self.mag_disturbed = True
