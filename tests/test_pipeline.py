@@ -74,6 +74,16 @@ def test_the_uniform_simulated_field_keeps_the_magnetometer(summary):
     assert any(n.startswith("mag_heading = 1: the magnetometer corrects the heading") for n in model["notes"])
 
 
+def test_the_unchanged_simulated_field_leaves_the_particle_filter_off(summary):
+    """The simulated field around the sensor never changes: the particle filter, run over the
+    calibration recording, declares no hard-iron change, so train leaves it off and says so (the
+    change case: tests/test_field_changes.py)."""
+    model = json.loads((Path(summary.out_dir) / "model" / "model.json").read_text())
+    assert model["settings"]["enable_pf"] == 0.0
+    assert any(n.startswith("enable_pf = 0: the online hard/soft-iron filter, run over the 1 calibration")
+               for n in model["notes"])
+
+
 def test_train_writes_the_filter_settings_its_replay_measured_best(summary):
     """The simulated calibration recording carries an attitude reference: train replays it through the
     FMU's filter for every replayed setting (training.attitude.replay.CANDIDATES), writes the value with

@@ -28,6 +28,7 @@ from training.models.fit_quality import BIAS_FALLBACK_NOTE, SCALE_FACTOR_CONVENT
 from training.models.psobp import PsoBpModel
 from training.models.thermal import (GainBiasFitter, ThermalFit, ThermalModel, apply_thermal,
                                      normalised_temperature, temperature_clusters, temperature_normalisation)
+from training.attitude.field_changes import pf_switch
 from training.attitude.replay import CANDIDATES as REPLAYED_SETTINGS
 from training.attitude.replay import choose_by_replay, keep_better_attitude
 from training.recommend import recommended_settings, sidecar_values
@@ -676,6 +677,7 @@ def _fit(datasets: list[ImuData], seed: int, degree: int | str, progress: bool, 
     chosen = choose_by_replay(coefficients_array(artefact), settings_dict(artefact), replayed or datasets,
                               artefact.notes)
     artefact.settings.update({name: chosen[name] for name in REPLAYED_SETTINGS})
+    artefact.settings.update(pf_switch(coefficients_array(artefact), settings_dict(artefact), datasets, artefact.notes))
     return artefact
 
 
