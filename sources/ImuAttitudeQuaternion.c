@@ -73,13 +73,15 @@ static void ImuAttitudeQuaternionPredict(ImuAttitude *a, const double gyr[3], do
 static void ImuAttitudeQuaternionTilt(ImuAttitude *a, const double acc[3], double dt)
 {
     double inertial[3], lowPassed[3], e[3], turn[4], product[4], n;
+    ImuLowPassDesign design;
     int i;
     if (!a->tiltInitialised) {
         ImuLowPassReset(&a->accLowPass);
         ImuMotionBiasRestart(&a->motionBias);
     }
+    ImuLowPassDesignStep(a->settings.tauAcc, dt, &design);
     ImuQuaternionRotate(a->qGyr, acc, inertial);
-    ImuLowPassStep(&a->accLowPass, inertial, a->settings.tauAcc, dt, lowPassed);
+    ImuLowPassApply(&a->accLowPass, &design, inertial, lowPassed);
     ImuQuaternionRotate(a->qAcc, lowPassed, e);
     n = ImuVectorNorm(e);
     if (!(n > 0.0)) {
@@ -108,8 +110,7 @@ static void ImuAttitudeQuaternionTilt(ImuAttitude *a, const double acc[3], doubl
             e[i] /= n;
         }
         ImuQuaternionMultiply(a->qAcc, a->qGyr, product);
-        ImuMotionBiasUpdate(&a->motionBias, product, e, a->settings.tauAcc, dt, a->tiltInitialised && !a->atRest,
-                            a->bias);
+        ImuMotionBiasUpdate(&a->motionBias, product, e, &design, dt, a->tiltInitialised && !a->atRest, a->bias);
     }
     a->tiltInitialised = 1;
 }

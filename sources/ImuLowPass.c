@@ -19,14 +19,22 @@ void ImuLowPassReset(ImuLowPass *f)
     f->initialised = 0;
 }
 
-void ImuLowPassStep(ImuLowPass *f, const double x[3], double tau, double dt, double y[3])
+void ImuLowPassDesignStep(double tau, double dt, ImuLowPassDesign *d)
 {
     /* Pre-warped analogue cut-off: c = tan(pi fc dt); b = c^2 [1 2 1] / d, a = [1, 2 (c^2 - 1), 1 - sqrt2 c + c^2] / d. */
     const double c = tan(IMU_PI * (IMU_LOW_PASS_SQRT2 / (2.0 * IMU_PI * tau)) * dt);
-    const double d = c * c + IMU_LOW_PASS_SQRT2 * c + 1.0;
-    const double b0 = c * c / d, a1 = 2.0 * (c * c - 1.0) / d, a2 = (1.0 - IMU_LOW_PASS_SQRT2 * c + c * c) / d;
+    const double n = c * c + IMU_LOW_PASS_SQRT2 * c + 1.0;
+    d->b0 = c * c / n;
+    d->a1 = 2.0 * (c * c - 1.0) / n;
+    d->a2 = (1.0 - IMU_LOW_PASS_SQRT2 * c + c * c) / n;
+    d->step = dt > 0.0;
+}
+
+void ImuLowPassApply(ImuLowPass *f, const ImuLowPassDesign *d, const double x[3], double y[3])
+{
+    const double b0 = d->b0, a1 = d->a1, a2 = d->a2;
     int i;
-    if (!(dt > 0.0)) {
+    if (!d->step) {
         for (i = 0; i < 3; i++) {
             y[i] = f->initialised ? f->output[i] : x[i];
         }

@@ -21,13 +21,22 @@ typedef struct {
     int initialised;    /* the filter has taken a step */
 } ImuLowPass;
 
-/** @brief Forget the past: the next sample starts the filter in its steady state. */
-IMU_HIDDEN void ImuLowPassReset(ImuLowPass *f);
+/** Coefficients of one step (direct form II transposed, b = b0 [1 2 1], a = [1 a1 a2]). */
+typedef struct {
+    double b0, a1, a2;
+    int step;           /* the step dt > 0: 0 leaves the filter as it is */
+} ImuLowPassDesign;
+
+/** @brief The coefficients for time constant tau [s] (> 0) and step dt [s]: one design serves every
+ *         filter that steps with the same tau and dt (each design costs a tan()). */
+IMU_HIDDEN void ImuLowPassDesignStep(double tau, double dt, ImuLowPassDesign *d);
 /**
- * @brief Filter one sample x over the step dt [s] with time constant tau [s] (> 0); y is the
- *        output. A step dt <= 0 changes nothing: y is the last output (x before the first step).
+ * @brief Filter one sample x with the coefficients d of time constant tau [s] and step dt [s]; y is
+ *        the output. A step dt <= 0 changes nothing: y is the last output (x before the first step).
  *        The first step dt > 0 starts from the steady state of its x.
  */
-IMU_HIDDEN void ImuLowPassStep(ImuLowPass *f, const double x[3], double tau, double dt, double y[3]);
+IMU_HIDDEN void ImuLowPassApply(ImuLowPass *f, const ImuLowPassDesign *d, const double x[3], double y[3]);
+/** @brief Forget the past: the next sample starts the filter in its steady state. */
+IMU_HIDDEN void ImuLowPassReset(ImuLowPass *f);
 
 #endif

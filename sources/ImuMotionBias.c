@@ -88,8 +88,8 @@ static void ImuMotionBiasKalman(ImuMotionBias *m, const double h[9], const doubl
     }
 }
 
-void ImuMotionBiasUpdate(ImuMotionBias *m, const double q6d[4], const double up[3], double tau, double dt,
-                         int observe, double bias[3])
+void ImuMotionBiasUpdate(ImuMotionBias *m, const double q6d[4], const double up[3], const ImuLowPassDesign *design,
+                         double dt, int observe, double bias[3])
 {
     const double ceiling = ImuMotionBiasVariance(IMU_MOTION_BIAS_SIGMA_INIT);
     const double p = ImuMotionBiasVariance(IMU_MOTION_BIAS_SIGMA_MOTION);
@@ -99,9 +99,9 @@ void ImuMotionBiasUpdate(ImuMotionBias *m, const double q6d[4], const double up[
     ImuQuaternionToMatrix(q6d, r);
     ImuMatrixVector(r, bias, rotated);
     for (i = 0; i < 3; i++) {
-        ImuLowPassStep(&m->rotation[i], &r[3 * i], tau, dt, &h[3 * i]);
+        ImuLowPassApply(&m->rotation[i], design, &r[3 * i], &h[3 * i]);
     }
-    ImuLowPassStep(&m->rotatedBias, rotated, tau, dt, rotatedBias);
+    ImuLowPassApply(&m->rotatedBias, design, rotated, rotatedBias);
     for (i = 0; i < 3; i++) {
         if (m->covariance[4 * i] < ceiling) {
             m->covariance[4 * i] += v;

@@ -39,11 +39,12 @@ IMU_HIDDEN void ImuMotionBiasRestart(ImuMotionBias *m);
 /**
  * @brief One step dt [s] (> 0) after the inclination correction: q6d [w, x, y, z] body -> level
  *        frame after the correction, up [1] the unit low-passed specific force in the level frame
- *        before it (the correction turned it onto (0, 0, -1)), tau [s] the low-pass time constant.
+ *        before it (the correction turned it onto (0, 0, -1)), design the specific force's low-pass
+ *        coefficients of this step (ImuLowPassDesignStep with tau_acc and dt).
  *        With observe set (in motion, after the correction's first step) the measurement updates
  *        bias [rad/s]; otherwise only the low-passes and P advance.
  */
-IMU_HIDDEN void ImuMotionBiasUpdate(ImuMotionBias *m, const double q6d[4], const double up[3], double tau,
-                                    double dt, int observe, double bias[3]);
+IMU_HIDDEN void ImuMotionBiasUpdate(ImuMotionBias *m, const double q6d[4], const double up[3],
+                                    const ImuLowPassDesign *design, double dt, int observe, double bias[3]);
 
 #endif
