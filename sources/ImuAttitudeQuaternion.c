@@ -110,7 +110,9 @@ static void ImuAttitudeQuaternionTilt(ImuAttitude *a, const double acc[3], doubl
             e[i] /= n;
         }
         ImuQuaternionMultiply(a->qAcc, a->qGyr, product);
-        ImuMotionBiasUpdate(&a->motionBias, product, e, &design, dt, a->tiltInitialised && !a->atRest, a->bias);
+        ImuMotionBiasUpdate(&a->motionBias, product, e,
+                            fabs(n - IMU_ATTITUDE_GRAVITY) / (IMU_ATTITUDE_GRAVITY * a->settings.tauAcc), &design, dt,
+                            a->tiltInitialised && !a->atRest, a->bias);
     }
     a->tiltInitialised = 1;
 }

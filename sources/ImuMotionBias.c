@@ -88,8 +88,8 @@ static void ImuMotionBiasKalman(ImuMotionBias *m, const double h[9], const doubl
     }
 }
 
-void ImuMotionBiasUpdate(ImuMotionBias *m, const double q6d[4], const double up[3], const ImuLowPassDesign *design,
-                         double dt, int observe, double bias[3])
+void ImuMotionBiasUpdate(ImuMotionBias *m, const double q6d[4], const double up[3], double rateError,
+                         const ImuLowPassDesign *design, double dt, int observe, double bias[3])
 {
     const double ceiling = ImuMotionBiasVariance(IMU_MOTION_BIAS_SIGMA_INIT);
     const double p = ImuMotionBiasVariance(IMU_MOTION_BIAS_SIGMA_MOTION);
@@ -118,7 +118,7 @@ void ImuMotionBiasUpdate(ImuMotionBias *m, const double q6d[4], const double up[
     for (i = 0; i < 3; i++) {
         e[i] = fmax(-clip, fmin(clip, e[i]));
     }
-    w[0] = w[1] = p * p / v + p;
+    w[0] = w[1] = (p * p / v + p) * (1.0 + rateError * rateError / p);
     w[2] = w[0] / IMU_MOTION_BIAS_VERTICAL_FORGETTING;
     ImuMotionBiasKalman(m, h, e, w, bias);
 }

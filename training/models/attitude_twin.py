@@ -137,10 +137,11 @@ class MotionBias:
         """The low-passes restart with the next step; the covariance is kept."""
         self.rotation_lp, self.rotated_bias_lp = LowPass(), LowPass()
 
-    def update(self, q6d: np.ndarray, up: np.ndarray, tau: float, dt: float, observe: bool,
+    def update(self, q6d: np.ndarray, up: np.ndarray, rate_error: float, tau: float, dt: float, observe: bool,
                bias: np.ndarray) -> np.ndarray:
         """The bias [rad/s] after one step dt [s]: q6d body -> level frame after the correction, up the
-        unit low-passed specific force before it; measured only with observe."""
+        unit low-passed specific force before it, rate_error [rad/s] the inclination-rate error an
+        unaveraged linear acceleration may cause; measured only with observe."""
         r = rotation_matrix(q6d)
         h = self.rotation_lp.step(r.ravel(), tau, dt).reshape(3, 3)
         rotated_bias = self.rotated_bias_lp.step(r @ bias, tau, dt)
@@ -154,7 +155,7 @@ class MotionBias:
             return bias
         e = np.array([up[1] / dt, -up[0] / dt, 0.0]) + np.array([rotated_bias[0], rotated_bias[1], 0.0]) - h @ bias
         e = np.clip(e, -math.radians(BIAS_CLIP), math.radians(BIAS_CLIP))
-        w = p * p / v + p
+        w = (p * p / v + p) * (1.0 + rate_error * rate_error / p)
         gain = self.covariance @ h.T @ np.linalg.inv(h @ self.covariance @ h.T + np.diag([w, w, w / BIAS_VERTICAL_FORGETTING]))
         self.covariance = self.covariance - gain @ h @ self.covariance
         return bias + gain @ e
@@ -220,8 +221,10 @@ class QuaternionFilter:
             turn = np.array([0.0, 1.0, 0.0, 0.0])
         self.q_acc = _normalised(quat_multiply(_normalised(turn), self.q_acc))
         if self.s["motion_bias"] and dt > 0.0:
-            self.bias = self.motion_bias.update(quat_multiply(self.q_acc, self.q_gyr), e / n, self.s["tau_acc"], dt,
-                                                self.tilt_initialised and not self.at_rest, self.bias)
+            rate_error = abs(n - GRAVITY) / (GRAVITY * self.s["tau_acc"])
+            self.bias = self.motion_bias.update(quat_multiply(self.q_acc, self.q_gyr), e / n, rate_error,
+                                                self.s["tau_acc"], dt, self.tilt_initialised and not self.at_rest,
+                                                self.bias)
         self.tilt_initialised = True
 
     def _disturbed(self, m: np.ndarray) -> bool:
