@@ -20,6 +20,8 @@ from contract import layout
 from training.models import attitude_twin
 from training.runtime import run_batch
 
+from rigid_motion import FIELD_NED, ideal_readings
+
 ROOT = Path(__file__).resolve().parents[1]
 BROAD = ROOT.parent / "shared" / "data" / "broad" / "04_undisturbed_slow_rotation_with_breaks_A.csv.gz"
 BOUND_RAD = 1e-9
@@ -75,21 +77,15 @@ def _disturbed_simulation():
     rate = np.zeros((n, 3))
     rate[300:, 0] = 0.8 * np.sin(0.9 * t[300:])
     rate[300:, 2] = 1.2 * np.sin(0.37 * t[300:] + 0.4)
-    q = np.tile([1.0, 0.0, 0.0, 0.0], (n, 1))
-    for k in range(1, n):
-        q[k] = attitude_twin.quat_integrate(q[k - 1], rate[k], dt)
-    conj = q * np.array([1.0, -1.0, -1.0, -1.0])
-    field = np.array([20.0, 0.0, 45.0])
-    acc = np.array([attitude_twin.quat_rotate(c, [0.0, 0.0, -9.80665]) for c in conj])
-    mag = np.array([attitude_twin.quat_rotate(c, field) for c in conj])
+    _, acc, mag = ideal_readings(rate, dt)
     mag[3000:4000] *= 1.3
     mag[4300:4900] *= 1.3
     mag[5200:5300] *= 1.3
     gyr = rate + 0.01 + 0.002 * rng.standard_normal((n, 3))
     acc = acc + 0.05 * rng.standard_normal((n, 3))
     mag = mag + 0.3 * rng.standard_normal((n, 3))
-    return t, gyr, acc, mag, {"field_norm": float(np.linalg.norm(field)),
-                              "field_dip": float(np.arctan2(45.0, 20.0)), "mag_reject_time": 8.0}
+    return t, gyr, acc, mag, {"field_norm": float(np.linalg.norm(FIELD_NED)),
+                              "field_dip": float(np.arctan2(FIELD_NED[2], FIELD_NED[0])), "mag_reject_time": 8.0}
 
 
 @pytest.mark.parametrize("options", [{"gyro_hold": 1.0}, {"gyro_hold": 0.0}, {"mag_heading": 0.0},

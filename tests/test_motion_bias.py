@@ -15,8 +15,9 @@ import numpy as np
 
 from contract import layout
 from training.evaluate import tilt_heading_between
-from training.models import attitude_twin
 from training.runtime import run_batch
+
+from rigid_motion import FIELD_NED, ideal_readings
 
 RATE_HZ = 100.0
 REST_S, MOTION_S = 10.0, 170.0
@@ -33,21 +34,15 @@ def _simulation(bias_step: np.ndarray):
     rate[moving, 0] = 0.6 * np.sin(0.7 * t[moving])
     rate[moving, 1] = 0.5 * np.sin(0.43 * t[moving] + 1.0)
     rate[moving, 2] = 0.9 * np.sin(0.29 * t[moving] + 0.4)
-    q = np.tile([1.0, 0.0, 0.0, 0.0], (n, 1))
-    for k in range(1, n):
-        q[k] = attitude_twin.quat_integrate(q[k - 1], rate[k], dt)
-    conj = q * np.array([1.0, -1.0, -1.0, -1.0])
-    field = np.array([20.0, 0.0, 45.0])
-    acc = np.array([attitude_twin.quat_rotate(c, [0.0, 0.0, -9.80665]) for c in conj])
-    mag = np.array([attitude_twin.quat_rotate(c, field) for c in conj])
+    q, acc, mag = ideal_readings(rate, dt)
     bias = np.deg2rad([0.2, 0.1, -0.1]) + np.where(t[:, None] >= REST_S + 20.0, bias_step, 0.0)
     gyr = rate + bias + 0.002 * rng.standard_normal((n, 3))
     acc = acc + 0.03 * rng.standard_normal((n, 3))
     mag = mag + 0.2 * rng.standard_normal((n, 3))
     inputs = np.zeros((n, len(layout.INPUTS)))
     inputs[:, 0:3], inputs[:, 3:6], inputs[:, 6:9], inputs[:, 9] = gyr, acc, mag, 25.0
-    settings = {"attitude_mode": 1.0, "field_norm": float(np.linalg.norm(field)),
-                "field_dip": float(np.arctan2(45.0, 20.0))}
+    settings = {"attitude_mode": 1.0, "field_norm": float(np.linalg.norm(FIELD_NED)),
+                "field_dip": float(np.arctan2(FIELD_NED[2], FIELD_NED[0]))}
     return t, inputs, q, settings
 
 
