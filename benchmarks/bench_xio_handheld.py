@@ -48,7 +48,6 @@ MERGE_S = 5.0
 RECOVERY_S = 10.0
 _Q = [layout.OUTPUTS.index(n) for n in ("q_w", "q_x", "q_y", "q_z")]
 _ACC = [layout.OUTPUTS.index(n) for n in ("accel_x", "accel_y", "accel_z")]
-_FIELD = [layout.OUTPUTS.index(n) for n in ("field_x", "field_y", "field_z")]
 
 
 def up_in_body(q: np.ndarray) -> np.ndarray:
@@ -147,7 +146,10 @@ def main() -> None:
     for name, q in (("ImuFusion", q_imu), ("x-io Fusion", q_xio)):
         e = angle_deg(up_in_body(q), up_acc)[rest & settle]
         rows.append((f"{name}: inclination at rest vs calibrated accelerometer, RMS [°]", float(np.sqrt(np.mean(e ** 2)))))
-    span = _disturbed_span(res[:, _FIELD], acc_c, rest, t)
+    # The disturbance as the calibrated magnetometer saw it (not the FMU's field output, which the
+    # particle filter, when train switches it on, adapts to the disturbance).
+    mag_c = apply_thermal(artefact.thermal["mag"], data.mag, data.temp) @ mount_matrix(codes).T
+    span = _disturbed_span(mag_c, acc_c, rest, t)
     if span:
         a, b = span
         gyro = _gyro_heading_change(res[:, [0, 1, 2]], q_imu, t, a, b)
