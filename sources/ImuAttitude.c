@@ -45,7 +45,7 @@ void ImuAttitudeReset(ImuAttitude *a)
         a->gain[i] = 0.0;
         a->previousRate[i] = 0.0;
     }
-    a->previousStep = 0.0;
+    a->nominalStep = 0.0;
     ImuMatrixFromEuler(0.0, 0.0, 0.0, a->rotation);
     a->tiltInitialised = 0;
     a->yawInitialised = 0;
@@ -105,11 +105,12 @@ static void ImuAttitudeUpdateBias(ImuAttitude *a, const double gyr[3], const dou
 
 /** @brief Process one sample: gyr [rad/s], acc [m/s^2], mag [uT]; dt [s] since the previous. */
 void ImuAttitudeUpdate(ImuAttitude *a, const double gyr[3], const double acc[3], const double mag[3],
-                       double dt)
+                       double dt, double nominalStep)
 {
     static const double unused[3] = {NAN, NAN, NAN};
     double rate[3];
     int i;
+    a->nominalStep = nominalStep;
     if (!a->settings.magHeading) {
         mag = unused; /* 6D: as without a magnetometer */
     }

@@ -82,7 +82,7 @@ typedef struct {
     double mse[3];          /* rad^2, R_i: moving mean-square acc/mag innovation */
     double gain[3];         /* 1, K_i of the last update (0 where no correction was made) */
     double previousRate[3]; /* rad/s, corrected rate of the previous sample (may be NaN) */
-    double previousStep;    /* s, the previous positive time step (0 before the first) */
+    double nominalStep;     /* s, the guard's nominal step at the last sample (ImuGuardNominalStep; 0 before one is known) */
     int tiltInitialised;    /* roll/pitch were set from the accelerometer */
     int yawInitialised;     /* yaw was set from the magnetometer */
     double bias[3];         /* rad/s, gyro bias estimated at rest */
@@ -117,10 +117,13 @@ IMU_HIDDEN void ImuAttitudeReset(ImuAttitude *a);
 IMU_HIDDEN void ImuAttitudeRestart(ImuAttitude *a, double gap);
 /**
  * @brief Process one sample: gyr [rad/s], acc specific force [m/s^2], mag [uT] (corrected,
- *        body axes); dt [s] since the previous sample (0 on the first; no propagation if <= 0).
+ *        body axes); dt [s] since the previous sample (0 on the first; no propagation if <= 0);
+ *        nominalStep [s] the sampling step before this one (ImuGuardNominalStep: robust to one
+ *        short or long step; 0 when unknown): a step longer than IMU_ATTITUDE_MISSING_STEPS of
+ *        it has lost samples.
  */
 IMU_HIDDEN void ImuAttitudeUpdate(ImuAttitude *a, const double gyr[3], const double acc[3],
-                                  const double mag[3], double dt);
+                                  const double mag[3], double dt, double nominalStep);
 /** @brief Fused roll, pitch, yaw [rad], each in (-pi, pi]. */
 IMU_HIDDEN void ImuAttitudeGetEuler(const ImuAttitude *a, double euler[3]);
 /** @brief Attitude quaternion [w, x, y, z] body -> magnetic NED, w >= 0. */

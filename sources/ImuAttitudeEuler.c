@@ -111,7 +111,6 @@ static void ImuAttitudeEulerPredict(ImuAttitude *a, const double gyr[3], double 
     } else {
         growth += IMU_ATTITUDE_UNTRACKED_MOTION * IMU_ATTITUDE_UNTRACKED_MOTION * dt;
     }
-    a->previousStep = dt;
     for (i = 0; i < 3; i++) {
         a->variance[i] += growth;
     }

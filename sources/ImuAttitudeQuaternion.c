@@ -59,7 +59,6 @@ static void ImuAttitudeQuaternionPredict(ImuAttitude *a, const double gyr[3], do
     } else {
         a->stepError += IMU_ATTITUDE_UNTRACKED_MOTION * IMU_ATTITUDE_UNTRACKED_MOTION * dt;
     }
-    a->previousStep = dt;
     if (a->stepError > IMU_ATTITUDE_RESTART_VARIANCE) {
         a->stepError = 0.0;
         a->tiltInitialised = 0;

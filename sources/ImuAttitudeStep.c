@@ -7,8 +7,9 @@
 #include "ImuAttitudePrivate.h"
 #include "ImuMath.h"
 
-/* A step longer than this many previous steps has missed samples (a dropped sample doubles the
- * step; clock jitter of recordings stays far below it). */
+/* A step longer than this many nominal steps (ImuGuardNominalStep, the median of the recent steps:
+ * one short step is not the reference) has missed samples (a dropped sample doubles the step; clock
+ * jitter of recordings stays far below it). */
 #define IMU_ATTITUDE_MISSING_STEPS 1.5
 /* Angular acceleration [rad/s^2] that smooth motion reaches: a rate change up to this times the
  * step is motion the trapezoidal rule integrates well, not a glitch. BROAD's 20 trials (286 Hz,
@@ -43,7 +44,7 @@ int ImuAttitudeStepRate(const ImuAttitude *a, const double gyr[3], double rate[3
  * The trapezoidal rule assumes the rate varies linearly between two samples. A rate that changed
  * by dw beyond what smooth motion does in a step (IMU_ATTITUDE_SMOOTH_ANGULAR_ACCEL dt) may have
  * changed anywhere within the step, an angle error of up to that excess times dt / 2 (a 35 rad/s
- * spike at 100 Hz: 0.12 rad; hand-held motion: 0). A step longer than IMU_ATTITUDE_MISSING_STEPS previous steps has lost samples: the
+ * spike at 100 Hz: 0.12 rad; hand-held motion: 0). A step longer than IMU_ATTITUDE_MISSING_STEPS nominal steps has lost samples: the
  * motion over the excess time x was not measured; handheld motion turns by about
  * IMU_ATTITUDE_UNTRACKED_MOTION rad/s, an error of up to that rate times x (a dropped sample at
  * 100 Hz: 0.01 rad; 1 s lost: 1 rad).
@@ -58,8 +59,8 @@ double ImuAttitudeStepError(const ImuAttitude *a, const double gyr[3], double dt
             variance += change * change;
         }
     }
-    if (a->previousStep > 0.0 && dt > IMU_ATTITUDE_MISSING_STEPS * a->previousStep) {
-        change = IMU_ATTITUDE_UNTRACKED_MOTION * (dt - a->previousStep);
+    if (a->nominalStep > 0.0 && dt > IMU_ATTITUDE_MISSING_STEPS * a->nominalStep) {
+        change = IMU_ATTITUDE_UNTRACKED_MOTION * (dt - a->nominalStep);
         variance += change * change;
     }
     return variance;

@@ -121,15 +121,56 @@ static int ImuGuardInputs(ImuGuard *g, double fieldNorm, const double raw[IMU_IN
     return ImuGuardPresence(g, raw, found);
 }
 
+double ImuGuardNominalStep(const ImuGuard *g)
+{
+    double sorted[IMU_GUARD_STEP_HISTORY];
+    int i, j;
+    for (i = 0; i < g->stepCount; i++) { /* insertion sort: at most IMU_GUARD_STEP_HISTORY entries */
+        const double x = g->steps[i];
+        for (j = i; j > 0 && sorted[j - 1] > x; j--) {
+            sorted[j] = sorted[j - 1];
+        }
+        sorted[j] = x;
+    }
+    return g->stepCount > 0 ? sorted[g->stepCount / 2] : 0.0;
+}
+
+int ImuGuardStepsValid(const ImuGuard *g)
+{
+    int i;
+    if (g->stepCount < 0 || g->stepCount > IMU_GUARD_STEP_HISTORY || g->stepHead < 0 || g->stepHead >= IMU_GUARD_STEP_HISTORY
+        || (g->stepCount < IMU_GUARD_STEP_HISTORY && g->stepHead != g->stepCount)) {
+        return 0;
+    }
+    for (i = 0; i < g->stepCount; i++) {
+        if (!(g->steps[i] > 0.0 && g->steps[i] <= IMU_GUARD_MAX_STEP)) {
+            return 0;
+        }
+    }
+    return 1;
+}
+
+/** @brief Remember step [s] (finite, > 0; at most IMU_GUARD_MAX_STEP counts) in the step history. */
+static void ImuGuardRememberStep(ImuGuard *g, double step)
+{
+    g->steps[g->stepHead] = fmin(step, IMU_GUARD_MAX_STEP);
+    g->stepHead = (g->stepHead + 1) % IMU_GUARD_STEP_HISTORY;
+    if (g->stepCount < IMU_GUARD_STEP_HISTORY) {
+        g->stepCount++;
+    }
+}
+
 /**
  * @brief Integration step [s] of the sample that follows the previous one after `step` [s]: 0 for
  *        the first sample, a step that is not finite and > 0 (ImuGuardIssueOrder) and a gap
- *        (ImuGuardIssueGap: nothing is integrated across it). Advances the clock by the steps
- *        that are finite and > 0, gaps included (at most IMU_GUARD_MAX_STEP each), and sets the
- *        issue bits in *issues.
+ *        (ImuGuardIssueGap: longer than IMU_GUARD_GAP_STEPS nominal steps, or IMU_GUARD_MAX_STEP;
+ *        nothing is integrated across it). Advances the clock by the steps that are finite and
+ *        > 0, gaps included (at most IMU_GUARD_MAX_STEP each), remembers them for the nominal step
+ *        and sets the issue bits in *issues; *nominal [s] is the nominal step before this sample.
  */
-static double ImuGuardTime(ImuGuard *g, double step, int *issues)
+static double ImuGuardTime(ImuGuard *g, double step, int *issues, double *nominal)
 {
+    *nominal = ImuGuardNominalStep(g);
     if (!g->hasSample) {
         g->hasSample = 1;
         return 0.0;
@@ -139,11 +180,11 @@ static double ImuGuardTime(ImuGuard *g, double step, int *issues)
         return 0.0;
     }
     g->clock += fmin(step, IMU_GUARD_MAX_STEP); /* the clock stays fine-grained after absurd gaps */
-    if (step > IMU_GUARD_MAX_STEP || (g->nominalStep > 0.0 && step > IMU_GUARD_GAP_STEPS * g->nominalStep)) {
+    ImuGuardRememberStep(g, step);
+    if (step > IMU_GUARD_MAX_STEP || (*nominal > 0.0 && step > IMU_GUARD_GAP_STEPS * *nominal)) {
         *issues |= ImuGuardIssueGap;
         return 0.0;
     }
-    g->nominalStep = step;
     return step;
 }
 
@@ -179,11 +220,12 @@ int ImuGuardStep(ImuGuard *g, ImuPipeline *p, double step, const double raw[IMU_
 {
     double in[IMU_INPUT_COUNT];
     int issues = ImuGuardInputs(g, p->settings.fieldNorm, raw, in);
-    const double dt = ImuGuardTime(g, step, &issues);
+    double nominal;
+    const double dt = ImuGuardTime(g, step, &issues, &nominal);
     if (issues & ImuGuardIssueGap) {
         ImuPipelineGap(p, step);
     }
-    ImuPipelineUpdate(p, g->clock, dt, in, out);
+    ImuPipelineUpdate(p, g->clock, dt, nominal, in, out);
     if (ImuGuardOutputs(g, out) && issues == 0) {
         issues |= ImuGuardIssueOutput;
     }

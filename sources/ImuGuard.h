@@ -27,7 +27,12 @@
 #define IMU_GUARD_MAG_MINIMUM 0.02     /* x field_norm: a smaller field magnitude means no field */
 #define IMU_GUARD_TEMP_MIN (-60.0)     /* degC, lower end of the valid temperature range */
 #define IMU_GUARD_TEMP_MAX 125.0       /* degC, upper end of the valid temperature range */
-/* A step longer than this many nominal steps (the last step that was not a gap) is a gap: 1 s at
+/* Steps that set the nominal step: it is the median of the last this many steps that were finite and
+ * > 0, gaps included (the upper one of the middle two while fewer than this have been seen). One short
+ * step (a duplicated time stamp 10 us apart) or one gap cannot move it; a change of the sampling rate
+ * moves it after 3 steps at the new rate. */
+#define IMU_GUARD_STEP_HISTORY 5
+/* A step longer than this many nominal steps (ImuGuardNominalStep) is a gap: 1 s at
  * 100 Hz, in which handheld motion turns by up to about 1 rad, so nothing integrated across it is
  * worth keeping. Shorter losses of samples are left to the attitude filters, which count the lost
  * time as unmeasured motion (ImuAttitude.c, IMU_ATTITUDE_MISSING_STEPS). */
@@ -55,7 +60,9 @@ typedef enum {
 typedef struct {
     double lastValidTemp;               /* degC, last valid temperature (NaN before the first) */
     double clock;                       /* s since the first sample, summed from the steps */
-    double nominalStep;                 /* s, the last step that was not a gap (0 before the second sample) */
+    double steps[IMU_GUARD_STEP_HISTORY]; /* s, the last steps that were finite and > 0, a ring */
+    int stepCount;                      /* entries of steps in use, 0..IMU_GUARD_STEP_HISTORY */
+    int stepHead;                       /* index of steps the next step is written to, 0..IMU_GUARD_STEP_HISTORY - 1 */
     double held[IMU_OUTPUT_COUNT];      /* last finite outputs (initial outputs before the first) */
     int hasSample;                      /* 1 once a sample was consumed */
     int present;                        /* IMU_GUARD_SENSORS bits of the sensors that delivered a valid sample */
@@ -75,6 +82,10 @@ IMU_HIDDEN void ImuGuardReset(ImuGuard *g, double declination);
  */
 IMU_HIDDEN int ImuGuardStep(ImuGuard *g, ImuPipeline *p, double step, const double raw[IMU_INPUT_COUNT],
                             double out[IMU_OUTPUT_COUNT]);
+/** @brief The nominal step [s] (IMU_GUARD_STEP_HISTORY): 0 before a step was seen. */
+IMU_HIDDEN double ImuGuardNominalStep(const ImuGuard *g);
+/** @brief 1 if the step history's count, head and entries are ones ImuGuardStep can leave (a restored state). */
+IMU_HIDDEN int ImuGuardStepsValid(const ImuGuard *g);
 /** @brief IMU_GUARD_SENSORS bits of the sensors treated as absent (no valid sample yet). */
 IMU_HIDDEN int ImuGuardAbsent(const ImuGuard *g);
 

@@ -284,7 +284,7 @@ static const double *ImuPipelineHeadingField(const ImuPipeline *p, const double 
 
 /** @brief Process one sample at time t [s] since the first, dt [s] after the previous one: raw inputs
  *         in (ImuLayout.h units) -> outputs out. */
-void ImuPipelineUpdate(ImuPipeline *p, double t, double dt, const double in[IMU_INPUT_COUNT],
+void ImuPipelineUpdate(ImuPipeline *p, double t, double dt, double nominalStep, const double in[IMU_INPUT_COUNT],
                        double out[IMU_OUTPUT_COUNT])
 {
     const double temperature = in[ImuInTemp];
@@ -301,7 +301,8 @@ void ImuPipelineUpdate(ImuPipeline *p, double t, double dt, const double in[IMU_
     }
     out[ImuOutCalibrationValid] = p->rangeIssues == 0 ? 1.0 : 0.0;
     ImuPipelineMount(&p->settings.mount, out);
-    ImuAttitudeUpdate(&p->attitude, &out[ImuOutRateX], &out[ImuOutAccelX], ImuPipelineHeadingField(p, out), dt);
+    ImuAttitudeUpdate(&p->attitude, &out[ImuOutRateX], &out[ImuOutAccelX], ImuPipelineHeadingField(p, out), dt,
+                      nominalStep);
     ImuAttitudeGetEuler(&p->attitude, &out[ImuOutRoll]);
     out[ImuOutHeading] = ImuWrapAngle(out[ImuOutYaw] + p->settings.declination);
     ImuAttitudeGetQuaternion(&p->attitude, &out[ImuOutQW]);

@@ -111,10 +111,12 @@ IMU_HIDDEN void ImuPipelineGap(ImuPipeline *p, double gap);
  * @param t time of the sample [s] since the first one (the clock of the time-dependent signals:
  *        alignment, correction terms, PSO-BP temperature rate; it does not decrease).
  * @param dt integration step [s] from the previous sample (0: nothing is propagated).
+ * @param nominalStep the sampling step [s] before this sample (ImuGuardNominalStep; 0 when unknown).
  * @param in IMU_INPUT_COUNT raw inputs (rad/s, m/s^2, uT, degC, then the auxiliary inputs).
  * @param out IMU_OUTPUT_COUNT outputs (see ImuLayout.h).
  */
-IMU_HIDDEN void ImuPipelineUpdate(ImuPipeline *p, double t, double dt, const double in[IMU_INPUT_COUNT], double out[IMU_OUTPUT_COUNT]);
+IMU_HIDDEN void ImuPipelineUpdate(ImuPipeline *p, double t, double dt, double nominalStep, const double in[IMU_INPUT_COUNT],
+                                  double out[IMU_OUTPUT_COUNT]);
 /** @brief One line naming the models of the ImuRangeIssue bits `issues` with their calibrated
  *         ranges (degC, degC/s, uT) into text (at most size bytes, NUL-terminated). */
 IMU_HIDDEN void ImuPipelineDescribeRanges(const ImuPipeline *p, int issues, char *text, size_t size);

@@ -352,7 +352,7 @@ static void logIssue(const ModelInstance *mi, const char *function, int issue, d
     case ModelIssueGap:
         ModelLog(mi, ModelWarning, LogBadInput, "%s: t = %g s: a gap of %g s since the previous sample (more than %g x the nominal step %g s): "
                  "nothing is integrated across it, the attitude restarts from the accelerometer and magnetometer as at power-on (gyro bias kept)",
-                 function, t, m->stepSize, IMU_GUARD_GAP_STEPS, m->runtime.guard.nominalStep);
+                 function, t, m->stepSize, IMU_GUARD_GAP_STEPS, ImuGuardNominalStep(&m->runtime.guard));
         break;
     case ModelIssueStep:
         ModelLog(mi, ModelWarning, LogBadInput, "%s: t = %g s: communicationStepSize = %g s must be finite and > 0 (and t and t + h finite): the step is discarded, outputs hold their last values",
@@ -528,6 +528,9 @@ static const char *restoredStateProblem(ModelState *s) {
     }
     if ((m->runtime.guard.hasSample != 0 && m->runtime.guard.hasSample != 1) || (m->runtime.guard.present & ~IMU_GUARD_SENSORS) != 0) {
         return "the guard's hasSample or present bits are invalid";
+    }
+    if (!ImuGuardStepsValid(&m->runtime.guard)) {
+        return "the guard's step history (count, head or a step) is invalid";
     }
     if (!isfinite(s->time) || !isfinite(m->stepSize) || !allFinite(m->runtime.guard.held, IMU_OUTPUT_COUNT)) {
         return "the time, step size [s] or held outputs are not finite";

@@ -39,6 +39,7 @@ CONSTANTS = {
     "MAG_DIP_TOLERANCE": ("ImuAttitudeQuaternion.c", "IMU_ATTITUDE_MAG_DIP_TOLERANCE"),
     "MAG_RECOVERY": ("ImuAttitudeQuaternion.c", "IMU_ATTITUDE_MAG_RECOVERY"),
     "MAG_MIN_CLEAN_TIME": ("ImuAttitudePrivate.h", "IMU_ATTITUDE_MAG_MIN_CLEAN_TIME"),
+    "STEP_HISTORY": ("ImuGuard.h", "IMU_GUARD_STEP_HISTORY"),
     **{name: ("ImuMotionBias.c", f"IMU_MOTION_BIAS_{name[5:]}") for name in (
         "BIAS_SIGMA_INIT", "BIAS_FORGETTING_TIME", "BIAS_SIGMA_MOTION", "BIAS_VERTICAL_FORGETTING", "BIAS_CLIP")},
 }
@@ -70,7 +71,8 @@ def _disturbed_simulation():
     """A still start, turns and tilts, a field 30 % stronger for 10 s (a nearby magnet: longer than the
     8 s mag_reject_time, so it is accepted in the end), again for 6 s after 3 s of clean field (the
     rejection budget left then depends on the recovery) and for 1 s after 3 s more (rejected, and for
-    IMU_ATTITUDE_MAG_MIN_CLEAN_TIME after it)."""
+    IMU_ATTITUDE_MAG_MIN_CLEAN_TIME after it). One sample is stamped 10 µs after the one before it (a
+    short step is not the nominal step) and the time after another runs one step late (a lost sample: a step of two nominal ones)."""
     rng = np.random.default_rng(7)
     n, dt = 6000, 0.01
     t = np.arange(n) * dt
@@ -84,6 +86,8 @@ def _disturbed_simulation():
     gyr = rate + 0.01 + 0.002 * rng.standard_normal((n, 3))
     acc = acc + 0.05 * rng.standard_normal((n, 3))
     mag = mag + 0.3 * rng.standard_normal((n, 3))
+    t[1500] = t[1499] + 1e-5
+    t[2500:] += dt
     return t, gyr, acc, mag, {"field_norm": float(np.linalg.norm(FIELD_NED)),
                               "field_dip": float(np.arctan2(FIELD_NED[2], FIELD_NED[0])), "mag_reject_time": 8.0}
 
@@ -100,9 +104,10 @@ def test_twin_equals_the_c_filter(recording, options):
     q_c = q_c * np.where(q_c[:, :1] < 0.0, -1.0, 1.0)
     f = attitude_twin.QuaternionFilter(settings)
     steps = np.diff(t, prepend=t[0])
+    nominal = attitude_twin.nominal_steps(steps)
     q_twin, disturbed = [], []
     for k in range(len(t)):
-        q_twin.append(f.update(gyr[k], acc[k], mag[k], float(steps[k])))
+        q_twin.append(f.update(gyr[k], acc[k], mag[k], float(steps[k]), nominal[k]))
         disturbed.append(float(f.mag_disturbed))
     assert _angle(q_c, np.array(q_twin)) < BOUND_RAD
     assert np.array_equal(out[:, layout.OUTPUTS.index("mag_disturbed")], np.array(disturbed))
@@ -117,8 +122,10 @@ def test_the_disturbed_field_is_rejected_and_said():
     settings = {**layout.settings_defaults(), **extra, "attitude_mode": 1.0}
     f = attitude_twin.QuaternionFilter(settings)
     rejected = []
+    steps = np.diff(t, prepend=t[0])
+    nominal = attitude_twin.nominal_steps(steps)
     for k in range(len(t)):
-        f.update(gyr[k], acc[k], mag[k], float(t[k] - t[k - 1]) if k else 0.0)
+        f.update(gyr[k], acc[k], mag[k], float(steps[k]), nominal[k])
         rejected.append(f.mag_rejected)
     rejected = np.array(rejected)
     said = _c_outputs(settings, t, gyr, acc, mag)[:, layout.OUTPUTS.index("mag_disturbed")]

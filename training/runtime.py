@@ -100,6 +100,7 @@ _TEXT = ctypes.POINTER(ctypes.c_char_p)
 SIGNATURES = {
     "ImuBatchRun": ([_DP, _SZ, _DP, _SZ, _SZ, _DP, _DP, _DP], ctypes.c_int),
     "ImuBatchRunEuler": ([_DP, _SZ, _DP, _SZ, ctypes.c_int, _SZ, _DP, _DP, _DP], ctypes.c_int),
+    "ImuBatchRunIssues": ([_DP, _SZ, _DP, _SZ, _SZ, _DP, _DP, _DP, _IP], ctypes.c_int),
     "ImuBatchEulerAllAdditions": ([], ctypes.c_int),
     "ImuBatchCheckSettings": ([_DP, _SZ, _TEXT], ctypes.c_int),
     "ImuBatchLayout": ([_IP] * 5, None),
@@ -199,6 +200,23 @@ def run_batch(coefficients, settings, t, inputs, euler_additions: int | None = N
     if code != 0:
         raise _error(lib, code, s)
     return out
+
+
+def run_batch_issues(coefficients, settings, t, inputs) -> tuple[np.ndarray, np.ndarray]:
+    """run_batch (every Euler addition, as the FMU) and the guard's ImuGuardIssue bits of every
+    sample (sources/ImuGuard.h: what the FMU reports as warnings): ((N, len(OUTPUTS)), (N,) int)."""
+    lib = load_runtime()
+    c = _as_array("coefficients", coefficients, (-1,))
+    s = _as_array("settings", settings, (-1,))
+    tt = _as_array("t", t, (-1,))
+    x = _as_array("inputs", inputs, (tt.shape[0], len(layout.INPUTS)))
+    out = np.empty((tt.shape[0], len(layout.OUTPUTS)), dtype=np.float64)
+    issues = np.zeros(tt.shape[0], dtype=np.intc)
+    code = lib.ImuBatchRunIssues(pointer(c), c.size, pointer(s), s.size, tt.shape[0], pointer(tt), pointer(x),
+                                 pointer(out), issues.ctypes.data_as(_IP))
+    if code != 0:
+        raise _error(lib, code, s)
+    return out, issues
 
 
 def term_signals(t, components, temperature, aux=None) -> np.ndarray:

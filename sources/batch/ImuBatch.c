@@ -18,10 +18,11 @@ int ImuBatchCheckSettings(const double *settings, size_t nSettings, const char *
     return result;
 }
 
-/** @brief ImuBatchRun with the Euler fusion's additions eulerAdditions (ImuEulerAddition bits). */
+/** @brief ImuBatchRun with the Euler fusion's additions eulerAdditions (ImuEulerAddition bits); the
+ *         guard's issue bits of sample k go to issues[k] unless issues is NULL. */
 static int ImuBatchRunWith(const double *coefficients, size_t nCoefficients, const double *settings,
                            size_t nSettings, int eulerAdditions, size_t nSamples, const double *t,
-                           const double *inputs, double *outputs)
+                           const double *inputs, double *outputs, int *issues)
 {
     ImuRuntime runtime;
     const char *message;
@@ -37,7 +38,10 @@ static int ImuBatchRunWith(const double *coefficients, size_t nCoefficients, con
     runtime.pipeline.attitude.settings.eulerAdditions = eulerAdditions;
     for (k = 0; k < nSamples; k++) {
         const double step = k > 0 ? t[k] - last : 0.0;
-        (void)ImuRuntimeStep(&runtime, step, inputs + k * IMU_INPUT_COUNT, outputs + k * IMU_OUTPUT_COUNT);
+        const int found = ImuRuntimeStep(&runtime, step, inputs + k * IMU_INPUT_COUNT, outputs + k * IMU_OUTPUT_COUNT);
+        if (issues != NULL) {
+            issues[k] = found;
+        }
         if (k == 0 || step > 0.0) { /* a time that does not increase is not a sample time to step from */
             last = t[k];
         }
@@ -55,7 +59,18 @@ int ImuBatchRun(const double *coefficients, size_t nCoefficients, const double *
                 double *outputs)
 {
     return ImuBatchRunWith(coefficients, nCoefficients, settings, nSettings, IMU_EULER_ALL_ADDITIONS, nSamples,
-                           t, inputs, outputs);
+                           t, inputs, outputs, NULL);
+}
+
+int ImuBatchRunIssues(const double *coefficients, size_t nCoefficients, const double *settings,
+                      size_t nSettings, size_t nSamples, const double *t, const double *inputs,
+                      double *outputs, int *issues)
+{
+    if (nSamples > 0 && issues == NULL) {
+        return ImuRuntimeNullPointer;
+    }
+    return ImuBatchRunWith(coefficients, nCoefficients, settings, nSettings, IMU_EULER_ALL_ADDITIONS, nSamples,
+                           t, inputs, outputs, issues);
 }
 
 int ImuBatchRunEuler(const double *coefficients, size_t nCoefficients, const double *settings,
@@ -66,7 +81,7 @@ int ImuBatchRunEuler(const double *coefficients, size_t nCoefficients, const dou
         return ImuRuntimeBadSettings;
     }
     return ImuBatchRunWith(coefficients, nCoefficients, settings, nSettings, eulerAdditions, nSamples, t,
-                           inputs, outputs);
+                           inputs, outputs, NULL);
 }
 
 /** @brief The Euler fusion's additions that the FMU uses (every ImuEulerAddition bit). */

@@ -23,6 +23,14 @@ IMU_EXPORT int ImuBatchRun(const double *coefficients, size_t nCoefficients, con
                            size_t nSettings, size_t nSamples, const double *t, const double *inputs,
                            double *outputs);
 /**
+ * @brief ImuBatchRun that also writes the guard's ImuGuardIssue bits (ImuGuard.h) of sample k to
+ *        issues[k] (nSamples ints): what the FMU reports as warnings, per sample.
+ * @return as ImuBatchRun; ImuRuntimeNullPointer when issues is NULL and nSamples > 0.
+ */
+IMU_EXPORT int ImuBatchRunIssues(const double *coefficients, size_t nCoefficients, const double *settings,
+                                 size_t nSettings, size_t nSamples, const double *t, const double *inputs,
+                                 double *outputs, int *issues);
+/**
  * @brief ImuBatchRun with only some of the project's additions to the Euler fusion (attitude_mode 0):
  *        eulerAdditions is a sum of ImuEulerAddition bits (ImuAttitude.h; 0 = the method as issue 2
  *        describes it). Not an FMU parameter: the FMU always runs every addition (ImuBatchRun);

@@ -25,6 +25,7 @@ REST_MIN_TIME = 1.5               # ImuRestDetector.h IMU_REST_MIN_TIME [s]
 UNTRACKED_MOTION = 1.0            # ImuAttitudePrivate.h IMU_ATTITUDE_UNTRACKED_MOTION [rad/s]
 RESTART_VARIANCE = 0.0304617420   # ImuAttitudePrivate.h IMU_ATTITUDE_RESTART_VARIANCE [rad²]
 MISSING_STEPS = 1.5               # ImuAttitudeStep.c IMU_ATTITUDE_MISSING_STEPS
+STEP_HISTORY = 5                  # ImuGuard.h IMU_GUARD_STEP_HISTORY
 SMOOTH_ANGULAR_ACCEL = 1000.0     # ImuAttitudeStep.c IMU_ATTITUDE_SMOOTH_ANGULAR_ACCEL [rad/s²]
 MAG_NORM_TOLERANCE = 0.1          # ImuAttitudeQuaternion.c IMU_ATTITUDE_MAG_NORM_TOLERANCE
 MAG_DIP_TOLERANCE = 0.1745329252  # ImuAttitudeQuaternion.c IMU_ATTITUDE_MAG_DIP_TOLERANCE [rad]
@@ -72,24 +73,33 @@ def wrap(angle: float) -> float:
 
 @dataclass
 class LowPass:
-    """Second-order Butterworth low-pass of a 3-vector (ImuLowPass.c)."""
+    """Second-order Butterworth low-pass of a 3-vector (ImuLowPass.c), started by the mean of its
+    first tau seconds."""
 
     state: np.ndarray = field(default_factory=lambda: np.zeros((2, 3)))
     output: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    total: np.ndarray | float = 0.0
+    mean_time: float = 0.0
+    count: int = 0
     initialised: bool = False
 
     def step(self, x: np.ndarray, tau: float, dt: float) -> np.ndarray:
         """The filtered x after a step dt [s] with time constant tau [s]."""
         if not dt > 0.0:
-            return self.output.copy() if self.initialised else x.copy()
+            return self.output.copy() if self.count else x.copy()
         c = math.tan(math.pi * (math.sqrt(2.0) / (2.0 * math.pi * tau)) * dt)
         d = c * c + math.sqrt(2.0) * c + 1.0
         b0, a1, a2 = c * c / d, 2.0 * (c * c - 1.0) / d, (1.0 - math.sqrt(2.0) * c + c * c) / d
         if not self.initialised:
-            self.state = np.stack([x * (1.0 - b0), x * (b0 - a2)])
+            self.count, self.mean_time, self.total = self.count + 1, self.mean_time + dt, self.total + x
+            self.output = self.total / self.count
+            if self.mean_time >= tau:
+                self.state = np.stack([self.output * (1.0 - b0), self.output * (b0 - a2)])
+                self.initialised = True
+            return self.output.copy()
         y = b0 * x + self.state[0]
         self.state = np.stack([2.0 * b0 * x - a1 * y + self.state[1], b0 * x - a2 * y])
-        self.output, self.initialised = y, True
+        self.output = y
         return y.copy()
 
 
@@ -174,7 +184,7 @@ class QuaternionFilter:
         self.motion_bias = MotionBias()
         self.bias = np.zeros(3)
         self.previous_rate = np.zeros(3)
-        self.previous_step = 0.0
+        self.nominal_step = 0.0
         self.heading_offset = 0.0
         self.mag_rejected = 0.0
         self.mag_clean = MAG_MIN_CLEAN_TIME  # a field never rejected counts as clean
@@ -192,8 +202,8 @@ class QuaternionFilter:
     def _step_variance(self, gyr: np.ndarray, dt: float) -> float:
         change = 0.5 * np.maximum(np.abs(gyr - self.previous_rate) - SMOOTH_ANGULAR_ACCEL * dt, 0.0) * dt
         variance = float(np.sum(change ** 2))
-        if self.previous_step > 0.0 and dt > MISSING_STEPS * self.previous_step:
-            variance += (UNTRACKED_MOTION * (dt - self.previous_step)) ** 2
+        if self.nominal_step > 0.0 and dt > MISSING_STEPS * self.nominal_step:
+            variance += (UNTRACKED_MOTION * (dt - self.nominal_step)) ** 2
         return variance
 
     def _predict(self, gyr: np.ndarray, dt: float) -> None:
@@ -202,7 +212,6 @@ class QuaternionFilter:
         self.step_error *= math.exp(-dt / self.s["tau_acc"])
         self.q_gyr = quat_integrate(self.q_gyr, self._step_rate(gyr), dt)
         self.step_error += self._step_variance(gyr, dt)
-        self.previous_step = dt
         if self.step_error > RESTART_VARIANCE:
             self.step_error, self.tilt_initialised = 0.0, False
             self.mag_samples = self.mag_rejected = 0.0
@@ -251,9 +260,11 @@ class QuaternionFilter:
         self.heading_offset = wrap(self.heading_offset + k * wrap(-math.atan2(m[1], m[0]) - self.heading_offset))
         self.yaw_initialised = True
 
-    def update(self, gyr: np.ndarray, acc: np.ndarray, mag: np.ndarray, dt: float) -> np.ndarray:
+    def update(self, gyr: np.ndarray, acc: np.ndarray, mag: np.ndarray, dt: float, nominal_step: float) -> np.ndarray:
         """One sample of corrected gyr [rad/s], acc [m/s²], mag [µT] (finite), dt [s] after the
-        previous (0 first); returns the body -> magnetic NED quaternion [w, x, y, z], w ≥ 0."""
+        previous (0 first), nominal_step [s] the sampling step before it (nominal_steps); returns the
+        body -> magnetic NED quaternion [w, x, y, z], w ≥ 0."""
+        self.nominal_step = nominal_step
         if self.s["rest_gyro_threshold"] > 0.0 and dt > 0.0:
             self.at_rest = self.rest.update(gyr, acc, dt, self.s["rest_gyro_threshold"], self.s["rest_acc_threshold"])
             if self.at_rest:
@@ -276,4 +287,18 @@ def run_twin(settings: dict[str, float], t: np.ndarray, gyr: np.ndarray, acc: np
     """(N, 4) body -> magnetic NED quaternions of the filter over a recording of finite samples."""
     f = QuaternionFilter(settings)
     steps = np.diff(t, prepend=t[0])
-    return np.array([f.update(gyr[k], acc[k], mag[k], float(steps[k])) for k in range(len(t))])
+    nominal = nominal_steps(steps)
+    return np.array([f.update(gyr[k], acc[k], mag[k], float(steps[k]), nominal[k]) for k in range(len(t))])
+
+
+def nominal_steps(steps: np.ndarray) -> list[float]:
+    """The guard's nominal step [s] before each sample (sources/ImuGuard.c ImuGuardNominalStep):
+    the median of the last STEP_HISTORY steps (positive steps of a recording without gaps; the
+    upper of the middle two while fewer are known), 0 before the first step."""
+    history: list[float] = []
+    nominal = []
+    for k, step in enumerate(steps):
+        nominal.append(sorted(history)[len(history) // 2] if history else 0.0)
+        if k > 0:
+            history = (history + [float(step)])[-STEP_HISTORY:]
+    return nominal
