@@ -36,27 +36,55 @@ def run_case(case: str, tmp: Path) -> dict:
 
 @pytest.fixture(scope="module")
 def gsens(tmp_path_factory):
-    tmp = tmp_path_factory.mktemp("gsens")
-    return run_case("gsens", tmp), tmp
+    """The g-sensitivity case, with every significance test the diagnosis made recorded as (families
+    fitted together, the count it was Bonferroni-corrected by) in the order made."""
+    from training.diagnosis import diagnose as module
+    tmp, tests = tmp_path_factory.mktemp("gsens"), []
+    fit = module.fit_candidates
+
+    def recorded(cands, r, base, offset_only, n_tests):
+        tests.append((tuple(c.name for c in cands), n_tests))
+        return fit(cands, r, base, offset_only, n_tests)
+
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setattr(module, "fit_candidates", recorded)
+        result = run_case("gsens", tmp)
+    return result, tmp, tests
 
 
 def test_diagnosis_is_deterministic(gsens):
-    result, tmp = gsens
+    result, tmp, _ = gsens
     again = diagnose(sorted((tmp / "data").glob("*.csv.gz")), tmp / "model" / "model.json", tmp / "again",
                      seed=0, plots=False)
     assert json.loads(json.dumps(again)) == json.loads(json.dumps(result))
     assert (tmp / "again" / "model.json").read_bytes() == (tmp / "report" / "model.json").read_bytes()
 
 
+def test_each_p_value_is_corrected_by_the_number_of_families_tried_beside_it(gsens):
+    # A round of tests is the families scored alone in one selection, or the families tried as the
+    # next addition to the same selected ones; each p is multiplied by that round's size.
+    _, _, tests = gsens
+    rounds: list[list[int]] = []
+    previous = None
+    for families, n_tests in tests:
+        key = (len(families), families[:-1])
+        if key != previous:
+            rounds.append([])
+        rounds[-1].append(n_tests)
+        previous = key
+    assert len(rounds) >= 2 and max(len(r) for r in rounds) > 1
+    assert all(set(r) == {len(r)} for r in rounds), [(len(r), sorted(set(r))) for r in rounds]
+
+
 def test_gyro_g_sensitivity_is_found_and_removed(gsens):
-    result, _ = gsens
+    result, _, _ = gsens
     assert result["selected"]["target"] == "gyr"
     assert set(result["selected"]["regressors"]) == {"acc_x", "acc_y", "acc_z"}
     assert result["improvement_pct"] >= GSENS_MIN_IMPROVEMENT_PCT
 
 
 def test_report_files_and_fixed_keys(gsens):
-    result, tmp = gsens
+    result, tmp, _ = gsens
     doc = json.loads((tmp / "report" / "diagnosis.json").read_text())
     assert KEYS <= set(doc) and doc == json.loads(json.dumps(result))
     assert all({"name", "target", "regressors", "explained_fraction", "p_value"} <= set(c) for c in doc["candidates"])
@@ -66,7 +94,7 @@ def test_report_files_and_fixed_keys(gsens):
 
 
 def test_new_artefact_carries_the_terms_into_the_runtime(gsens):
-    _, tmp = gsens
+    _, tmp, _ = gsens
     art = load_artefact(tmp / "report" / "model.json")
     assert {t["a"] for t in art.terms} >= {"acc_x", "acc_y", "acc_z"}
     c = coefficients_array(art)
