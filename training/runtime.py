@@ -169,6 +169,15 @@ def euler_all_additions() -> int:
     return int(load_runtime().ImuBatchEulerAllAdditions())
 
 
+def _run_arrays(coefficients, settings, t, inputs):
+    """The checked contiguous float64 arrays of a run (coefficients, settings, t, inputs) and its
+    empty (N, len(OUTPUTS)) output array."""
+    tt = _as_array("t", t, (-1,))
+    return (_as_array("coefficients", coefficients, (-1,)), _as_array("settings", settings, (-1,)), tt,
+            _as_array("inputs", inputs, (tt.shape[0], len(layout.INPUTS))),
+            np.empty((tt.shape[0], len(layout.OUTPUTS)), dtype=np.float64))
+
+
 def run_batch(coefficients, settings, t, inputs, euler_additions: int | None = None) -> np.ndarray:
     """Run the C pipeline over a recording.
 
@@ -183,11 +192,7 @@ def run_batch(coefficients, settings, t, inputs, euler_additions: int | None = N
     shapes or when the runtime rejects the coefficients or settings.
     """
     lib = load_runtime()
-    c = _as_array("coefficients", coefficients, (-1,))
-    s = _as_array("settings", settings, (-1,))
-    tt = _as_array("t", t, (-1,))
-    x = _as_array("inputs", inputs, (tt.shape[0], len(layout.INPUTS)))
-    out = np.empty((tt.shape[0], len(layout.OUTPUTS)), dtype=np.float64)
+    c, s, tt, x, out = _run_arrays(coefficients, settings, t, inputs)
     if euler_additions is None:
         code = lib.ImuBatchRun(pointer(c), c.size, pointer(s), s.size, tt.shape[0],
                                pointer(tt), pointer(x), pointer(out))
@@ -206,11 +211,7 @@ def run_batch_issues(coefficients, settings, t, inputs) -> tuple[np.ndarray, np.
     """run_batch (every Euler addition, as the FMU) and the guard's ImuGuardIssue bits of every
     sample (sources/ImuGuard.h: what the FMU reports as warnings): ((N, len(OUTPUTS)), (N,) int)."""
     lib = load_runtime()
-    c = _as_array("coefficients", coefficients, (-1,))
-    s = _as_array("settings", settings, (-1,))
-    tt = _as_array("t", t, (-1,))
-    x = _as_array("inputs", inputs, (tt.shape[0], len(layout.INPUTS)))
-    out = np.empty((tt.shape[0], len(layout.OUTPUTS)), dtype=np.float64)
+    c, s, tt, x, out = _run_arrays(coefficients, settings, t, inputs)
     issues = np.zeros(tt.shape[0], dtype=np.intc)
     code = lib.ImuBatchRunIssues(pointer(c), c.size, pointer(s), s.size, tt.shape[0], pointer(tt), pointer(x),
                                  pointer(out), issues.ctypes.data_as(_IP))
