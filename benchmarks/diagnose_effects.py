@@ -1,6 +1,8 @@
-"""`imufmu diagnose` on undeclared effects: the table in docs/diagnosis/effects.md (issue 14).
+"""`imufmu diagnose` on undeclared effects: the tables in docs/diagnosis/effects.md (issue 14) and
+docs/diagnosis/effects_in_calibration.md (issue 30: the effect in the calibration recording too).
 
     python benchmarks/diagnose_effects.py [--out docs/diagnosis/effects.md] [--work DIR]
+    python benchmarks/diagnose_effects.py --in-calibration [--out docs/diagnosis/effects_in_calibration.md]
 
 Trains the diag_base sensor on scenarios/variants/diag_calibration_clean.toml, simulates the
 held-out handheld recording scenarios/variants/diag_effects.toml once, injects every effect of the
@@ -8,6 +10,8 @@ tests' generator (tests/effects.py) and diagnoses each at the defaults. For each
 selected, its physical reading, the held-out error before/after (training.diagnosis.diagnose's metric) and
 the same held-out error through the FMU (fmpy, FMI 2) built from the base and the diagnosed
 artefacts. The noise floor is the sensor's white noise per sample (benchmarks/effect_sizes.py).
+With --in-calibration every effect is injected into the calibration recording as well (as on a real
+sensor, whose effects are present whenever it runs), and the model is trained on that.
 """
 from __future__ import annotations
 
@@ -29,7 +33,16 @@ from training.simulator import load_scenario, simulate  # noqa: E402
 from training.train import train  # noqa: E402
 
 VARIANTS = ROOT / "scenarios" / "variants"
-COMMAND = "python benchmarks/diagnose_effects.py --out docs/diagnosis/effects.md"
+COMMANDS = {False: "python benchmarks/diagnose_effects.py --out docs/diagnosis/effects.md",
+            True: "python benchmarks/diagnose_effects.py --in-calibration --out docs/diagnosis/effects_in_calibration.md"}
+#: What each table's training saw.
+TRAINING = {False: "trained on `scenarios/variants/diag_calibration_clean.toml` (its declared errors are all in "
+                   "the model); every effect is injected by the tests' generator (`tests/effects.py`) into one "
+                   "held-out handheld recording",
+            True: "every effect injected by the tests' generator (`tests/effects.py`, the same magnitudes) into the "
+                  "calibration recording `scenarios/variants/diag_calibration_clean.toml` AND into one held-out "
+                  "handheld recording; trained on the calibration recording with the effect, so `train`'s linear "
+                  "fit saw it (the diagnosis refits the triad's gain matrix with every family)"}
 NOISE = {"gyr": "0.030 °/s", "acc": "0.0098 m/s²", "mag": "0.10 µT"}
 
 
@@ -46,10 +59,15 @@ def _row(name: str, result: dict, fmu_pct: float | None) -> str:
 
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--out", type=Path, default=ROOT / "docs" / "diagnosis" / "effects.md")
+    parser.add_argument("--out", type=Path, default=None,
+                        help="table to write (default docs/diagnosis/effects.md, or effects_in_calibration.md)")
+    parser.add_argument("--in-calibration", action="store_true",
+                        help="inject every effect into the calibration recording too and train on it")
     parser.add_argument("--work", type=Path, default=None, help="working folder (default: a temporary one)")
     args = parser.parse_args(argv)
     from tqdm import tqdm
+    both = args.in_calibration
+    out = args.out or ROOT / "docs" / "diagnosis" / ("effects_in_calibration.md" if both else "effects.md")
     work = args.work or Path(tempfile.mkdtemp(prefix="diagnose_effects_"))
     cal = simulate(load_scenario(VARIANTS / "diag_calibration_clean.toml"))
     model = train([cal], seed=0, progress=False).save(work / "model" / "model.json")
@@ -57,6 +75,10 @@ def main(argv=None) -> int:
     base_fmu = _build(model, work / "base.fmu")
     rows = []
     for name, effect in tqdm(EFFECTS.items(), desc="effects", unit="effect"):
+        if both:
+            model = train([effect(cal, np.random.default_rng(3))], seed=0, progress=False).save(
+                work / name / "model" / "model.json")
+            base_fmu = _build(model, work / name / "base.fmu")
         data = effect(clean, np.random.default_rng(7))
         path = write_imu_csv(data, work / name / "diag_effects.csv.gz")
         result = diagnose([path], model, work / name / "report", seed=0, plots=False, progress=False)
@@ -68,19 +90,18 @@ def main(argv=None) -> int:
             fmu_pct = 100.0 * (before - after) / before
         rows.append(_row(name, result, fmu_pct))
         print(rows[-1])
-    lines = ["# `imufmu diagnose` on effects nobody declared", "",
-             f"Regenerate: `{COMMAND}` (about two minutes).", "",
-             "Sensor `scenarios/sensors/diag_base.toml`, trained on `scenarios/variants/diag_calibration_clean.toml` "
-             "(its declared errors are all in the model); every effect is injected by the tests' generator "
-             "(`tests/effects.py`) into one held-out handheld recording (`scenarios/variants/diag_effects.toml`, "
-             "150 s at 100 Hz, 15 → 35 °C) and diagnosed at the defaults. Error: held-out RMS of the effect's triad "
+    title = "# `imufmu diagnose` on effects nobody declared" + (", present in the calibration too" if both else "")
+    lines = [title, "",
+             f"Regenerate: `{COMMANDS[both]}` (about {'ten' if both else 'two'} minutes).", "",
+             f"Sensor `scenarios/sensors/diag_base.toml`, {TRAINING[both]} (`scenarios/variants/diag_effects.toml`, "
+             "150 s at 100 Hz, 15 → 35 °C), diagnosed at the defaults. Error: held-out RMS of the effect's triad "
              "against the truth (every third of 48 blocks); FMU: the same rows through fmpy with the FMU built from "
              "the base and from the diagnosed artefact. Noise floor: the triad's white noise per sample.", "",
              "| effect | injected | selected | reading | before | after | lower by | FMU lower by | noise floor |",
              "|---|---|---|---|---|---|---|---|---|"] + rows
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    args.out.write_text("\n".join(lines) + "\n", encoding="utf-8")
-    print(f"wrote {args.out}")
+    out.parent.mkdir(parents=True, exist_ok=True)
+    out.write_text("\n".join(lines) + "\n", encoding="utf-8")
+    print(f"wrote {out}")
     return 0
 
 

@@ -25,7 +25,7 @@ def _stubbed(monkeypatch):
     monkeypatch.setattr(diagnose_fit, "fit_beta", lambda cands, target, r: np.zeros(3))
     monkeypatch.setattr(diagnose_fit, "test_errors",
                         lambda cands, beta, target, r: (errors["candidate" if cands else "base"], np.arange(ROWS)))
-    r = SimpleNamespace(test=np.ones(ROWS, dtype=bool), block=batch)
+    r = SimpleNamespace(test=np.ones(ROWS, dtype=bool), block=batch, signals={})  # no signals: no linear refit
     candidate = SimpleNamespace(target="gyr")
     base_fit = diagnose_fit.Fit((), np.zeros(3), 0.0, 0.0, 1.0)
     return candidate, r, base_fit

@@ -21,6 +21,12 @@ from whatever signals are present:
 - the target's own time shift (a lag against the reference), when the target has a reference;
 - a lever arm of the accelerometer, ω̇×r + ω×(ω×r);
 - every `aux_*` column alone, and all of them together (except the reference's `aux_pos_*`).
+
+Every family of a target with a reference is fitted jointly with the triad's linear calibration
+(`linear_refit`: the gain matrix, beside the offset): an effect that
+was also in the calibration recording bent the linear fit `train` made (a rate nonlinearity k·ω·|ω|
+fitted by a gain alone shifts the gain by k times the calibration's mean |ω|), so the family alone
+would read that bent remainder; refitted together, it reads the effect itself.
 """
 from __future__ import annotations
 
@@ -146,6 +152,24 @@ def _families(target: str, signals: dict[str, np.ndarray]) -> list[Candidate]:
     if len(aux) > 1:
         out.append(Candidate("all aux columns", target, _free([(name, None) for name in aux])))
     return out
+
+
+#: Name of the linear calibration refitted with every family (linear_refit).
+LINEAR_REFIT = "linear calibration"
+
+
+def linear_refit(target: str, signals: dict[str, np.ndarray]) -> Candidate | None:
+    """The linear calibration refitted with every family of a target with a reference: a column
+    per (component, own component), the gain matrix's change. None for a norm target (a norm does
+    not determine a gain matrix) or when the triad's signals are missing. The bias's temperature
+    terms are not in it: they are the families "temperature" and "temperature squared", selected
+    or grown like any other, so that a bias(T) the calibration lacks is reported as an effect. (In
+    the refit they also read an effect linear in the temperature rate against a temperature ramp:
+    a gyro bias of 0.05 (°/s)/(°C/min) in the calibration and the test recording read 0.012.)"""
+    triad = target.split("_")[0]
+    if target.endswith("_norm") or not all(_present(signals, s) for s in triad_signals(triad)):
+        return None
+    return Candidate(LINEAR_REFIT, target, _free([(s, None) for s in triad_signals(triad)]), own=True)
 
 
 def _present(signals: dict[str, np.ndarray], name: str) -> bool:

@@ -33,7 +33,7 @@ from training.data.io import read_imu_csv
 from training.data.reference import derive_references
 from training.diagnosis.candidates import (TRIAD_NAMES, build_candidates, central_differences,
                                            instrument_signals)
-from training.diagnosis.diagnose_export import add_effect, aux_slots_needed, term_count
+from training.diagnosis.diagnose_export import add_effect, aux_slots_needed, refit_note, refit_summary, term_count
 from training.diagnosis.diagnose_fit import Fit, Residuals, fit_candidates, offset_fit, predict
 from training.diagnosis.effect_readings import DISPLAY, readings
 from training.main_job import recording_parameters
@@ -344,6 +344,7 @@ def _iterate(artefact: ModelArtefact, datasets: list[ImuData], targets: dict[str
         iterations.append({"selected": {**_candidate_json(effect), "families": [c.name for c in effect.candidates],
                                         "terms": term_count(effect, r, current) - len(current.terms),
                                         "offset": effect.offset.tolist(),
+                                        "linear_refit": refit_summary(effect), "linear_refit_note": refit_note(effect),
                                         "readings": readings(effect, rate, units, _lag_changes(current, new))},
                            "target": effect.target, "metric": metric_name(effect.target),
                            "before": metric(r, effect.target), "after": metric(r_new, effect.target),

@@ -7,6 +7,9 @@
 - The per-component offset refitted with the effect becomes a constant term ('one') of the target
   triad, merged with an earlier one: the thermal model is never touched, so the signals the terms
   see in the runtime (the compensated triads before the terms) are exactly those of the fit.
+- The linear calibration refitted with the effect (training.diagnosis.candidates.linear_refit)
+  becomes terms of the target triad on its own components, merged with those of an earlier refit
+  (their clamp ranges joined): the FMU gets the joint fit the diagnosis measured.
 - A time-shift family sets the runtime's lag_<triad> [s] (sources/ImuAlign.h).
 - An `aux_*` recording column gets the next free auxiliary FMU input (aux_1 … aux_4).
 """
@@ -57,11 +60,10 @@ def _range(r: Residuals, a: str, b: str | None) -> tuple[float, float]:
     return (float(v.min()), float(v.max())) if v.size else (0.0, 0.0)
 
 
-def effect_terms(fit: Fit, r: Residuals) -> dict[tuple[str, str, str | None], float]:
-    """(component, a, b) -> coefficient of every term column of the fit, merged."""
-    triad = fit.target.split("_")[0]
+def _column_terms(triad: str, pairs) -> dict[tuple[str, str, str | None], float]:
+    """(component, a, b) -> coefficient of the term columns of (candidate, coefficients) pairs, merged."""
     terms: dict[tuple[str, str, str | None], float] = {}
-    for candidate, coef in zip(fit.candidates, fit.coefficients()):
+    for candidate, coef in pairs:
         if candidate.kind != "terms":
             continue
         for column, beta in zip(candidate.columns, coef):
@@ -71,12 +73,70 @@ def effect_terms(fit: Fit, r: Residuals) -> dict[tuple[str, str, str | None], fl
     return terms
 
 
+def effect_terms(fit: Fit, r: Residuals) -> dict[tuple[str, str, str | None], float]:
+    """(component, a, b) -> coefficient of every term column of the fit's families, merged."""
+    return _column_terms(fit.target.split("_")[0], zip(fit.candidates, fit.coefficients()))
+
+
+def refit_terms(fit: Fit) -> dict[tuple[str, str, str | None], float]:
+    """(component, a, b) -> coefficient of the fit's linear refit (empty without one)."""
+    if fit.refit is None:
+        return {}
+    return _column_terms(fit.target.split("_")[0], [(fit.refit, fit.refit_coefficients)])
+
+
+def _refit_name(triad: str) -> str:
+    return f"diagnose: {triad} linear calibration refit"
+
+
 def term_count(fit: Fit, r: Residuals, artefact: ModelArtefact) -> int:
-    """Terms of the artefact once the fit is added (offset terms merge with earlier ones)."""
+    """Terms of the artefact once the fit is added (offset and linear-refit terms merge with earlier ones)."""
     triad = fit.target.split("_")[0]
     have_one = {t["target"] for t in artefact.terms if t["a"] == "one"}
     new_one = sum(f"{triad}_{a}" not in have_one for a in AXES)
-    return len(artefact.terms) + len(effect_terms(fit, r)) + new_one
+    have_refit = {(t["target"], t["a"], t["b"]) for t in artefact.terms if t["name"] == _refit_name(triad)}
+    new_refit = sum(key not in have_refit for key in refit_terms(fit))
+    return len(artefact.terms) + len(effect_terms(fit, r)) + new_one + new_refit
+
+
+def _merged_refit(terms: list[dict], triad: str, fit: Fit, r: Residuals) -> list[dict]:
+    """`terms` with the fit's linear refit added to the earlier refit terms of the triad (clamp ranges
+    joined) or appended."""
+    out = [dict(t) for t in terms]
+    for (target, a, b), value in refit_terms(fit).items():
+        lo, hi = _range(r, a, b)
+        for t in out:
+            if t["name"] == _refit_name(triad) and (t["target"], t["a"], t["b"]) == (target, a, b):
+                t["coefficient"] += value
+                t["lo"], t["hi"] = min(t["lo"], lo), max(t["hi"], hi)
+                break
+        else:
+            out.append({"name": _refit_name(triad), "target": target, "a": a, "b": b, "coefficient": value,
+                        "lo": lo, "hi": hi})
+    return out
+
+
+def refit_summary(fit: Fit) -> dict:
+    """How far the joint refit moved the triad's gain matrix (rows: output component, columns: own
+    component, in 1 = 100 %); {} without a refit."""
+    terms = refit_terms(fit)
+    if not terms:
+        return {}
+    triad = fit.target.split("_")[0]
+    gain = [[terms.get((f"{triad}_{o}", f"{triad}_{i}", None), 0.0) for i in AXES] for o in AXES]
+    return {"gain_change": gain}
+
+
+def refit_note(fit: Fit) -> str:
+    """One line: how far the joint refit moved the gain matrix, and why."""
+    summary = refit_summary(fit)
+    if not summary:
+        return ""
+    gain = np.asarray(summary["gain_change"])
+    return (f"gain matrix refitted jointly with the effect (an effect also present in the calibration recording "
+            f"bends the gain `train` fitted by its part linear in the signal): diagonal changed by "
+            f"{np.round(100.0 * np.diag(gain), 3).tolist()} %, largest cross-axis change "
+            f"{100.0 * float(np.max(np.abs(gain - np.diag(np.diag(gain))))):.3g} %")
 
 
 def _offset_terms(terms: list[dict], triad: str, offset: np.ndarray, name: str) -> list[dict]:
@@ -103,12 +163,13 @@ def add_effect(artefact: ModelArtefact, fit: Fit, r: Residuals, label: str,
     new = [{"name": name, "target": target, "a": _slot(a, aux_inputs), "b": _slot(b, aux_inputs),
             "coefficient": value, **dict(zip(("lo", "hi"), _range(r, a, b)))}
            for (target, a, b), value in effect_terms(fit, r).items()]
-    terms = _offset_terms(artefact.terms, triad, fit.offset, f"diagnose: {triad} offset") + new
+    terms = _merged_refit(_offset_terms(artefact.terms, triad, fit.offset, f"diagnose: {triad} offset"), triad, fit, r) + new
     if len(terms) > TERMS_MAX:
         raise ValueError(f"{len(terms)} correction terms, at most {TERMS_MAX} fit in the runtime")
     settings = dict(artefact.settings)
     notes = list(artefact.notes) + [f"{name}: {len(new)} terms, each regressor clamped to its fitted range; "
-                                    f"{triad} offset refitted by {np.round(fit.offset, 6).tolist()}"]
+                                    f"{triad} offset refitted by {np.round(fit.offset, 6).tolist()}"] + \
+        ([f"{name}: {refit_note(fit)}"] if fit.refit is not None else [])
     for candidate, coef in zip(fit.candidates, fit.coefficients()):
         if candidate.kind == "lag":
             settings[f"lag_{triad}"] = settings.get(f"lag_{triad}", 0.0) - float(coef[0])

@@ -26,7 +26,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import stats
 
-from training.diagnosis.candidates import Candidate, column_effects
+from training.diagnosis.candidates import Candidate, column_effects, linear_refit
 
 #: Relative singular-value cut of the column-scaled least squares: a combination of columns that
 #: varies by less than 1 % of the strongest one — e.g. mag_x²+mag_y²+mag_z² at a constant field
@@ -55,13 +55,16 @@ class Residuals:
 
 @dataclass
 class Fit:
-    """Families fitted jointly on one target: beta = [offset (3), column coefficients...]."""
+    """Families fitted jointly on one target with its linear calibration: beta = [offset (3), the
+    refit's column coefficients (training.diagnosis.candidates.linear_refit; none for a norm target),
+    the families' column coefficients...]."""
 
     candidates: tuple[Candidate, ...]
     beta: np.ndarray
-    explained_fraction: float     # share of the offset-only held-out residual explained
+    explained_fraction: float     # share of the base fit's held-out residual explained (offset and linear refit)
     gain: float                   # share of the base's held-out residual explained
     p_value: float                # one-sided, against the base, Bonferroni-corrected by the caller's count
+    refit: Candidate | None = None  # the linear calibration fitted with the families
 
     @property
     def target(self) -> str:
@@ -76,9 +79,18 @@ class Fit:
     def offset(self) -> np.ndarray:
         return self.beta[:OFFSETS]
 
+    @property
+    def refit_coefficients(self) -> np.ndarray:
+        """Coefficients of the linear refit's columns (empty without one)."""
+        return self.beta[OFFSETS:OFFSETS + self._refit_columns]
+
+    @property
+    def _refit_columns(self) -> int:
+        return 0 if self.refit is None else len(self.refit.columns)
+
     def coefficients(self) -> list[np.ndarray]:
         """Column coefficients per candidate."""
-        out, k = [], OFFSETS
+        out, k = [], OFFSETS + self._refit_columns
         for c in self.candidates:
             out.append(self.beta[k:k + len(c.columns)])
             k += len(c.columns)
@@ -94,8 +106,16 @@ def _effects(cands, r: Residuals, rows: np.ndarray, instrument: bool) -> np.ndar
     return np.concatenate(parts, axis=1) if parts else np.zeros((int(rows.sum()), 0, 3))
 
 
+def with_refit(cands, target: str, r: Residuals) -> tuple[Candidate, ...]:
+    """The target's linear refit (when it has one) followed by `cands`: the columns every fit has."""
+    refit = linear_refit(target, r.signals)
+    return tuple(cands) if refit is None else (refit, *cands)
+
+
 def design(cands, target: str, r: Residuals, rows: np.ndarray, instrument: bool = False):
-    """(y, X, sample): the stacked regression at `rows`; sample maps each stacked row to its row."""
+    """(y, X, sample): the stacked regression at `rows` with the offset, the linear refit and the
+    columns of `cands`; sample maps each stacked row to its row."""
+    cands = with_refit(cands, target, r)
     E = _effects(cands, r, rows, instrument)
     y = r.residual[target][rows]
     n = len(y)
@@ -131,7 +151,7 @@ def _finite(*arrays) -> np.ndarray:
 def fit_beta(cands, target: str, r: Residuals) -> np.ndarray | None:
     """Coefficients [offset, columns] on the training rows; None when too few finite rows."""
     y, X, _ = design(cands, target, r, r.train)
-    own = any(c.own for c in cands)
+    own = any(c.own for c in with_refit(cands, target, r))
     Z = design(cands, target, r, r.train, instrument=True)[1] if own else None
     ok = _finite(y, X) if Z is None else _finite(y, X, Z)
     if ok.sum() < 4 * X.shape[1]:
@@ -166,9 +186,11 @@ def one_sided_p(d: np.ndarray) -> float:
 
 
 def offset_fit(target: str, r: Residuals) -> Fit:
-    """The offset alone (the base of every first comparison)."""
+    """The offset and the linear refit alone (the base of every first comparison)."""
+    refit = linear_refit(target, r.signals)
     beta = fit_beta((), target, r)
-    return Fit((), np.zeros(OFFSETS) if beta is None else beta, 0.0, 0.0, 1.0)
+    size = OFFSETS + (0 if refit is None else len(refit.columns))
+    return Fit((), np.zeros(size) if beta is None else beta, 0.0, 0.0, 1.0, refit)
 
 
 def fit_candidates(cands, r: Residuals, base: Fit, offset_only: Fit, n_tests: int) -> Fit | None:
@@ -187,14 +209,15 @@ def fit_candidates(cands, r: Residuals, base: Fit, offset_only: Fit, n_tests: in
     rows = np.flatnonzero(r.test)[sample[ok]]
     gain = 1.0 - sse1 / sseb if sseb > 0 else 0.0
     p = one_sided_p(batch_log_ratios(eb[ok], e1[ok], r.block[rows])) if gain > 0 else 1.0
-    return Fit(tuple(cands), beta, 1.0 - sse1 / sse0 if sse0 > 0 else 0.0, gain, min(1.0, p * n_tests))
+    return Fit(tuple(cands), beta, 1.0 - sse1 / sse0 if sse0 > 0 else 0.0, gain, min(1.0, p * n_tests),
+               linear_refit(target, r.signals))
 
 
 def predict(fit: Fit, r: Residuals) -> np.ndarray:
     """Fitted effect of the fit's columns (without the offset) on every row, in the target's shape."""
     rows = np.ones(len(r.t), bool)
     E = _effects(fit.candidates, r, rows, instrument=False)
-    effect = np.einsum("njc,j->nc", E, fit.beta[OFFSETS:])
+    effect = np.einsum("njc,j->nc", E, np.concatenate(fit.coefficients()) if fit.candidates else np.zeros(0))
     if fit.target in r.direction:
         return np.sum(r.direction[fit.target] * effect, axis=1, keepdims=True)
     return effect

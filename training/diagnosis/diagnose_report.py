@@ -54,7 +54,7 @@ def write_report(out_dir: Path, result: dict, plot_data=None) -> Path:
              f"Recordings: {', '.join(r['name'] + ' (' + str(r['samples']) + ' samples)' for r in result['recordings'])}. "
              f"Model: `{result['model_in']}`. Held-out: {result['holdout']}; regression rows decimated to ≤ {result['regression_rate_hz']:.0f} Hz; significance: "
              f"{result['test']}, Bonferroni-corrected p < {result['alpha_bonferroni']}, and explained share "
-             f"(of the residual left by an offset-only fit) ≥ "
+             f"(of the residual left by the offset and the triad's linear calibration refitted alone) ≥ "
              f"{result['min_explained']:.0%}. Thermal model refitted: {result['thermal_refitted']}.", ""]
     if result["selected"] is None:
         lines += ["**Result: nothing significant left.**", "",
@@ -70,7 +70,8 @@ def write_report(out_dir: Path, result: dict, plot_data=None) -> Path:
             lines.append(f"| {k} | {s['name']} | {s['target']} | {', '.join(s['regressors'])} | "
                          f"{s['explained_fraction']:.1%} | {s['p_value']:.2g} | {it['before']:.4g} | "
                          f"{it['after']:.4g} | {'; '.join(s['readings'])} |")
-        lines.append("")
+        lines += [""] + [f"- iteration {k}: {it['selected']['linear_refit_note']}"
+                         for k, it in enumerate(result["iterations"], 1) if it["selected"].get("linear_refit_note")] + [""]
     lines += ["Held-out metric per target (before → after): " + "; ".join(
         f"{t}: {result['metrics_before'][t]:.4g} → {result['metrics_after'][t]:.4g}" for t in result["metrics_before"]), "",
         "## Candidates (first iteration, ranked by held-out explained share)", "",
