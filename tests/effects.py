@@ -270,6 +270,32 @@ def heater_gyro_bias(data: ImuData, rng: np.random.Generator | None = None, max_
     return _add(data, "gyr", power[:, None] * np.asarray(c_dps_per_w) * DEG, aux_heater_power=power)
 
 
+def gyro_cross_products(data: ImuData, rng: np.random.Generator | None = None,
+                        k: tuple[float, float] = (0.006, -0.005)) -> ImuData:
+    """Gyro cross-axis rate products (a vibratory gyro's sense axis coupled to the rotation about
+    the other two): ω_y,raw += k_y·ω_x·ω_z and ω_z,raw += k_z·ω_x·ω_y, k [1/(rad/s)], ω the true rate.
+    Default about 0.5 % of a rate per rad/s of another: ≈ 0.13 °/s RMS on y and z against 0.03 °/s."""
+    w = data.ref_gyr
+    effect = np.zeros_like(w)
+    effect[:, 1] = k[0] * w[:, 0] * w[:, 2]
+    effect[:, 2] = k[1] * w[:, 0] * w[:, 1]
+    return _add(data, "gyr", effect)
+
+
+def supply_gyro_bias(data: ImuData, rng: np.random.Generator | None = None, max_sag_v: float = 0.5,
+                     c_dps_per_v: tuple[float, float, float] = (0.8, -0.6, 0.7)) -> ImuData:
+    """Gyro bias driven by the supply voltage (new column aux_supply_voltage [V]: a 5 V rail that
+    sags by up to max_sag_v under a switching load, drawn from `rng`), ω_raw += c·(V − 5 V),
+    c [(°/s)/V], beside a second recorded column that has nothing to do with the gyro (a decoy:
+    aux_fan_speed [rpm], an independent switching waveform up to 3000 rpm). Default |c| ≈ 1.2
+    (°/s)/V (a poor supply rejection): up to 0.6 °/s: ≈ 0.16 °/s RMS against 0.03 °/s."""
+    generator = _rng(rng)
+    voltage = 5.0 - switching_waveform(data.t, generator, max_sag_v)
+    fan = switching_waveform(data.t, generator, 3000.0)
+    return _add(data, "gyr", (voltage - 5.0)[:, None] * np.asarray(c_dps_per_v) * DEG,
+                aux_supply_voltage=voltage, aux_fan_speed=fan)
+
+
 # ----------------------------------------------------------------------------- registry
 
 _AXIS_SUFFIX = re.compile(r"_[xyz](?=$|\*)")
@@ -343,4 +369,9 @@ EFFECTS: dict[str, Effect] = dict([
     _effect("heater_gyro_bias", heater_gyro_bias, "gyr", {"aux_heater_power"},
             "gyro bias from a board heater's supply current, ω += c·P, |c| ≈ 0.44 (°/s)/W, P 0-2 W [rad/s]",
             aux=("aux_heater_power",)),
+    _effect("gyro_cross_products", gyro_cross_products, "gyr", {"gyr*gyr"},
+            "gyro cross-axis rate products ω_y += k·ω_x·ω_z, ω_z += k·ω_x·ω_y, |k| ≈ 0.005 1/(rad/s) [rad/s]"),
+    _effect("supply_gyro_bias", supply_gyro_bias, "gyr", {"aux_supply_voltage"},
+            "gyro bias from the supply voltage, ω += c·(V − 5 V), |c| ≈ 1.2 (°/s)/V, sag ≤ 0.5 V, beside an "
+            "irrelevant aux_fan_speed column [rad/s]", aux=("aux_supply_voltage", "aux_fan_speed")),
 ])

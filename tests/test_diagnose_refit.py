@@ -1,11 +1,15 @@
-"""An undeclared effect present in the calibration recording AND in the diagnosed one (issue 30, item 1).
+"""An undeclared effect present in the calibration recording AND in the diagnosed one (issue 30).
 
 A real sensor carries its effects whenever it runs, so `train` fitted its linear calibration on data
 that had the effect: a gyro rate nonlinearity k·ω·|ω| bends the gain `train` fits by k times the
 calibration's typical |ω|. The diagnosis refits the triad's gain matrix jointly with every family
 (training.diagnosis.candidates.linear_refit), so the family reads the effect itself, and the FMU gets
-the joint refit. Before, the same case read [-1.17, 0.989, -2.61] %/(rad/s) for the injected
-[1.0, -0.8, 1.2] (wrong signs) and lowered the held-out error by 45.6 %.
+the joint refit. Before, the rate nonlinearity read [-1.17, 0.989, -2.61] %/(rad/s) for the injected
+[1.0, -0.8, 1.2] (wrong signs) and lowered the held-out error by 45.6 %; a supply-voltage gyro bias
+beside an irrelevant aux column was taken as "all aux columns" together (53 % lower, no reading).
+
+The three cases the issue names; the table of every effect in both recordings is
+docs/diagnosis/effects_in_calibration.md (benchmarks/diagnose_effects.py --in-calibration).
 """
 from __future__ import annotations
 
@@ -14,7 +18,7 @@ import json
 import numpy as np
 import pytest
 
-from effects import EFFECTS
+from effects import EFFECTS, regressor_family
 from training.artefact import load_artefact
 from training.data.io import write_imu_csv
 from training.diagnosis.diagnose import diagnose
@@ -23,41 +27,65 @@ from training.simulator import load_scenario, simulate
 from training.train import train
 
 VARIANTS = SCENARIO_DIR / "variants"
-#: The injected rate nonlinearity [1/(rad/s)] per axis (tests/effects.py gyro_rate_scale's default).
-K = np.array([0.01, -0.008, 0.012])
-#: Issue 30's acceptance: the reading within 15 % of the injected value, per axis.
+#: Issue 30's acceptance: the reading within 15 % of the injected value, per coefficient ...
 READING_TOLERANCE = 0.15
-#: ... and the held-out error at least 70 % lower (tests/test_diagnose_effects.py MIN_IMPROVEMENT_PCT).
+#: ... and the held-out error at least 70 % lower (tests/test_diagnose_effects.py MIN_IMPROVEMENT_PCT),
 MIN_IMPROVEMENT_PCT = 70.0
+#: or at the noise floor: the gyro's white noise per sample, 0.03 °/s (tests/effects.py), within 10 %
+#: (what a fit of a few dozen coefficients on the training blocks leaves on the held-out ones).
+GYRO_NOISE_FLOOR_DPS, FLOOR_MARGIN = 0.03, 1.10
+#: Families of train's bias model B(T) (regressor_family of "temp", "temp*temp"): refitting them beside
+#: an effect undoes what the effect bent in the calibration; they are not another effect.
+BIAS_MODEL_FAMILIES = {"temp", "temp*temp"}
+#: The injected effects [1/(rad/s), 1/(rad/s), (°/s)/V] and the terms (target, a, b) that read them.
+CASES = {
+    "gyro_rate_scale": ({"k": (0.01, -0.008, 0.012)},
+                        [(f"gyr_{a}", f"gyr_{a}", f"abs_gyr_{a}") for a in "xyz"], (0.01, -0.008, 0.012)),
+    "gyro_cross_products": ({"k": (0.006, -0.005)},
+                            [("gyr_y", "gyr_x", "gyr_z"), ("gyr_z", "gyr_x", "gyr_y")], (0.006, -0.005)),
+    "supply_gyro_bias": ({"c_dps_per_v": (0.8, -0.6, 0.7)},
+                         [(f"gyr_{a}", "aux_1", None) for a in "xyz"], np.radians([0.8, -0.6, 0.7])),
+}
 
 
 @pytest.fixture(scope="module")
 def diagnosed(tmp_path_factory):
-    tmp = tmp_path_factory.mktemp("refit")
-    effect = EFFECTS["gyro_rate_scale"]
-    calibration = effect(simulate(load_scenario(VARIANTS / "diag_calibration_clean.toml")), k=tuple(K))
-    model = train([calibration], seed=0, progress=False).save(tmp / "model" / "model.json")
-    data = effect(simulate(load_scenario(VARIANTS / "diag_effects.toml")), k=tuple(K))
-    path = write_imu_csv(data, tmp / "data" / "diag_effects.csv.gz")
-    return diagnose([path], model, tmp / "report", seed=0, plots=False, progress=False), tmp
+    """name -> (result, folder): each case trained on the calibration recording with the effect and
+    diagnosed on the held-out recording with it (the same aux waveform seeds as the benchmark)."""
+    calibration = simulate(load_scenario(VARIANTS / "diag_calibration_clean.toml"))
+    test = simulate(load_scenario(VARIANTS / "diag_effects.toml"))
+    out = {}
+    for name, (magnitude, _, _) in CASES.items():
+        tmp, effect = tmp_path_factory.mktemp(name), EFFECTS[name]
+        model = train([effect(calibration, np.random.default_rng(3), **magnitude)], seed=0,
+                      progress=False).save(tmp / "model" / "model.json")
+        path = write_imu_csv(effect(test, np.random.default_rng(7), **magnitude), tmp / "data" / "diag_effects.csv.gz")
+        out[name] = (diagnose([path], model, tmp / "report", seed=0, plots=False, progress=False), tmp)
+    return out
 
 
-def test_the_nonlinearity_is_read_within_15_percent_and_removed(diagnosed):
-    result, tmp = diagnosed
-    assert result["iterations"][0]["selected"]["name"] == "angular rate signed square"
+@pytest.mark.parametrize("name", sorted(CASES))
+def test_the_effect_is_found_read_within_15_percent_and_removed(diagnosed, name):
+    result, tmp = diagnosed[name]
+    first = {regressor_family(r) for r in result["iterations"][0]["selected"]["regressors"]}
+    # beside the effect only the forms of train's own bias model, which the effect bent too (a supply
+    # sag that differed between the calibration's soaks bends the bias(T) train fitted), never the decoy
+    assert set(EFFECTS[name].family) <= first <= set(EFFECTS[name].family) | BIAS_MODEL_FAMILIES, first
+    assert not any("aux_fan_speed" in r for it in result["iterations"] for r in it["selected"]["regressors"])
+    _, keys, injected = CASES[name]
     terms = load_artefact(tmp / "report" / "model.json").terms
-    read = np.array([sum(t["coefficient"] for t in terms if t["target"] == f"gyr_{a}" and t["a"] == f"gyr_{a}"
-                         and t["b"] == f"abs_gyr_{a}") for a in "xyz"])
-    assert np.all(np.abs(read - K) <= READING_TOLERANCE * np.abs(K)), read
-    assert result["improvement_pct"] >= MIN_IMPROVEMENT_PCT
+    read = np.array([sum(t["coefficient"] for t in terms if (t["target"], t["a"], t["b"]) == key) for key in keys])
+    assert np.all(np.abs(read - injected) <= READING_TOLERANCE * np.abs(injected)), read
+    at_floor = result["after"] <= FLOOR_MARGIN * GYRO_NOISE_FLOOR_DPS
+    assert result["improvement_pct"] >= MIN_IMPROVEMENT_PCT or at_floor, (result["improvement_pct"], result["after"])
 
 
 def test_the_gain_refit_is_carried_and_reported(diagnosed):
-    result, tmp = diagnosed
+    result, tmp = diagnosed["gyro_rate_scale"]
     refit = result["iterations"][0]["selected"]["linear_refit"]["gain_change"]
     # train's gain absorbed k·|ω| averaged over the calibration's rotations: the refit takes it back
     # with the opposite sign of k on every axis
-    assert np.all(np.sign(np.diag(refit)) == -np.sign(K)), refit
+    assert np.all(np.sign(np.diag(refit)) == -np.sign(CASES["gyro_rate_scale"][2])), refit
     names = {t["name"] for t in load_artefact(tmp / "report" / "model.json").terms}
     assert "diagnose: gyr linear calibration refit" in names
     assert "gain matrix refitted jointly" in (tmp / "report" / "report.md").read_text()

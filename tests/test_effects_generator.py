@@ -263,3 +263,20 @@ def test_long_delay_and_lead(data):
     assert np.array_equal(mag[20:], data.mag[:-20]) and np.array_equal(mag[:20], np.repeat(data.mag[:1], 20, axis=0))
     gyr = EFFECTS["gyro_lead"](data).gyr
     assert np.array_equal(gyr[:-7], data.gyr[7:]) and np.array_equal(gyr[-7:], np.repeat(data.gyr[-1:], 7, axis=0))
+
+
+def test_gyro_cross_products(data, samples):
+    k = (0.02, -0.03)
+    diff = injected(data, "gyro_cross_products", k=k)
+    for i in samples:
+        w = data.ref_gyr[i]
+        assert np.allclose(diff[i], [0.0, k[0] * w[0] * w[2], k[1] * w[0] * w[1]], rtol=1e-12, atol=0)
+
+
+def test_supply_gyro_bias_has_an_unrelated_decoy_column(data):
+    c = np.array([0.3, -0.2, 0.1])
+    out = EFFECTS["supply_gyro_bias"](data, np.random.default_rng(1), c_dps_per_v=tuple(c))
+    voltage, fan = out.aux["aux_supply_voltage"], out.aux["aux_fan_speed"]
+    assert np.allclose(out.gyr - data.gyr, (voltage - 5.0)[:, None] * c * np.pi / 180.0, rtol=1e-12, atol=1e-15)
+    assert 4.5 <= voltage.min() < 5.0 and voltage.max() == 5.0
+    assert abs(np.corrcoef(voltage, fan)[0, 1]) < 0.3   # drawn independently: nothing of the bias in it
