@@ -26,7 +26,7 @@ def _stubbed(monkeypatch):
     monkeypatch.setattr(diagnose_fit, "test_errors",
                         lambda cands, beta, target, r: (errors["candidate" if cands else "base"], np.arange(ROWS)))
     r = SimpleNamespace(test=np.ones(ROWS, dtype=bool), block=batch, signals={})  # no signals: no linear refit
-    candidate = SimpleNamespace(target="gyr")
+    candidate = SimpleNamespace(target="gyr", kind="terms")
     base_fit = diagnose_fit.Fit((), np.zeros(3), 0.0, 0.0, 1.0)
     return candidate, r, base_fit
 

@@ -106,12 +106,32 @@ def _effects(cands, r: Residuals, rows: np.ndarray, instrument: bool) -> np.ndar
     return np.concatenate(parts, axis=1) if parts else np.zeros((int(rows.sum()), 0, 3))
 
 
+def _excited(target: str, r: Residuals) -> bool:
+    """The target's reference carries more than its residual on every axis (RMS over the training
+    rows): the triad's signal is then mostly the true quantity, which determines a gain. A static gyro
+    against ref_gyr = 0 is not: its signal is its drifting bias, and a "gain" on it would absorb the
+    bias's temperature drift (pan_thermal: the temperature family, 91 % explained, was no longer
+    selected)."""
+    triad = target.split("_")[0]
+    signal = np.column_stack([r.signals[f"{triad}_{a}"] for a in "xyz"])[r.train]
+    residual = r.residual[target][r.train]
+    ok = _finite(signal, residual)
+    if not ok.any():
+        return False
+    reference = signal[ok] - residual[ok]
+    return bool(np.all(np.sqrt(np.mean(reference ** 2, axis=0)) > np.sqrt(np.mean(residual[ok] ** 2, axis=0))))
+
+
 def refit_for(cands, target: str, r: Residuals) -> Candidate | None:
-    """The linear refit fitted with `cands`: the target's (training.diagnosis.candidates.linear_refit),
-    except beside a time shift, whose column is the shift's linearisation: the gain would absorb the
-    linearisation error, which the runtime's exact shift does not make (a gyro 7 samples early: held-out
-    error 99.6 % lower without the refit, 85.8 % with it)."""
-    return None if any(c.kind == "lag" for c in cands) else linear_refit(target, r.signals)
+    """The linear refit fitted with `cands`: the target's (training.diagnosis.candidates.linear_refit)
+    when its reference excites the gain (_excited), except beside a time shift, whose column is the
+    shift's linearisation: the gain would absorb the linearisation error, which the runtime's exact
+    shift does not make (a gyro 7 samples early: held-out error 99.6 % lower without the refit, 85.8 %
+    with it)."""
+    if any(c.kind == "lag" for c in cands):
+        return None
+    refit = linear_refit(target, r.signals)
+    return refit if refit is not None and _excited(target, r) else None
 
 
 def with_refit(cands, target: str, r: Residuals) -> tuple[Candidate, ...]:
