@@ -38,3 +38,28 @@ def test_the_p_value_is_multiplied_by_the_candidates_tried(monkeypatch):
     assert 0.0 < one < 0.2
     assert five == min(1.0, 5.0 * one)
     assert diagnose_fit.fit_candidates((candidate,), r, base, base, n_tests=1000).p_value == 1.0
+
+
+def _gyro_residuals(reference: np.ndarray, bias: np.ndarray) -> diagnose_fit.Residuals:
+    """Residuals of a gyro whose compensated signal is reference + bias (N, 3) [rad/s]."""
+    n = len(reference)
+    signal = reference + bias
+    signals = {f"gyr_{a}": signal[:, i] for i, a in enumerate("xyz")}
+    rows = np.ones(n, dtype=bool)
+    return diagnose_fit.Residuals(t=np.arange(n) * 0.01, starts=np.array([0]), signals=signals,
+                                  instruments={"gyr": signals}, residual={"gyr": bias}, direction={},
+                                  train=rows, test=rows, holdout=rows, fitted=rows, block=np.zeros(n, int))
+
+
+def test_the_gain_is_refitted_only_where_the_reference_excites_it():
+    # A static gyro against ref_gyr = 0: its signal is its (drifting) bias, and a "gain" on it would
+    # absorb the drift that the temperature family must report (pan_thermal). A turning gyro: refitted.
+    rng = np.random.default_rng(1)
+    drift = np.linspace(0.0, 0.05, ROWS)[:, None] * np.array([1.0, -0.5, 0.2]) + 1e-4 * rng.standard_normal((ROWS, 3))
+    turning = np.column_stack([np.sin(np.arange(ROWS) / 20.0 + p) for p in (0.0, 1.0, 2.0)])
+    static = _gyro_residuals(np.zeros((ROWS, 3)), drift)
+    moving = _gyro_residuals(turning, drift)
+    terms = SimpleNamespace(kind="terms")
+    assert diagnose_fit.refit_for((terms,), "gyr", static) is None
+    assert diagnose_fit.refit_for((terms,), "gyr", moving).name == "linear calibration"
+    assert diagnose_fit.refit_for((SimpleNamespace(kind="lag"),), "gyr", moving) is None
