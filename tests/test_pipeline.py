@@ -87,8 +87,8 @@ def test_the_unchanged_simulated_field_leaves_the_particle_filter_off(summary):
 def test_train_writes_the_filter_settings_its_replay_measured_best(summary):
     """The simulated calibration recording carries an attitude reference: train replays it through the
     FMU's filter for every replayed setting (training.attitude.replay.CANDIDATES), writes the value with
-    the lower total attitude error and notes both figures; the simulator's samples are instantaneous, so
-    gyro_hold is 0 (the trapezoid)."""
+    the lower total attitude error (one recording: lower on every recording is lower in total) and
+    notes both figures; the simulator's samples are instantaneous, so gyro_hold is 0 (the trapezoid)."""
     model = json.loads((Path(summary.out_dir) / "model" / "model.json").read_text())
     assert model["settings"]["gyro_hold"] == 0.0
     for name in CANDIDATES:

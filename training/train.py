@@ -18,7 +18,7 @@ from training.data.dataset import ImuData
 from training.data.earth import recordings_gravity
 from training.data.reference import matched_raw
 from training.data.reference_field import field_reference_notes
-from training.data.reference_source import TriadReference, choose_reference, strip_references
+from training.data.reference_source import TriadReference, choose_reference
 from training.display import DISPLAY
 from training.models.calibrated_range import range_notes
 from training.models.degree import AUTO, ceiling, choose_degree, parse_degree
@@ -30,7 +30,7 @@ from training.models.thermal import (GainBiasFitter, ThermalFit, ThermalModel, a
                                      normalised_temperature, temperature_clusters, temperature_normalisation)
 from training.attitude.field_changes import pf_switch
 from training.attitude.replay import CANDIDATES as REPLAYED_SETTINGS
-from training.attitude.replay import choose_by_replay, keep_better_attitude
+from training.attitude.replay import choose_by_replay, triads_the_reference_improves
 from training.recommend import recommended_settings, sidecar_values
 from training.selfcal import SelfCalResult, self_calibrate
 
@@ -588,8 +588,9 @@ def train(datasets: list[ImuData], seed: int = 0, degree: int | str = AUTO,
     """Fit the gain/bias temperature model of every triad and return the model artefact.
 
     When a triad's reference is derived from an attitude reference (ref_q only), the recordings are
-    also calibrated as if they had none, and the model whose attitude replays closer to the reference
-    is kept (training.attitude_replay.keep_better_attitude): a derived reference carries the
+    also calibrated as if they had none for those triads, and a triad keeps its reference-derived
+    calibration only when that brings every recording's replayed attitude closer to the reference
+    (training.attitude.replay.triads_the_reference_improves): a derived reference carries the
     reference system's own errors (timing, lever arm, marker alignment), and it must never give a
     worse filter than the recordings alone.
 
@@ -607,30 +608,36 @@ def train(datasets: list[ImuData], seed: int = 0, degree: int | str = AUTO,
     and when no triad can be calibrated unless allow_identity (then an identity model is returned).
     """
     artefact = _fit(datasets, seed, degree, progress, allow_identity, prior, fleet_elm)
-    if any(artefact.fit_stats.get(triad, {}).get("reference") == "attitude" for triad in TRIAD_ORDER):
-        try:
-            blind = _fit([strip_references(d) for d in datasets], seed, degree, progress, allow_identity, prior,
-                         fleet_elm, replayed=datasets)
-        except ModelError:
-            return artefact
-        artefact = keep_better_attitude(artefact, blind, datasets)
-        if artefact is blind:  # what the reference itself showed (e.g. its frame's declination) still holds
-            blind.notes[1:1] = [n for d in datasets for n in field_reference_notes(d)]
+    derived = tuple(t for t in TRIAD_ORDER if artefact.fit_stats.get(t, {}).get("reference") == "attitude")
+    if not derived:
+        return artefact
+    try:
+        blind = _fit(datasets, seed, degree, progress, allow_identity, prior, fleet_elm, withheld=derived)
+    except ModelError:
+        return artefact
+    kept, notes = triads_the_reference_improves(artefact, blind, datasets)
+    if kept != derived:
+        withheld = tuple(t for t in derived if t not in kept)
+        artefact = blind if not kept else _fit(datasets, seed, degree, progress, allow_identity, prior, fleet_elm,
+                                               withheld=withheld)
+    artefact.notes[0:0] = notes
     return artefact
 
 
 def _fit(datasets: list[ImuData], seed: int, degree: int | str, progress: bool, allow_identity: bool,
          prior: dict[str, TriadPrior] | None, fleet_elm: ElmModel | None,
-         replayed: list[ImuData] | None = None) -> ModelArtefact:
-    """train's fit of every triad from the references the recordings offer (arguments as train's);
-    the filter settings are chosen by replaying `replayed` (default: datasets)."""
+         withheld: tuple[str, ...] = ()) -> ModelArtefact:
+    """train's fit of every triad from the references the recordings offer (arguments as train's),
+    except the `withheld` triads, which are self-calibrated as if no recording had a reference for
+    them; the filter settings are chosen by replaying the recordings."""
     if not datasets:
         raise ModelError("train: no training data given")
     try:
         degree = parse_degree(degree)
     except ValueError as e:
         raise ModelError(f"train: {e}") from None
-    refs = {triad: choose_reference(datasets, triad) for triad in TRIAD_ORDER}
+    refs = {triad: (TriadReference(triad, "none", tuple(datasets)) if triad in withheld
+                     else choose_reference(datasets, triad)) for triad in TRIAD_ORDER}
     thermal, stats, notes = {}, {}, [recordings_gravity(datasets)[1]] + [n for d in datasets for n in field_reference_notes(d)]
     with deterministic(seed):
         _reference_fits(refs, degree, seed, progress, thermal, stats, notes, prior or {})
@@ -674,8 +681,7 @@ def _fit(datasets: list[ImuData], seed: int, degree: int | str, progress: bool, 
     artefact = ModelArtefact(seed=seed, thermal=thermal, settings=settings, fit_stats=stats,
                              training_data=[{"name": d.name, "samples": len(d)} for d in datasets],
                              notes=notes, elm=elm_model, psobp=psobp_model)
-    chosen = choose_by_replay(coefficients_array(artefact), settings_dict(artefact), replayed or datasets,
-                              artefact.notes)
+    chosen = choose_by_replay(coefficients_array(artefact), settings_dict(artefact), datasets, artefact.notes)
     artefact.settings.update({name: chosen[name] for name in REPLAYED_SETTINGS})
     artefact.settings.update(pf_switch(coefficients_array(artefact), settings_dict(artefact), datasets, artefact.notes))
     return artefact
