@@ -37,6 +37,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from contract import layout  # noqa: E402
+from training.artefact import settings_dict  # noqa: E402
 from training.bench.bench import BROAD_CITATION, GROUPS, broad_errors, trial_number, trial_paths  # noqa: E402
 from training.bench.bench_trained import TRAIN_TRIALS  # noqa: E402
 from training.data.dataset import ImuData  # noqa: E402
@@ -103,7 +104,7 @@ def trained_artefact(out: Path, model: Path | None, data_dir: Path, seed: int = 
 def run_trained(artefact, data: ImuData, extra: dict | None = None) -> np.ndarray:
     """(N, 4) body -> magnetic NED quaternion of the batch runtime at the artefact's settings plus
     the sidecar parameters `imufmu run` sets (training.main_job.recording_parameters) plus extra."""
-    from training.artefact import coefficients_array, settings_dict
+    from training.artefact import coefficients_array
     from training.main_job import recording_parameters
     from training.runtime import run_batch
     settings = layout.settings_array({**settings_dict(artefact), **recording_parameters(data), **(extra or {})})
@@ -287,7 +288,7 @@ def code_version() -> str:
     return f"commit {head}" + (" + uncommitted changes in sources/ or training/" if dirty else "")
 
 
-def _markdown(rows: list[dict], s: dict, fs: float, how: str, elapsed: float, version: str) -> str:
+def _markdown(rows: list[dict], s: dict, fs: float, how: str, elapsed: float, version: str, hold: bool) -> str:
     n = s["n_trials"]
     med, iqr = s["median_samples"], s["iqr_samples"]
     before, after, own = s["before"], s["after_common"], s["after_own"]
@@ -398,9 +399,8 @@ def _markdown(rows: list[dict], s: dict, fs: float, how: str, elapsed: float, ve
         *_table(rows, fs),
         "",
         f"Mean over the {n} trials [°] (total / heading / inclination): **before {_fmt3(before)}; after "
-        f"(median δ) {_fmt3(after)}**; after (own δ) {_fmt3(own)}. For comparison, docs/BENCHMARKS.md "
-        "lists 1.88 / 1.63 / 0.85 for the undisturbed group with this model run through the FMU with fmpy "
-        "(`imufmu bench broad-trained`, 'attitude reference').",
+        f"(median δ) {_fmt3(after)}**; after (own δ) {_fmt3(own)}. The same model through the FMU with fmpy "
+        "is docs/BENCHMARKS.md's 'attitude reference' row, undisturbed group (`imufmu bench broad-trained`).",
         "",
         f"**Attitude error change with the median δ: total {change:+.3f}° ({100 * change / before['total']:+.1f} %), "
         f"heading {after['heading'] - before['heading']:+.3f}° "
@@ -420,11 +420,15 @@ def _markdown(rows: list[dict], s: dict, fs: float, how: str, elapsed: float, ve
         "Which shift minimises the attitude error? Scanning the reference shift "
         f"({SCAN_SHIFTS[0]:g} … {SCAN_SHIFTS[-1]:g} samples in steps of {SCAN_SHIFTS[1] - SCAN_SHIFTS[0]:g}, "
         "parabola through the least total RMSE) gives a median optimum of "
-        f"{s['median_attitude_optimal']:.2f} samples against δ = {med:.3f} from the rates: two independent routes "
-        "agree. (The runtime integrates the gyro with the trapezoidal rule, `ImuAttitudeStepRate` in "
-        "`sources/ImuAttitude.c`, so its output carries no half-sample shift of its own; the per-trial attitude "
-        "optima scatter more than δ because other error sources — heading from the magnetometer, the filter's "
-        "corrections — also depend on the motion.)",
+        f"{s['median_attitude_optimal']:.2f} samples against δ = {med:.3f} from the rates"
+        + (f" and δ − 0.5 = {med - 0.5:.3f} expected: the model's `gyro_hold = 1` takes each rate sample as the "
+           "mean over the interval before it (a MEMS decimation filter's output), which advances the integrated "
+           "rate by half a sample against the trapezoidal rule's instantaneous samples (`ImuAttitudeStepRate` in "
+           "`sources/ImuAttitudeStep.c`)" if hold else
+           " (the model integrates with the trapezoidal rule, `gyro_hold = 0`: no half-sample shift of its own)")
+        + f"; difference {s['median_attitude_optimal'] - med + (0.5 if hold else 0.0):+.2f} samples. The "
+        "per-trial attitude optima scatter more than δ because other error sources — heading from the "
+        "magnetometer, the filter's corrections — also depend on the motion.",
         "",
         *_check_table(rows, fs, s["common_delta_samples"]),
         "",
@@ -507,7 +511,8 @@ def main(argv=None) -> int:
     plots = _plot(rows, fs, summary, out)
     elapsed = time.perf_counter() - start
     version = args.code_version or code_version()
-    (out / "README.md").write_text(_markdown(rows, summary, fs, how, elapsed, version))
+    (out / "README.md").write_text(_markdown(rows, summary, fs, how, elapsed, version,
+                                             bool(settings_dict(artefact)["gyro_hold"])))
     with open(out / "results.json", "w") as f:
         json.dump({"citation": BROAD_CITATION, "command": COMMAND, "sign": "delta > 0: IMU lags the optical reference",
                    "fs_hz": fs, "max_shift": MAX_SHIFT, "moving_threshold_rad_s": MOVING_THRESHOLD,
