@@ -9,9 +9,26 @@
 
 enum { ImuAlignGyr = 0, ImuAlignMag = 2 }; /* triad indices: the gyro rotates the magnetometer */
 
-int ImuAlignStateValid(const ImuAlignState *s)
+/** @brief Buffer index of the sample `age` samples before the newest (0 = newest). */
+static int ImuAlignIndex(const ImuAlignState *s, int age)
 {
-    return s->count >= 0 && s->count <= IMU_ALIGN_CAPACITY && s->head >= 0 && s->head < IMU_ALIGN_CAPACITY;
+    return (s->head - age + IMU_ALIGN_CAPACITY) % IMU_ALIGN_CAPACITY;
+}
+
+int ImuAlignStateValid(const ImuAlignState *s, double clock)
+{
+    int age;
+    if (!(s->count >= 0 && s->count <= IMU_ALIGN_CAPACITY && s->head >= 0 && s->head < IMU_ALIGN_CAPACITY)) {
+        return 0;
+    }
+    for (age = 0; age < s->count; age++) {
+        const double t = s->time[ImuAlignIndex(s, age)];
+        const double later = age == 0 ? clock : s->time[ImuAlignIndex(s, age - 1)];
+        if (!(isfinite(t) && (age == 0 ? t == later : t < later))) {
+            return 0;
+        }
+    }
+    return 1;
 }
 
 void ImuAlignReset(ImuAlignState *s)
@@ -25,12 +42,6 @@ void ImuAlignReset(ImuAlignState *s)
     }
     s->count = 0;
     s->head = IMU_ALIGN_CAPACITY - 1;
-}
-
-/** @brief Buffer index of the sample `age` samples before the newest (0 = newest). */
-static int ImuAlignIndex(const ImuAlignState *s, int age)
-{
-    return (s->head - age + IMU_ALIGN_CAPACITY) % IMU_ALIGN_CAPACITY;
 }
 
 /** @brief Buffer the sample (t [s], x[9]); 0 without buffering it when t is not finite or does not increase. */

@@ -44,8 +44,10 @@ typedef struct {
 } ImuAlignState;
 
 /** @brief 1 if the buffer's count (0..IMU_ALIGN_CAPACITY) and head (0..IMU_ALIGN_CAPACITY - 1) can
- *         index it (a restored FMU state), else 0. */
-IMU_HIDDEN int ImuAlignStateValid(const ImuAlignState *s);
+ *         index it and its buffered times are finite and increasing from the oldest to the newest,
+ *         the newest equal to clock [s] (the pipeline's time of the last sample, which every sample
+ *         pushes; a restored FMU state), else 0. */
+IMU_HIDDEN int ImuAlignStateValid(const ImuAlignState *s, double clock);
 /** @brief Empty the buffer. */
 IMU_HIDDEN void ImuAlignReset(ImuAlignState *s);
 /**

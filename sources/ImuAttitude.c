@@ -33,6 +33,19 @@ void ImuAttitudeInitialise(ImuAttitude *a, const ImuAttitudeSettings *s)
     ImuAttitudeReset(a);
 }
 
+/** @brief 1 if flag is 0 or 1. */
+static int ImuAttitudeFlag(int flag)
+{
+    return flag == 0 || flag == 1;
+}
+
+int ImuAttitudeStateValid(const ImuAttitude *a)
+{
+    return ImuAttitudeFlag(a->tiltInitialised) && ImuAttitudeFlag(a->yawInitialised) && ImuAttitudeFlag(a->atRest)
+           && isfinite(a->nominalStep) && a->nominalStep >= 0.0 && ImuLowPassStateValid(&a->accLowPass)
+           && ImuMotionBiasStateValid(&a->motionBias);
+}
+
 /** @brief Reset the state, keeping the settings. */
 void ImuAttitudeReset(ImuAttitude *a)
 {

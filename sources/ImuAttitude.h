@@ -106,6 +106,9 @@ typedef struct {
 IMU_HIDDEN void ImuAttitudeInitialise(ImuAttitude *a, const ImuAttitudeSettings *s);
 /** @brief Reset the state, keeping the settings. */
 IMU_HIDDEN void ImuAttitudeReset(ImuAttitude *a);
+/** @brief 1 if a's evolving state is one the filter can reach (a restored FMU state): its flags 0 or
+ *         1, its nominal step finite and >= 0, its low-passes and motion estimate valid; else 0. */
+IMU_HIDDEN int ImuAttitudeStateValid(const ImuAttitude *a);
 /**
  * @brief After a gap of `gap` [s] without samples: the corrections restart as at power-on
  *        (roll/pitch from the next specific force, yaw from the next field, rest detection anew)

@@ -150,6 +150,13 @@ int ImuGuardStepsValid(const ImuGuard *g)
     return 1;
 }
 
+int ImuGuardClockValid(const ImuGuard *g)
+{
+    const double nominal = ImuGuardNominalStep(g);
+    return g->clock >= 0.0 && isfinite(g->clock)
+           && (nominal == 0.0 || fabs((g->clock + nominal) - g->clock - nominal) <= 0.01 * nominal);
+}
+
 /** @brief Remember step [s] (finite, > 0; at most IMU_GUARD_MAX_STEP counts) in the step history. */
 static void ImuGuardRememberStep(ImuGuard *g, double step)
 {

@@ -86,6 +86,11 @@ IMU_HIDDEN int ImuGuardStep(ImuGuard *g, ImuPipeline *p, double step, const doub
 IMU_HIDDEN double ImuGuardNominalStep(const ImuGuard *g);
 /** @brief 1 if the step history's count, head and entries are ones ImuGuardStep can leave (a restored state). */
 IMU_HIDDEN int ImuGuardStepsValid(const ImuGuard *g);
+/** @brief 1 if the clock [s] is one ImuGuardStep can leave (a restored state): finite, >= 0 and
+ *         fine enough that adding the nominal step advances it by that step to 1 % (a double
+ *         resolves a 1 ms step to 1 % up to a clock of about 4e11 s; a clock of 1e300 would stop
+ *         every later step from advancing the time-alignment buffer and the correction terms). */
+IMU_HIDDEN int ImuGuardClockValid(const ImuGuard *g);
 /** @brief IMU_GUARD_SENSORS bits of the sensors treated as absent (no valid sample yet). */
 IMU_HIDDEN int ImuGuardAbsent(const ImuGuard *g);
 

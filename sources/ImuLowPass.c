@@ -22,6 +22,11 @@ void ImuLowPassReset(ImuLowPass *f)
     f->initialised = 0;
 }
 
+int ImuLowPassStateValid(const ImuLowPass *f)
+{
+    return f->count >= 0 && (f->initialised == 0 || f->initialised == 1) && isfinite(f->meanTime) && f->meanTime >= 0.0;
+}
+
 void ImuLowPassDesignStep(double tau, double dt, ImuLowPassDesign *d)
 {
     /* Pre-warped analogue cut-off: c = tan(pi fc dt); b = c^2 [1 2 1] / d, a = [1, 2 (c^2 - 1), 1 - sqrt2 c + c^2] / d. */

@@ -48,5 +48,8 @@ IMU_HIDDEN void ImuLowPassDesignStep(double tau, double dt, ImuLowPassDesign *d)
 IMU_HIDDEN void ImuLowPassApply(ImuLowPass *f, const ImuLowPassDesign *d, const double x[3], double y[3]);
 /** @brief Forget the past: the next sample starts the averaging anew. */
 IMU_HIDDEN void ImuLowPassReset(ImuLowPass *f);
+/** @brief 1 if f is a state the filter can reach (a restored FMU state): count >= 0, initialised 0 or
+ *         1, meanTime finite and >= 0; else 0 (a negative count would divide by zero). */
+IMU_HIDDEN int ImuLowPassStateValid(const ImuLowPass *f);
 
 #endif

@@ -43,6 +43,18 @@ void ImuMotionBiasRestart(ImuMotionBias *m)
     ImuLowPassReset(&m->rotatedBias);
 }
 
+int ImuMotionBiasStateValid(const ImuMotionBias *m)
+{
+    int i, valid = ImuLowPassStateValid(&m->rotatedBias);
+    for (i = 0; i < 3; i++) {
+        valid = valid && ImuLowPassStateValid(&m->rotation[i]);
+    }
+    for (i = 0; i < 9; i++) {
+        valid = valid && isfinite(m->covariance[i]);
+    }
+    return valid;
+}
+
 /** @brief out = inverse of the symmetric 3x3 matrix s (row-major, positive definite). */
 static void ImuMotionBiasInvert(const double s[9], double out[9])
 {

@@ -44,6 +44,8 @@ typedef struct {
 IMU_HIDDEN void ImuMotionBiasReset(ImuMotionBias *m);
 /** @brief The low-passes restart with the next step (with the inclination correction's low-pass); P is kept. */
 IMU_HIDDEN void ImuMotionBiasRestart(ImuMotionBias *m);
+/** @brief 1 if every low-pass of m is a reachable state (ImuLowPassStateValid) and P is finite, else 0. */
+IMU_HIDDEN int ImuMotionBiasStateValid(const ImuMotionBias *m);
 /**
  * @brief One step dt [s] (> 0) after the inclination correction: q6d [w, x, y, z] body -> level
  *        frame after the correction, up [1] the unit low-passed specific force in the level frame

@@ -204,6 +204,27 @@ void ImuPipelineReset(ImuPipeline *p)
     p->rangeIssues = 0;
 }
 
+const char *ImuPipelineStateProblem(const ImuPipeline *p, double clock)
+{
+    if (!ImuAlignStateValid(&p->align, clock)) {
+        return "the time-alignment buffer's count or head is outside 0..63, or its times are not finite, "
+               "increasing and no later than the guard's clock";
+    }
+    if (!ImuAttitudeStateValid(&p->attitude)) {
+        return "the attitude filter's flags, nominal step, low-pass counts or motion-bias covariance are invalid";
+    }
+    if (!ImuTermsStateValid(&p->terms, clock)) {
+        return "the correction terms' times are not finite, ordered and no later than the guard's clock";
+    }
+    if (!ImuPsoBpStateValid(&p->psobp, clock)) {
+        return "the PSO-BP stage's time is not finite and no later than the guard's clock";
+    }
+    if (p->settings.enablePf && !ImuMagPfStateValid(&p->pf)) {
+        return "the particle filter's bin list, bin count or sample counter does not fit its settings";
+    }
+    return NULL;
+}
+
 /** @brief A gap [s]: restart the attitude corrections and empty the time-alignment buffer. */
 void ImuPipelineGap(ImuPipeline *p, double gap)
 {

@@ -107,6 +107,13 @@ IMU_HIDDEN void ImuPipelineReset(ImuPipeline *p);
  */
 IMU_HIDDEN void ImuPipelineGap(ImuPipeline *p, double gap);
 /**
+ * @brief NULL if the evolving state of an initialised pipeline is one it can reach by clock [s]
+ *        (ImuGuard's time of the last sample; a restored FMU state): buffer heads and counts that
+ *        index, times finite and no later than clock, filter flags and counts in range; else what is
+ *        wrong, in the state's terms.
+ */
+IMU_HIDDEN const char *ImuPipelineStateProblem(const ImuPipeline *p, double clock);
+/**
  * @brief Process one sample.
  * @param t time of the sample [s] since the first one (the clock of the time-dependent signals:
  *        alignment, correction terms, PSO-BP temperature rate; it does not decrease).

@@ -78,6 +78,11 @@ int ImuPsoBpFromBlock(ImuPsoBpCoefficients *c, const double *block, size_t n)
     return 0;
 }
 
+int ImuPsoBpStateValid(const ImuPsoBpState *s, double clock)
+{
+    return (s->started == 0 || s->started == 1) && s->time >= 0.0 && s->time <= clock; /* false for NaN */
+}
+
 void ImuPsoBpInitialise(ImuPsoBpState *s, const ImuPsoBpCoefficients *c)
 {
     s->started = 0;

@@ -80,6 +80,9 @@ typedef struct {
 IMU_HIDDEN int ImuPsoBpFromBlock(ImuPsoBpCoefficients *c, const double *block, size_t n);
 /** @brief Reset the estimator: T = centre of [tMin, tMax] degC, rate 0 degC/s, not started. */
 IMU_HIDDEN void ImuPsoBpInitialise(ImuPsoBpState *s, const ImuPsoBpCoefficients *c);
+/** @brief 1 if s is a state the stage can reach by clock [s] (a restored FMU state): started 0 or 1,
+ *         its time finite, >= 0 and no later than clock; else 0. */
+IMU_HIDDEN int ImuPsoBpStateValid(const ImuPsoBpState *s, double clock);
 /** @brief Feed one sample: time t [s], temperature [degC] (NaN: state unchanged). */
 IMU_HIDDEN void ImuPsoBpUpdate(ImuPsoBpState *s, double t, double temperature);
 /** @brief Gyro bias [rad/s] at temperature [degC] and rate [degC/s], both clamped to the training

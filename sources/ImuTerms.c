@@ -78,6 +78,13 @@ static void ImuTermsDerivatives(ImuTermsState *s, double dt, const double x[9])
     }
 }
 
+int ImuTermsStateValid(const ImuTermsState *s, double clock)
+{
+    return (s->started == 0 || s->started == 1) && s->firstTime >= 0.0 && s->firstTime <= s->lastTime
+           && (s->started ? s->lastTime == clock : s->lastTime <= clock) && s->lastTempTime >= 0.0
+           && s->lastTempTime <= clock; /* false for NaN */
+}
+
 /** @brief Low-passed temperature rates [degC/s] (time constants IMU_TERMS_TEMP_RATE_TAU and
  *         IMU_TERMS_TEMP_RATE_FAST_TAU) at time t [s]. */
 static void ImuTermsTemperatureRate(ImuTermsState *s, double t, double temperature)

@@ -80,6 +80,11 @@ typedef struct {
 IMU_HIDDEN int ImuTermsFromBlock(ImuTermsCoefficients *c, const double *block);
 /** @brief Forget the previous sample. */
 IMU_HIDDEN void ImuTermsReset(ImuTermsState *s);
+/** @brief 1 if s is a state the terms can reach by clock [s] (the pipeline's time of the last sample;
+ *         a restored FMU state): started 0 or 1, its times finite, >= 0 and no later than clock, the
+ *         first no later than the last, the last equal to clock once started (every sample passes
+ *         its time); else 0. */
+IMU_HIDDEN int ImuTermsStateValid(const ImuTermsState *s, double clock);
 /**
  * @brief Signals of one sample at time t [s] from the compensated components x[9], the
  *        temperature [degC] and the auxiliary inputs aux (their own units); advances the state.

@@ -535,6 +535,9 @@ static const char *restoredStateProblem(ModelState *s) {
     if (!isfinite(s->time) || !isfinite(m->stepSize) || !allFinite(m->runtime.guard.held, IMU_OUTPUT_COUNT)) {
         return "the time, step size [s] or held outputs are not finite";
     }
+    if (!ImuGuardClockValid(&m->runtime.guard)) {
+        return "the guard's clock [s] is not finite, >= 0 and fine enough to resolve the nominal step";
+    }
     if (!m->initialised) {
         return NULL; /* the pipeline is initialised from the parameters before it runs */
     }
@@ -542,13 +545,7 @@ static const char *restoredStateProblem(ModelState *s) {
     if (problem != NULL) {
         return problem;
     }
-    if (!ImuAlignStateValid(&m->runtime.pipeline.align)) {
-        return "the time-alignment buffer's count or head is outside 0..63";
-    }
-    if (m->runtime.pipeline.settings.enablePf && !ImuMagPfStateValid(&m->runtime.pipeline.pf)) {
-        return "the particle filter's bin list, bin count or sample counter does not fit its settings";
-    }
-    return NULL;
+    return ImuPipelineStateProblem(&m->runtime.pipeline, m->runtime.guard.clock);
 }
 
 ModelStatus ModelSetState(ModelInstance *mi, const char *function, const ModelState *state) {

@@ -244,6 +244,45 @@ def test_resealed_edits_of_indices_are_rejected_with_the_field_named(tmp_path_fa
             assert len(message) == 1 and "invalid FMU state" in message[0] and word in message[0], message
 
 
+def _align_newest(layout, base: bytes) -> tuple[int, int]:
+    """(offset, size) of align.time[head] in base (the newest buffered time)."""
+    head = struct.unpack_from("<i", base, layout["model.runtime.pipeline.align.head"][0])[0]
+    return layout["model.runtime.pipeline.align.time[0]"][0] + 8 * head, 8
+
+
+@pytest.mark.parametrize("name, value, words", [
+    ("model.runtime.guard.clock", 1e300, "clock"),
+    ("model.runtime.guard.clock", float("nan"), "clock"),
+    ("model.runtime.guard.clock", -1.0, "clock"),
+    ("align newest time", 1e300, "time-alignment"),
+    ("model.runtime.pipeline.terms.lastTime", 1e300, "correction terms"),
+    ("model.runtime.pipeline.psobp.time", 1e300, "PSO-BP"),
+    ("model.runtime.pipeline.attitude.accLowPass.count", -1, "low-pass"),
+    ("model.runtime.pipeline.attitude.motionBias.rotatedBias.count", -7, "low-pass"),
+    ("model.runtime.pipeline.attitude.nominalStep", float("inf"), "nominal step"),
+])
+def test_resealed_clocks_and_filter_counts_outside_what_a_run_can_reach_are_rejected(tmp_path_factory, layout,
+                                                                                   header_size, name, value, words):
+    """Issue 31 item 10: each of these, resealed, was accepted by the old code and changed every later
+    step (a clock or a buffered time at 1e300 stops the time-alignment buffer and the terms from
+    advancing; a low-pass count of -1 divides by zero at the next sample). A valid run cannot reach
+    them: the newest buffered time and the terms' last time equal the guard's clock, which resolves
+    the nominal step; the counts are >= 0."""
+    fmu_path = _fmu(tmp_path_factory, 3)
+    with initialised_fmu(fmu_path, 0.0, SETTINGS) as fmu:
+        stepper = Stepper(fmu)
+        _run(stepper, 0, BASE_STEPS)
+        base = bytes(fmu.serializeFMUState(fmu.getFMUState()))
+        offset, size = _align_newest(layout, base) if name == "align newest time" else layout[name]
+        state = bytearray(base)
+        state[offset:offset + size] = struct.pack("<i", value) if size == 4 else struct.pack("<d", value)
+        logged = len(fmu.log_messages)
+        with pytest.raises(FMICallException):
+            fmu.setFMUState(fmu.deserializeFMUState(bytes(reseal(state, header_size))))
+        message = fmu.log_messages[logged:]
+        assert len(message) == 1 and "invalid FMU state" in message[0] and words in message[0], message
+
+
 def test_mutated_states_under_address_and_undefined_behaviour_sanitizers(harness, layout, header_size, tmp_path):
     base_path = tmp_path / "base.bin"
     subprocess.run([str(harness), "base", str(base_path)], check=True)

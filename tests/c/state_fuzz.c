@@ -104,6 +104,10 @@ static void layout(void) {
     FIELD(model.runtime.guard.hasSample);
     FIELD(model.runtime.guard.present);
     FIELD(model.runtime.guard.held[0]);
+    FIELD(model.runtime.guard.clock);
+    FIELD(model.runtime.guard.stepCount);
+    FIELD(model.runtime.guard.stepHead);
+    FIELD(model.runtime.guard.steps[0]);
     FIELD(model.settings[ImuSetAttitudeMode]);
     FIELD(model.settings[ImuSetPfParticles]);
     FIELD(model.settings[ImuSetPfDecimation]);
@@ -130,9 +134,17 @@ static void layout(void) {
     FIELD(model.runtime.pipeline.coefficients.psobp.hidden);
     FIELD(model.runtime.pipeline.attitude.settings.mode);
     FIELD(model.runtime.pipeline.attitude.tiltInitialised);
+    FIELD(model.runtime.pipeline.attitude.nominalStep);
+    FIELD(model.runtime.pipeline.attitude.accLowPass.count);
+    FIELD(model.runtime.pipeline.attitude.accLowPass.meanTime);
+    FIELD(model.runtime.pipeline.attitude.accLowPass.initialised);
+    FIELD(model.runtime.pipeline.attitude.motionBias.rotatedBias.count);
+    FIELD(model.runtime.pipeline.attitude.motionBias.rotation[1].count);
     FIELD(model.runtime.pipeline.align.count);
     FIELD(model.runtime.pipeline.align.head);
+    FIELD(model.runtime.pipeline.align.time[0]);
     FIELD(model.runtime.pipeline.terms.started);
+    FIELD(model.runtime.pipeline.terms.lastTime);
     FIELD(model.runtime.pipeline.pf.settings.particleCount);
     FIELD(model.runtime.pipeline.pf.settings.decimation);
     FIELD(model.runtime.pipeline.pf.settings.sphereBins);
@@ -148,6 +160,7 @@ static void layout(void) {
     FIELD(model.runtime.pipeline.pf.work.parent[0]);
     FIELD(model.runtime.pipeline.psobp.started);
     FIELD(model.runtime.pipeline.psobp.tau);
+    FIELD(model.runtime.pipeline.psobp.time);
 }
 
 /** @brief Write the serialized state of an instance that ran BASE_STEPS samples to path. */
