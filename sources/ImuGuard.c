@@ -46,8 +46,12 @@ void ImuGuardInitialOutputs(double declination, double out[IMU_OUTPUT_COUNT])
 
 void ImuGuardReset(ImuGuard *g, double declination)
 {
+    int i;
     memset(g, 0, sizeof *g);
     g->lastValidTemp = NAN;
+    for (i = 0; i < IMU_TERMS_AUX_COUNT; i++) {
+        g->lastValidAux[i] = NAN;
+    }
     ImuGuardInitialOutputs(declination, g->held);
 }
 
@@ -119,6 +123,27 @@ static int ImuGuardInputs(ImuGuard *g, double fieldNorm, const double raw[IMU_IN
         g->lastValidTemp = raw[ImuInTemp];
     }
     return ImuGuardPresence(g, raw, found);
+}
+
+/** @brief Hold each auxiliary input that a correction term of `terms` uses at its last finite value
+ *         while it is not finite (NaN before a first one: its terms are skipped); returns
+ *         ImuGuardIssueAux if one was not finite, else 0. An unused auxiliary input is never an issue. */
+static int ImuGuardAux(ImuGuard *g, const ImuTermsCoefficients *terms, double in[IMU_INPUT_COUNT])
+{
+    int i, issues = 0;
+    for (i = 0; i < IMU_TERMS_AUX_COUNT; i++) {
+        double *x = &in[ImuInAux1 + i];
+        if (!ImuTermsUseSignal(terms, ImuSigAux1 + i)) {
+            continue;
+        }
+        if (isfinite(*x)) {
+            g->lastValidAux[i] = *x;
+        } else {
+            *x = g->lastValidAux[i];
+            issues = ImuGuardIssueAux;
+        }
+    }
+    return issues;
 }
 
 double ImuGuardNominalStep(const ImuGuard *g)
@@ -226,7 +251,7 @@ int ImuGuardStep(ImuGuard *g, ImuPipeline *p, double step, const double raw[IMU_
                  double out[IMU_OUTPUT_COUNT])
 {
     double in[IMU_INPUT_COUNT];
-    int issues = ImuGuardInputs(g, p->settings.fieldNorm, raw, in);
+    int issues = ImuGuardInputs(g, p->settings.fieldNorm, raw, in) | ImuGuardAux(g, &p->coefficients.terms, in);
     double nominal;
     const double dt = ImuGuardTime(g, step, &issues, &nominal);
     if (issues & ImuGuardIssueGap) {

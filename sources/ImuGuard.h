@@ -50,7 +50,8 @@ typedef enum {
     ImuGuardIssueTemp = 1 << 4,    /* temperature not finite or outside the valid range */
     ImuGuardIssueOrder = 1 << 5,   /* step since the previous sample not finite and > 0 */
     ImuGuardIssueGap = 1 << 6,     /* step longer than IMU_GUARD_GAP_STEPS nominal steps (or IMU_GUARD_MAX_STEP) */
-    ImuGuardIssueOutput = 1 << 8   /* an output was not finite although the inputs were valid: held */
+    ImuGuardIssueOutput = 1 << 8,  /* an output was not finite although the inputs were valid: held */
+    ImuGuardIssueAux = 1 << 9      /* an auxiliary input a correction term uses is not finite: held */
 } ImuGuardIssue;
 
 /** The sensors, as the ImuGuardIssue bit of their bad input (ImuGuard.present). */
@@ -59,6 +60,7 @@ typedef enum {
 /** State of the guard: plain values only, so a copy is a snapshot. */
 typedef struct {
     double lastValidTemp;               /* degC, last valid temperature (NaN before the first) */
+    double lastValidAux[IMU_TERMS_AUX_COUNT]; /* their units, last finite auxiliary inputs (NaN before the first) */
     double clock;                       /* s since the first sample, summed from the steps */
     double steps[IMU_GUARD_STEP_HISTORY]; /* s, the last steps that were finite and > 0, a ring */
     int stepCount;                      /* entries of steps in use, 0..IMU_GUARD_STEP_HISTORY */

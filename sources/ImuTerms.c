@@ -141,6 +141,17 @@ static double ImuTermsClamp(double x, double lo, double hi)
     return x < lo ? lo : (x > hi ? hi : x);
 }
 
+int ImuTermsUseSignal(const ImuTermsCoefficients *c, int signal)
+{
+    int k;
+    for (k = 0; k < c->count; k++) {
+        if (c->a[k] == signal || c->b[k] == signal) {
+            return 1;
+        }
+    }
+    return 0;
+}
+
 int ImuTermsApply(const ImuTermsCoefficients *c, const double signals[IMU_TERM_SIGNAL_COUNT], double x[9])
 {
     double correction[9] = {0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0};

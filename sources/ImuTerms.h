@@ -92,6 +92,8 @@ IMU_HIDDEN int ImuTermsStateValid(const ImuTermsState *s, double clock);
  */
 IMU_HIDDEN void ImuTermsSignals(ImuTermsState *s, double t, const double x[9], double temperature,
                                 const double aux[IMU_TERMS_AUX_COUNT], double signals[IMU_TERM_SIGNAL_COUNT]);
+/** @brief 1 if a term of c has `signal` (an ImuTermSignal) as a factor of its regressor, else 0. */
+IMU_HIDDEN int ImuTermsUseSignal(const ImuTermsCoefficients *c, int signal);
 /** @brief Subtract every term from x[9] in place: coefficient times the regressor clamped to
  *         [lo, hi]; a term whose regressor is not finite is skipped.
  *  @return 1 if every finite regressor was inside its [lo, hi], 0 if one was clamped. */

@@ -31,7 +31,7 @@ static const char *const logCategoryNames[MODEL_LOG_CATEGORY_COUNT] = {
 /** Short names of the ModelIssue kinds, in bit order (for the recovery messages). */
 static const char *const issueNames[MODEL_ISSUE_COUNT] = {
     "gyroscope", "accelerometer", "magnetometer", "magnetometer field", "temperature",
-    "sample time order", "sample time gap", "step size", "non-finite output", "calibrated-range"
+    "sample time order", "sample time gap", "step size", "non-finite output", "auxiliary", "calibrated-range"
 };
 
 typedef char ModelCheckIssues[(1 << (MODEL_ISSUE_COUNT - 1)) == ModelIssueCalibration ? 1 : -1];
@@ -358,12 +358,29 @@ static void logIssue(const ModelInstance *mi, const char *function, int issue, d
         ModelLog(mi, ModelWarning, LogBadInput, "%s: t = %g s: communicationStepSize = %g s must be finite and > 0 (and t and t + h finite): the step is discarded, outputs hold their last values",
                  function, t, h);
         break;
+    case ModelIssueAux: {
+        int i = 0;
+        while (i < IMU_TERMS_AUX_COUNT - 1
+               && (isfinite(x[ImuInAux1 + i]) || !ImuTermsUseSignal(&m->runtime.pipeline.coefficients.terms, ImuSigAux1 + i))) {
+            i++;
+        }
+        ModelLog(mi, ModelWarning, LogBadInput, "%s: t = %g s: bad auxiliary input aux_%d = %g (not finite): the correction terms on it use its last "
+                 "finite value %g until it recovers (NaN: skipped)", function, t, i + 1, x[ImuInAux1 + i], m->runtime.guard.lastValidAux[i]);
+        break;
+    }
     case ModelIssueCalibration: {
         char ranges[MODEL_LOG_BUFFER_SIZE / 2];
-        ImuPipelineDescribeRanges(&m->runtime.pipeline, m->runtime.pipeline.rangeIssues, ranges, sizeof ranges);
-        ModelLog(mi, ModelWarning, LogBadInput, "%s: t = %g s: temperature %g degC: outside the calibrated range of the %s: "
-                 "each model is evaluated with its inputs clamped to that range (no extrapolation) and calibration_valid = 0 until they return",
-                 function, t, x[ImuInTemp], ranges);
+        const int rangeIssues = m->runtime.pipeline.rangeIssues;
+        ImuPipelineDescribeRanges(&m->runtime.pipeline, rangeIssues, ranges, sizeof ranges);
+        if (rangeIssues & (ImuRangeThermalGyr | ImuRangeThermalAcc | ImuRangeThermalMag | ImuRangePsoBp)) {
+            ModelLog(mi, ModelWarning, LogBadInput, "%s: t = %g s: temperature %g degC: outside the calibrated range of the %s: "
+                     "each model is evaluated with its inputs clamped to that range (no extrapolation) and calibration_valid = 0 until they return",
+                     function, t, x[ImuInTemp], ranges);
+        } else {
+            ModelLog(mi, ModelWarning, LogBadInput, "%s: t = %g s: an input outside the calibrated range of the %s: "
+                     "each model is evaluated with its inputs clamped to that range (no extrapolation) and calibration_valid = 0 until they return",
+                     function, t, ranges);
+        }
         break;
     }
     default:

@@ -59,10 +59,11 @@ typedef enum {
     ModelIssueGap = ImuGuardIssueGap,         /* a gap: step longer than IMU_GUARD_GAP_STEPS nominal steps */
     ModelIssueStep = 1 << 7,    /* step size not finite and > 0: the step is discarded */
     ModelIssueOutput = ImuGuardIssueOutput, /* an output was not finite although the inputs were valid */
-    ModelIssueCalibration = 1 << 9 /* a model input left its calibrated range (ImuRangeIssue): evaluated clamped */
+    ModelIssueAux = ImuGuardIssueAux,       /* an auxiliary input a correction term uses is not finite: held */
+    ModelIssueCalibration = 1 << 10 /* a model input left its calibrated range (ImuRangeIssue): evaluated clamped */
 } ModelIssue;
 
-#define MODEL_ISSUE_COUNT 10
+#define MODEL_ISSUE_COUNT 11
 
 /** Every value of the model and the pipeline that produces the outputs. */
 typedef struct {

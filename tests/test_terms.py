@@ -16,6 +16,8 @@ CLOSED_FORM_TOLERANCE = 1e-12
 #: Regressor bounds that no signal of these recordings reaches: the term is never clamped.
 UNBOUNDED = (-1e300, 1e300)
 SOURCES = Path(__file__).resolve().parents[1] / "sources"
+#: ImuGuardIssueAux of sources/ImuGuard.h.
+AUX_BIT = 1 << int(re.search(r"ImuGuardIssueAux = 1 << (\d+)", (SOURCES / "ImuGuard.h").read_text()).group(1))
 
 
 def _settings():
@@ -127,16 +129,58 @@ def test_one_is_an_offset_and_abs_makes_a_signed_power():
 
 
 def test_aux_terms_read_the_auxiliary_inputs():
-    # A term on aux_k reads input aux_k of the same sample; a NaN aux cell skips the term.
+    # A term on aux_k reads input aux_k of the same sample; a non-finite aux cell is bad input: the
+    # guard holds the last finite value (issue 31 item 6: it used to skip the term without a flag).
     t, x = _recording()
     x[5:9, _column("aux_3")] = np.nan
     terms = [("mag_x", "aux_3", None, 0.7), ("gyr_y", "aux_1", "acc_z", 1e-3)]
-    out = runtime.run_batch(_coefficients(terms), _settings(), t, x)
-    aux3 = np.nan_to_num(x[:, _column("aux_3")])
+    out, bits = runtime.run_batch_issues(_coefficients(terms), _settings(), t, x)
+    aux3 = x[:, _column("aux_3")].copy()
+    aux3[5:9] = aux3[4]
     assert np.max(np.abs(out[:, 6] - (x[:, 6] - 0.7 * aux3))) < CLOSED_FORM_TOLERANCE * 100
-    assert np.array_equal(out[5:9, 6], x[5:9, 6])
     expected_gy = x[:, 1] - 1e-3 * x[:, _column("aux_1")] * x[:, 5]
     assert np.max(np.abs(out[:, 1] - expected_gy)) < CLOSED_FORM_TOLERANCE
+    np.testing.assert_array_equal(np.flatnonzero(bits & AUX_BIT), np.arange(5, 9))
+
+
+def test_a_non_finite_aux_input_before_any_finite_one_skips_its_term_and_is_flagged():
+    t, x = _recording()
+    x[:3, _column("aux_2")] = np.nan
+    out, bits = runtime.run_batch_issues(_coefficients([("acc_x", "aux_2", None, 0.5)]), _settings(), t, x)
+    np.testing.assert_array_equal(out[:3, 3], x[:3, 3])
+    assert np.all(bits[:3] & AUX_BIT) and not np.any(bits[3:] & AUX_BIT)
+
+
+def test_an_unused_aux_input_is_never_bad_input():
+    t, x = _recording()
+    x[:, _column("aux_4")] = np.nan
+    _, bits = runtime.run_batch_issues(_coefficients([("acc_x", "aux_2", None, 0.5)]), _settings(), t, x)
+    assert not np.any(bits & AUX_BIT)
+
+
+def test_the_fmu_warns_about_a_bad_aux_input_by_name_and_a_clamped_one_without_blaming_the_temperature(tmp_path):
+    """aux_1 NaN for 5 samples: one Warning naming aux_1 and the value held; aux_1 = 1e300 for 5
+    samples: the term's regressor is clamped to its fitted bounds, one Warning naming the correction
+    terms and not the temperature (which is inside every range), calibration_valid = 0 there."""
+    from fmu.cosim import run_fmu
+    from training.fmu_build import build_fmu
+    n = 60
+    t = np.arange(n) * 0.01
+    x = np.zeros((n, len(layout.INPUTS)))
+    x[:, 5], x[:, 6], x[:, 8], x[:, 9], x[:, _column("aux_1")] = -9.80665, 20.0, 40.0, 25.0, 1.0
+    x[10:15, _column("aux_1")] = np.nan
+    x[30:35, _column("aux_1")] = 1e300
+    fmu = build_fmu(_coefficients([("gyr_y", "aux_1", None, 0.01, -5.0, 5.0)]), {}, tmp_path / "ImuFusion.fmu",
+                    aux_inputs=[{"column": "aux_1", "unit": "V", "meaning": "supply voltage"}])
+    log: list[str] = []
+    out = run_fmu(fmu, t, x, log=log)
+    np.testing.assert_allclose(out[10:15, 1], -0.01)  # the held 1 V
+    warnings = [m for m in log if m.startswith("[WARNING]")]
+    assert len(warnings) == 2, log
+    assert "bad auxiliary input aux_1 = nan (not finite)" in warnings[0] and "last finite value 1 " in warnings[0]
+    assert "outside the calibrated range of the correction terms" in warnings[1] and "temperature" not in warnings[1]
+    calibration_valid = out[:, layout.OUTPUTS.index("calibration_valid")]
+    np.testing.assert_array_equal(np.flatnonzero(calibration_valid == 0.0), np.arange(30, 35))
 
 
 def test_signal_vocabulary_matches_the_c_enum():
