@@ -137,15 +137,16 @@ static void ImuAlignExtrapolate(const ImuAlignState *s, double lag, int triad, d
     }
 }
 
-void ImuAlignUpdate(ImuAlignState *s, const ImuAlignSettings *settings, double t, double x[9])
+int ImuAlignUpdate(ImuAlignState *s, const ImuAlignSettings *settings, double t, double x[9])
 {
-    int i;
+    int i, beyond = 0;
     if (!ImuAlignPush(s, t, x)) {
-        return;
+        return 0;
     }
     for (i = 0; i < 3; i++) {
         const double lag = settings->lag[i];
         double *triad = &x[3 * i];
+        beyond = beyond || (s->count == IMU_ALIGN_CAPACITY && t - fabs(lag) < s->time[ImuAlignIndex(s, s->count - 1)]);
         if (lag < 0.0) {
             ImuAlignAt(s, t + lag, i, triad);
         } else if (lag > 0.0 && i == ImuAlignMag) {
@@ -154,4 +155,5 @@ void ImuAlignUpdate(ImuAlignState *s, const ImuAlignSettings *settings, double t
             ImuAlignExtrapolate(s, lag, i, triad);
         }
     }
+    return beyond;
 }

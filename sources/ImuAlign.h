@@ -53,7 +53,9 @@ IMU_HIDDEN void ImuAlignReset(ImuAlignState *s);
 /**
  * @brief Buffer the sample at time t [s] and align the compensated components x[9] (gyr rad/s,
  *        acc m/s^2, mag uT) in place by the lags of the settings.
+ * @return 1 if a lag reaches beyond the full buffer (|lag| longer than its span: the alignment is
+ *         clamped to the oldest buffered sample), else 0 (also while the buffer fills at start-up).
  */
-IMU_HIDDEN void ImuAlignUpdate(ImuAlignState *s, const ImuAlignSettings *settings, double t, double x[9]);
+IMU_HIDDEN int ImuAlignUpdate(ImuAlignState *s, const ImuAlignSettings *settings, double t, double x[9]);
 
 #endif

@@ -314,7 +314,9 @@ void ImuPipelineUpdate(ImuPipeline *p, double t, double dt, double nominalStep, 
     if (p->settings.enablePsoBp && !ImuPsoBpCorrect(&p->coefficients.psobp, &p->psobp, &out[ImuOutRateX])) {
         p->rangeIssues |= ImuRangePsoBp;
     }
-    ImuAlignUpdate(&p->align, &p->settings.align, t, &out[ImuOutRateX]);
+    if (ImuAlignUpdate(&p->align, &p->settings.align, t, &out[ImuOutRateX])) {
+        p->rangeIssues |= ImuRangeLag;
+    }
     p->rangeIssues |= ImuPipelineTerms(p, t, temperature, &in[ImuInAux1], out);
     ImuPipelineMagPf(p, out);
     if (p->settings.enableElm && !ImuElmApply(&p->coefficients.elm, &out[ImuOutFieldX], &out[ImuOutFieldX])) {
@@ -370,6 +372,12 @@ void ImuPipelineDescribeRanges(const ImuPipeline *p, int issues, char *text, siz
         tail = ImuPipelineTail(text, size, &left);
         snprintf(tail, left, "ELM field model (field outside its box x [%g, %g], y [%g, %g], z [%g, %g] uT); ",
                  c->elm.inMin[0], c->elm.inMax[0], c->elm.inMin[1], c->elm.inMax[1], c->elm.inMin[2], c->elm.inMax[2]);
+    }
+    if (issues & ImuRangeLag) {
+        tail = ImuPipelineTail(text, size, &left);
+        snprintf(tail, left, "time alignment (lag_gyr %g, lag_acc %g, lag_mag %g s: one reaches beyond the %d buffered "
+                 "samples, and the oldest is used); ", p->settings.align.lag[0], p->settings.align.lag[1],
+                 p->settings.align.lag[2], IMU_ALIGN_CAPACITY);
     }
     if (strlen(text) >= 2 && text[strlen(text) - 2] == ';') {
         text[strlen(text) - 2] = '\0';

@@ -68,7 +68,8 @@ typedef enum {
     ImuRangeThermalMag = 1 << 2, /* temperature outside the magnetometer gain/bias model's range */
     ImuRangePsoBp = 1 << 3,      /* temperature or its rate outside the PSO-BP network's ranges */
     ImuRangeTerms = 1 << 4,      /* a correction term's regressor outside its [lo, hi] */
-    ImuRangeElm = 1 << 5         /* the field outside the ELM's calibrated box */
+    ImuRangeElm = 1 << 5,        /* the field outside the ELM's calibrated box */
+    ImuRangeLag = 1 << 6         /* a lag beyond the time-alignment buffer's span: clamped to it */
 } ImuRangeIssue;
 
 /** Whole pipeline: settings, coefficients and evolving state in one plain struct (copyable). */

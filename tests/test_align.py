@@ -119,6 +119,18 @@ def test_a_lag_beyond_the_buffer_uses_its_oldest_sample():
     np.testing.assert_array_equal(out[reach:, RATE], gyr[:-reach])
 
 
+@pytest.mark.parametrize("name, lag", [("lag_gyr", -1.0), ("lag_acc", 0.7), ("lag_mag", 0.64)])
+def test_a_lag_beyond_the_full_buffer_is_flagged_not_while_it_fills(name, lag):
+    """Issue 31 item 10: a lag the buffer cannot reach (its span is 63 steps = 0.63 s here) used to
+    be clamped without a word; now calibration_valid = 0 once the buffer is full (sample 63 on),
+    and not while it fills at start-up, nor for a lag within the span (0.62 s)."""
+    t = np.arange(150) * DT
+    x = _inputs(t, _smooth_rates(t))
+    valid = OUT["calibration_valid"]
+    np.testing.assert_array_equal(np.flatnonzero(_run(x, t, **{name: lag})[:, valid] == 0.0), np.arange(63, 150))
+    assert np.all(_run(x, t, **{name: np.sign(lag) * 0.62})[:, valid] == 1.0)
+
+
 def test_zero_lags_change_nothing_bit_for_bit():
     t = np.arange(200) * DT
     _, gyr, field = _turning_about_z(200, 0.7, 0.8)
@@ -181,11 +193,15 @@ def test_fmu_with_aux_inputs_and_lags_equals_the_batch_runtime(aux_fmu):
     x = data.inputs(aux_columns=fmu_aux_columns(aux_fmu))
     batch = runtime.run_batch(_coefficients(), np.array(layout.settings_array(LAGS)), data.t, x)
     np.testing.assert_allclose(run_fmu(aux_fmu, data.t, x), batch, rtol=0, atol=GOLDEN_TOLERANCE)
-    # the bounded motor-current term is in the outputs: clamped at 1.5 A, skipped where NaN
+    # the bounded motor-current term is in the outputs: clamped at 1.5 A; where the current is NaN
+    # the guard holds its last finite value (bad input, issue 31 item 6)
     plain = runtime.run_batch(np.array(layout.identity_coefficients()), np.array(layout.settings_array(LAGS)),
                               data.t, x)
     current = data.aux["aux_motor_current"]
-    expected = np.where(np.isnan(current), 0.0, 2e-3 * np.clip(current, -1.0, 1.5))
+    held = current.copy()
+    for k in np.flatnonzero(np.isnan(current)):
+        held[k] = held[k - 1]
+    expected = 2e-3 * np.clip(held, -1.0, 1.5)
     np.testing.assert_allclose(plain[:, OUT["rate_z"]] - batch[:, OUT["rate_z"]], expected, rtol=0, atol=1e-12)
 
 
