@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 from training.cli import main
+from training.completeness import EXIT_PARTIAL
 from training.fleet import engine
 from training.fleet.population import MIN_UNITS_FOR_OUTLIERS, OUTLIER_SIGMAS, outliers, population
 from training.fleet.simulate import simulate_fleet
@@ -32,17 +33,33 @@ def test_fleet_train_equals_serial_train_and_names_a_corrupt_unit(tmp_path, caps
     simulate_fleet(FLEET, 2, fleet, seed=0, progress=False)
     broken = fleet / "unit_0001" / "calibration" / "calibration.csv.gz"
     broken.write_bytes(broken.read_bytes()[:3000])  # a recording cut short in transfer
-    assert main(["fleet", "train", str(fleet), "--out", str(tmp_path / "out"), "--workers", "2"]) == 0
-    printed = capsys.readouterr().out
-    assert "trained 1 of 2 units; 1 failed" in printed and "failed: unit_0001:" in printed
+    (fleet / "unit_0002").symlink_to(fleet / "unit_0002")  # a link loop: was skipped without a word
+    assert main(["fleet", "train", str(fleet), "--out", str(tmp_path / "out"), "--workers", "2"]) == EXIT_PARTIAL
+    captured = capsys.readouterr()
+    printed = captured.out
+    assert "trained 1 of 3 units; 2 failed" in printed and "failed: unit_0001:" in printed
+    assert "failed: unit_0002:" in printed and "a symbolic link loop" in printed
+    assert captured.err.strip().splitlines()[-1] == (f"imufmu fleet train: 2 of 3 units failed (listed above); "
+                                                     f"exit status {EXIT_PARTIAL}")
     assert "No fleet ELM: fewer than 5 units with a magnetometer reference" in printed
     doc = json.loads((tmp_path / "out" / "fleet.json").read_text())
-    assert [f["unit"] for f in doc["failed"]] == ["unit_0001"] and "cannot read" in doc["failed"][0]["reason"]
+    assert [f["unit"] for f in doc["failed"]] == ["unit_0001", "unit_0002"]
+    assert "cannot read" in doc["failed"][0]["reason"]
     serial = train_to_folder([fleet / "unit_0000" / "calibration" / "calibration.csv.gz"], tmp_path / "serial",
                              progress=False)
     fleet_model = json.loads((tmp_path / "out" / "unit_0000" / "model.json").read_text())
     assert _without_clock(fleet_model) == _without_clock(json.loads(serial.model.read_text()))
-    assert (tmp_path / "out" / "fleet.md").read_text().startswith("# Fleet calibration: 2 units, 1 trained, 1 failed")
+    assert (tmp_path / "out" / "fleet.md").read_text().startswith("# Fleet calibration: 3 units, 1 trained, 2 failed")
+
+
+def test_a_fleet_of_which_no_unit_trains_exits_1(tmp_path, capsys):
+    fleet = tmp_path / "fleet"
+    fleet.mkdir()
+    (fleet / "unit_0000").symlink_to(tmp_path / "nowhere")
+    assert main(["fleet", "train", str(fleet), "--out", str(tmp_path / "out")]) == 1
+    captured = capsys.readouterr()
+    assert "trained 0 of 1 units; 1 failed" in captured.out and "a broken symbolic link" in captured.out
+    assert captured.err.strip().endswith("exit status 1")
 
 
 def _normal_population(units: int, seed: int) -> dict:

@@ -65,8 +65,10 @@ def cmd_simulate_fleet(args) -> None:
     print(f"wrote {args.devices} unit folder(s) and {summary}")
 
 
-def cmd_fleet_train(args) -> None:
-    """imufmu fleet train FLEET_DIR --out OUT [--workers K | --scheduler ADDRESS] [--seed N]."""
+def cmd_fleet_train(args) -> int:
+    """imufmu fleet train FLEET_DIR --out OUT [--workers K | --scheduler ADDRESS] [--seed N]: exit
+    status 0 when every unit was trained, EXIT_PARTIAL when some were, 1 when none was."""
+    from training.completeness import EXIT_PARTIAL
     from training.fleet.report import fleet_elm_summary, write_fleet_report
     from training.fleet.train import train_fleet
     results = train_fleet(args.fleet_dir, args.out, seed=args.seed, workers=args.workers, scheduler=args.scheduler)
@@ -80,6 +82,12 @@ def cmd_fleet_train(args) -> None:
               f"({o['distance']:.1f} robust σ from the median {o['median']:.4g})")
     print(f"  {fleet_elm_summary(doc['elm'])}")
     print(f"wrote {json_path} and {md_path}")
+    if doc["failed"]:
+        status = EXIT_PARTIAL if doc["trained"] else 1
+        print(f"imufmu fleet train: {len(doc['failed'])} of {len(results)} units failed (listed above); "
+              f"exit status {status}", file=sys.stderr)
+        return status
+    return 0
 
 
 def cmd_campaign(args) -> None:

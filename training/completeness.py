@@ -20,6 +20,9 @@ from contract.layout import TRIAD_ORDER
 #: Exit status of `imufmu train` when the model was written but a recorded triad is not fully
 #: calibrated (without --allow-partial): distinct from 1 (an error) and 2 (a usage error).
 EXIT_INCOMPLETE = 3
+#: Exit status of a verb that did part of what was asked (e.g. `imufmu fleet train` with some units
+#: trained and some failed): the same number, documented in the README's exit-status table.
+EXIT_PARTIAL = EXIT_INCOMPLETE
 NAMES = {"gyr": "gyroscope", "acc": "accelerometer", "mag": "magnetometer"}
 #: What to record, per kind of missing parameter.
 ADVICE = {

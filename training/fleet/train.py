@@ -45,15 +45,39 @@ def unit_recordings(folder: Path) -> list[Path]:
     return sorted(p for pattern in RECORDING_PATTERNS for p in where.glob(pattern))
 
 
-def unit_folders(fleet_dir: Path) -> list[Path]:
-    """Sub-folders of fleet_dir that hold recordings, sorted by name; DataError when none does."""
+def _unreadable(entry: Path) -> str | None:
+    """Why the entry of a fleet folder that looks like a unit (a link, or a folder) cannot be read as
+    one, else None: a link that loops or points nowhere, or a folder that cannot be listed."""
+    try:
+        entry.resolve(strict=True)
+        if entry.is_dir():
+            next(iter(sorted(entry.iterdir())), None)
+    except RuntimeError:
+        return "a symbolic link loop"
+    except FileNotFoundError:
+        return "a broken symbolic link"
+    except OSError as e:
+        return f"cannot be read ({e.strerror or e})"
+    return None
+
+
+def unit_folders(fleet_dir: Path) -> tuple[list[Path], list[UnitResult]]:
+    """(sub-folders of fleet_dir that hold recordings, sorted by name; failed results of the entries
+    that look like units but cannot be read: link loops, broken links, folders that cannot be listed);
+    DataError when there is neither."""
     if not fleet_dir.is_dir():
         raise DataError(fleet_dir, "fleet folder not found")
-    units = [p for p in sorted(fleet_dir.iterdir()) if p.is_dir() and unit_recordings(p)]
-    if not units:
+    units, unreadable = [], []
+    for entry in sorted(fleet_dir.iterdir()):
+        reason = _unreadable(entry) if entry.is_symlink() or entry.is_dir() else None
+        if reason is not None:
+            unreadable.append(UnitResult(entry.name, None, f"{entry}: {reason}"))
+        elif entry.is_dir() and unit_recordings(entry):
+            units.append(entry)
+    if not units and not unreadable:
         raise DataError(fleet_dir, "no unit folder with recordings (*.csv, *.csv.gz, or a calibration/ "
                                    "sub-folder of them)")
-    return units
+    return units, unreadable
 
 
 def train_unit(folder: Path, out_dir: Path, seed: int) -> UnitResult:
@@ -71,13 +95,15 @@ def train_unit(folder: Path, out_dir: Path, seed: int) -> UnitResult:
 def train_fleet(fleet_dir: str | Path, out_dir: str | Path, seed: int = 0, workers: int | None = None,
                 scheduler: str | None = None, progress: bool = True) -> list[UnitResult]:
     """Train every unit folder of fleet_dir on Dask into out_dir; returns the results sorted by unit
-    and writes out_dir/units.json."""
+    (an entry that cannot be read as a unit folder is a failed unit with its reason) and writes
+    out_dir/units.json."""
     fleet_dir, out_dir = Path(fleet_dir), Path(out_dir)
-    units = unit_folders(fleet_dir)
+    units, results = unit_folders(fleet_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
-    with dask_client(workers, scheduler) as client:
-        results = [r for _, r in run_tasks(client, train_unit, units, "units", progress,
-                                           out_dir=out_dir.resolve(), seed=seed)]
+    if units:
+        with dask_client(workers, scheduler) as client:
+            results += [r for _, r in run_tasks(client, train_unit, units, "units", progress,
+                                                out_dir=out_dir.resolve(), seed=seed)]
     results.sort(key=lambda r: r.unit)
     (out_dir / "units.json").write_text(json.dumps([r.summary() for r in results], indent=1) + "\n")
     return results
