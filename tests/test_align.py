@@ -7,6 +7,7 @@ import pytest
 from fmpy import read_model_description
 
 from contract import layout
+from contract.errors import DataError
 from fmu.cosim import run_fmu
 from fmu.packer import fmu_aux_columns
 from training import runtime
@@ -184,7 +185,7 @@ def test_inputs_map_the_model_columns_onto_the_aux_inputs():
     k = layout.INPUTS.index("aux_1")
     assert np.array_equal(x[:, k], data.aux["aux_motor_current"], equal_nan=True)
     assert np.all(x[:, k + 1:] == 0.0) and np.all(data.inputs()[:, k:] == 0.0)
-    with pytest.raises(ValueError, match="motor.*aux_motor_torque"):
+    with pytest.raises(DataError, match="motor.*aux_motor_torque"):
         data.inputs(aux_columns=["aux_motor_torque"])
 
 

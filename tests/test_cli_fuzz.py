@@ -273,6 +273,17 @@ class Cases:
         variant("thermal a list", lambda d: d.__setitem__("thermal", []))
         variant("invalid UTF-8", lambda d: b'{"format": "\xff"}')
         variant("deeply nested", lambda d: b"[" * 100_000 + b"]" * 100_000)
+        # a valid model whose term reads an aux column the recording lacks (issue 31 item 9: diagnose
+        # gave a traceback): diagnose only, naming the model
+        d = json.loads(json.dumps(doc))
+        d.update(terms=[{"name": "supply", "target": "gyr_x", "a": "aux_1", "b": None, "coefficient": 1e-3,
+                         "lo": -5.0, "hi": 5.0}],
+                 aux_inputs=[{"column": "aux_supply_voltage", "unit": "V", "meaning": "supply"}])
+        stem = self.name("model")
+        path = self.folder / f"{stem}.json"
+        path.write_text(json.dumps(d))
+        self.add("diagnose", "model.json", "a term on an aux column the recording lacks",
+                 ["diagnose", str(self.good_csv), "--model", str(path), "--out", str(self.folder / stem)], path.name)
 
     def fmu_cases(self) -> None:
         f = self.folder

@@ -140,10 +140,7 @@ def run_recording(fmu_path: Path, data_path: Path, out_csv: str | Path,
     data = read_imu_csv(data_path)
     read_description(fmu_path)  # the archive checks (fmu.archive) before any member is read
     params = recording_parameters(data) | dict(overrides or {})
-    try:
-        inputs = data.inputs(aux_columns=fmu_aux_columns(fmu_path))
-    except ValueError as e:
-        raise ImuFusionError(str(e)) from e
+    inputs = data.inputs(aux_columns=fmu_aux_columns(fmu_path))
     log: list[str] = []
     out = run_fmu(fmu_path, data.t, inputs, parameters=params, progress=True, log=log)
     return RecordingRun(write_outputs_csv(out_csv, data.t, out), len(data), log, run_notes(out))

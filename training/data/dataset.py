@@ -67,17 +67,19 @@ class ImuData:
         """(N, len(contract.layout.INPUTS)) array in runtime input order: gyr xyz, acc xyz, mag xyz,
         temp, then aux_1..aux_4. aux_k is this recording's column aux_columns[k-1] (NaN cells stay
         NaN), 0 where not mapped; pass a model's `[a["column"] for a in artefact.aux_inputs]`.
-        Raises ValueError naming the recording and the column when a mapped column is missing.
+        Raises DataError naming the recording and the column when a mapped column is missing (every
+        verb that runs a model on a recording reports it in one line).
         """
+        from contract.errors import DataError
         if len(aux_columns) > len(AUX_INPUTS):
-            raise ValueError(f"{self.name}: {len(aux_columns)} auxiliary columns, the runtime has "
-                             f"{len(AUX_INPUTS)} auxiliary inputs")
+            raise DataError(self.name, f"{len(aux_columns)} auxiliary columns, the runtime has "
+                                       f"{len(AUX_INPUTS)} auxiliary inputs")
         aux = np.zeros((len(self), len(AUX_INPUTS)))
         for k, column in enumerate(aux_columns):
             if column not in self.aux:
-                raise ValueError(f"{self.name}: the model reads column '{column}' into input {AUX_INPUTS[k]}, "
-                                 f"but the recording has no such column (aux columns: "
-                                 f"{', '.join(self.aux) or 'none'})")
+                raise DataError(self.name, f"the model reads column '{column}' into input {AUX_INPUTS[k]}, "
+                                           f"but the recording has no such column (aux columns: "
+                                           f"{', '.join(self.aux) or 'none'})")
             aux[:, k] = self.aux[column]
         return np.column_stack([self.gyr, self.acc, self.mag, self.temp, aux]).astype(np.float64)
 

@@ -25,7 +25,8 @@ from pathlib import Path
 
 import numpy as np
 
-from contract.layout import INPUTS, TERM_SIGNALS, TERMS_MAX, TRIAD_ORDER, settings_array
+from contract.errors import DataError
+from contract.layout import AUX_INPUTS, INPUTS, TERM_SIGNALS, TERMS_MAX, TRIAD_ORDER, settings_array
 from training.artefact import ModelArtefact, coefficients_array, load_artefact, settings_dict
 from training.data.dataset import ImuData
 from training.data.earth import local_gravity
@@ -354,6 +355,16 @@ def _iterate(artefact: ModelArtefact, datasets: list[ImuData], targets: dict[str
     return current, r, iterations, first or [], plot_data, notes
 
 
+def _check_aux_columns(paths: list[Path], datasets: list[ImuData], artefact, model_path: Path) -> None:
+    """DataError naming the recording, the column and the model when a recording lacks an auxiliary
+    column the model's terms read."""
+    for path, data in zip(paths, datasets):
+        for k, aux in enumerate(artefact.aux_inputs):
+            if aux["column"] not in data.aux:
+                raise DataError(path, f"has no column '{aux['column']}', which the model {model_path} reads into "
+                                      f"input {AUX_INPUTS[k]} (aux columns: {', '.join(data.aux) or 'none'})")
+
+
 def diagnose(paths: list[Path], model_path: Path, out_dir: Path, seed: int = 0,
              max_iterations: int = MAX_ITERATIONS, plots: bool = True, progress: bool = True) -> dict:
     """Diagnose recordings `paths` with the artefact `model_path`; write out_dir/diagnosis.json,
@@ -367,6 +378,7 @@ def diagnose(paths: list[Path], model_path: Path, out_dir: Path, seed: int = 0,
     out_dir.mkdir(parents=True, exist_ok=True)
     artefact = load_artefact(model_path)
     datasets, notes = load_recordings([Path(p) for p in paths])
+    _check_aux_columns([Path(p) for p in paths], datasets, artefact, model_path)
     targets = {}
     for d in datasets:
         targets.update(targets_of(d))
