@@ -128,3 +128,77 @@ def test_the_prior_leaves_an_outlier_unit_out(tmp_path):
     prior = doc["prior"]["gyr"]
     assert prior["units"] == 39 and max(prior["sigma"][-3:]) < 0.015
     assert "- Left out as outliers: unit_0007." in _prior_lines(doc)
+
+
+@pytest.mark.parametrize("address", ["", "garbage", "http://127.0.0.1:8786", "tcp://[::1", "inproc://nothing",
+                                     "tcp://127.0.0.1:99999", "tcp://host", "tcp://:8786"])
+def test_a_malformed_scheduler_address_is_one_line_naming_it(tmp_path, capsys, address):
+    """Issue 31 item 2: these gave ValueError tracebacks, and "" silently ran on a local cluster."""
+    (tmp_path / "fleet" / "unit").mkdir(parents=True)
+    (tmp_path / "fleet" / "unit" / "a.csv").write_text("t\n")
+    assert main(["fleet", "train", str(tmp_path / "fleet"), "--out", str(tmp_path / "out"),
+                 "--scheduler", address]) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and f"--scheduler {address!r}: not a Dask scheduler address" in err[0], err
+
+
+class _FakeScheduler:
+    """A TCP server on loopback that accepts and then stays silent, or answers like an HTTP server."""
+
+    def __init__(self, reply: bytes | None):
+        import socket
+        self.reply, self.server = reply, socket.create_server(("127.0.0.1", 0))
+        self.address = f"tcp://127.0.0.1:{self.server.getsockname()[1]}"
+        self.connections: list = []
+        import threading
+        threading.Thread(target=self._serve, daemon=True).start()
+
+    def _serve(self) -> None:
+        while True:
+            try:
+                conn, _ = self.server.accept()
+            except OSError:
+                return
+            self.connections.append(conn)
+            if self.reply is not None:
+                conn.sendall(self.reply)
+
+    def close(self) -> None:
+        self.server.close()
+        for c in self.connections:
+            c.close()
+
+
+@pytest.mark.parametrize("reply, words", [(None, "no Dask answer within 2 s"),
+                                          (b"HTTP/1.1 200 OK\r\nContent-Length: 5\r\n\r\nhello" * 4,
+                                           "the peer does not speak Dask's protocol")])
+def test_a_peer_that_is_no_dask_scheduler_is_one_line_within_the_deadline(tmp_path, capsys, monkeypatch, reply, words):
+    """Issue 31 item 2: a silent peer hung `fleet train` past 15 minutes; an HTTP peer gave a traceback
+    (`_ArrayMemoryError: Unable to allocate 3.07 EiB`). Deadline 2 s here: the command ends within
+    2 x 2 + 5 s of connecting, with one line naming the address."""
+    import time
+    monkeypatch.setattr(engine, "CONNECT_TIMEOUT_S", 2)
+    (tmp_path / "fleet" / "unit").mkdir(parents=True)
+    (tmp_path / "fleet" / "unit" / "a.csv").write_text("t\n")
+    peer = _FakeScheduler(reply)
+    try:
+        start = time.monotonic()
+        assert main(["fleet", "train", str(tmp_path / "fleet"), "--out", str(tmp_path / "out"),
+                     "--scheduler", peer.address]) == 1
+        assert time.monotonic() - start < 2 * 2 + 5 + 5
+    finally:
+        peer.close()
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and peer.address in err[0] and words in err[0], err
+
+
+def test_a_scheduler_without_workers_is_one_line_not_a_wait_forever(tmp_path, capsys, monkeypatch):
+    from distributed import LocalCluster
+    monkeypatch.setattr(engine, "CONNECT_TIMEOUT_S", 2)
+    (tmp_path / "fleet" / "unit").mkdir(parents=True)
+    (tmp_path / "fleet" / "unit" / "a.csv").write_text("t\n")
+    with LocalCluster(n_workers=0, processes=False, protocol="tcp://", dashboard_address=None) as cluster:
+        assert main(["fleet", "train", str(tmp_path / "fleet"), "--out", str(tmp_path / "out"),
+                     "--scheduler", cluster.scheduler_address]) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and f"the Dask scheduler at {cluster.scheduler_address} has no worker after 2 s" in err[0], err

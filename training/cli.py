@@ -249,11 +249,13 @@ def _add_verb(sub, verb: str, help_text: str) -> argparse.ArgumentParser:
 
 def _add_dask_options(s: argparse.ArgumentParser) -> None:
     """--workers K | --scheduler ADDRESS: where a distributed verb runs (training.fleet.engine)."""
+    from training.fleet.engine import ADDRESS_FORM, CONNECT_TIMEOUT_S
     where = s.add_mutually_exclusive_group()
     where.add_argument("--workers", type=int, default=None,
                        help="worker processes of the local Dask cluster (default: the cores available)")
     where.add_argument("--scheduler", default=None, metavar="ADDRESS",
-                       help="address of a running Dask scheduler (tcp://host:8786) instead of a local cluster")
+                       help=f"address of a running Dask scheduler ({ADDRESS_FORM}) instead of a local cluster; "
+                            f"it must answer, and have a worker, within {CONNECT_TIMEOUT_S} s each")
 
 
 def _add_import_verb(sub) -> None:
