@@ -78,8 +78,49 @@ def test_load_prior_names_the_file(tmp_path):
     with pytest.raises(ModelError, match="has no prior"):
         load_prior(tmp_path / "f.json")
     (tmp_path / "g.json").write_text(json.dumps({"prior": {"gyr": {**_prior(0.1).to_json(), "mean": [1.0]}}}))
-    with pytest.raises(ModelError, match="not a fleet.json with a prior"):
+    with pytest.raises(ModelError, match=r"g.json: prior.gyr.mean: must be 15 finite numbers"):
         load_prior(tmp_path / "g.json")
+
+
+_FLOAT_MAX = 1.7976931348623157e308
+
+
+@pytest.mark.parametrize("what, edit, field", [
+    ("degree 50", {"degree": 50}, "prior.gyr.degree: must be an integer in 0..3"),
+    ("degree 1.7", {"degree": 1.7}, "prior.gyr.degree: must be an integer in 0..3"),
+    ("degree true", {"degree": True}, "prior.gyr.degree"),
+    ("a NaN mean", {"mean": [float("nan")] * 15}, "prior.gyr.mean: must be 15 finite numbers"),
+    ("a 1e300 mean", {"mean": [1e300] * 15}, "prior.gyr.mean: must be 15 finite numbers of magnitude < 1e+06"),
+    ("a string in sigma", {"sigma": ["x"] * 15}, "prior.gyr.sigma"),
+    ("a zero sigma", {"sigma": [0.0] * 15}, "prior.gyr.sigma: must be 15 numbers in (0, 1e+06)"),
+    ("a negative noise", {"noise": -1.0}, "prior.gyr.noise: must be a finite number ≥ 0"),
+    ("an infinite noise", {"noise": _FLOAT_MAX * 10}, "prior.gyr.noise"),
+    ("a 3-value t_range", {"t_range": [0, 10, 20]}, "prior.gyr.t_range: must be [low, high]"),
+    ("t_range [50, -10]", {"t_range": [50, -10]}, "prior.gyr.t_range: must be [low, high] in °C, finite, low ≤ high"),
+    ("ts 0", {"ts": 0}, "prior.gyr.ts: must be a finite number > 0"),
+    ("t0 missing", {"t0": None}, "prior.gyr.t0"),
+    ("units -3", {"units": -3}, "prior.gyr.units: must be an integer in 1..1000000000"),
+])
+def test_a_damaged_fleet_prior_is_one_error_naming_the_file_the_field_and_its_range(tmp_path, what, edit, field):
+    """Issue 31 item 4: 11 of 40 damaged fleet.json files gave tracebacks, and degree 1.7, a negative
+    noise, t_range [50, -10] were accepted without comment."""
+    entry = {**_prior(0.1).to_json(), **edit}
+    path = tmp_path / "fleet.json"
+    path.write_text(json.dumps({"prior": {"gyr": entry}}))
+    with pytest.raises(ModelError) as e:
+        load_prior(path)
+    assert str(e.value).startswith(f"{path}: {field}"), str(e.value)
+
+
+@pytest.mark.parametrize("doc, problem", [({"prior": [1, 2]}, "'prior' must be an object of triads"),
+                                          ([1, 2], "'prior' must be an object of triads"),
+                                          ({"prior": {"gyro": {}}}, "prior.gyro: unknown triad (allowed: gyr, acc, mag)"),
+                                          ({"prior": {"acc": [1]}}, "prior.acc: must be an object with t0")])
+def test_a_fleet_json_of_the_wrong_shape_is_one_error(tmp_path, doc, problem):
+    path = tmp_path / "fleet.json"
+    path.write_text(json.dumps(doc))
+    with pytest.raises(ModelError, match=problem.replace("(", r"\(").replace(")", r"\)")):
+        load_prior(path)
 
 
 def test_the_posterior_is_tighter_than_the_prior_where_the_data_look():

@@ -22,6 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from contract.errors import ModelError
+from contract.layout import MAX_DEGREE, TRIAD_ORDER
 from training.models.thermal import _A_FREE, ThermalModel
 
 #: Units whose normalisation differs from the population's median by more than this [°C] in t0 or
@@ -32,6 +33,10 @@ MIN_PRIOR_UNITS = 5
 #: Floor of each coefficient's prior σ, relative to the largest σ of its kind (A, g or b): a
 #: coefficient every unit shares exactly still gets a finite weight.
 SIGMA_FLOOR = 1e-6
+#: Largest magnitude of a prior's coefficient, σ, noise or temperature accepted from a fleet.json: far
+#: beyond any sensor's (the FMU's input guard stops at 100 rad/s, 2000 m/s², 20 x the field norm),
+#: far below what overflows the MAP fit's squares (1e300 means gave an overflow traceback).
+MAX_COEFFICIENT = 1e6
 
 
 @dataclass(frozen=True)
@@ -53,15 +58,61 @@ class TriadPrior:
                 "sigma": self.sigma.tolist(), "noise": self.noise, "t_range": list(self.t_range), "units": self.units}
 
     @classmethod
-    def from_json(cls, doc: dict) -> "TriadPrior":
-        """Inverse of to_json; ValueError on a wrong length or a non-positive σ."""
-        degree = int(doc["degree"])
-        mean, sigma = np.asarray(doc["mean"], dtype=float), np.asarray(doc["sigma"], dtype=float)
+    def from_json(cls, doc) -> "TriadPrior":
+        """Inverse of to_json; PriorFieldError naming the field and its allowed range when a field is
+        missing, of the wrong type or outside it (fleet.json is an input a user may have edited)."""
+        if not isinstance(doc, dict):
+            raise PriorFieldError("", "an object with t0, ts, degree, mean, sigma, noise, t_range, units")
+        degree = _integer(doc, "degree", 0, MAX_DEGREE)
         size = parameter_count(degree)
-        if mean.shape != (size,) or sigma.shape != (size,) or not np.all(sigma > 0):
-            raise ValueError(f"mean and sigma must hold {size} values, sigma > 0")
-        return cls(float(doc["t0"]), float(doc["ts"]), degree, mean, sigma, float(doc["noise"]),
-                   tuple(float(v) for v in doc["t_range"]), int(doc["units"]))
+        mean = _numbers(doc, "mean", size, f"{size} finite numbers of magnitude < {MAX_COEFFICIENT:g} (degree {degree})")
+        sigma = _numbers(doc, "sigma", size, f"{size} numbers in (0, {MAX_COEFFICIENT:g}) (degree {degree})")
+        if not np.all(sigma > 0):
+            raise PriorFieldError("sigma", f"{size} numbers in (0, {MAX_COEFFICIENT:g}) (degree {degree})")
+        t_range = _numbers(doc, "t_range", 2, "[low, high] in °C, finite, low ≤ high")
+        if not t_range[0] <= t_range[1]:
+            raise PriorFieldError("t_range", "[low, high] in °C, finite, low ≤ high")
+        ts = _number(doc, "ts", "a finite number > 0 [°C]")
+        if not ts > 0:
+            raise PriorFieldError("ts", "a finite number > 0 [°C]")
+        noise = _number(doc, "noise", "a finite number ≥ 0 [triad unit]")
+        if not noise >= 0:
+            raise PriorFieldError("noise", "a finite number ≥ 0 [triad unit]")
+        return cls(_number(doc, "t0", "a finite number [°C]"), ts, degree, mean, sigma, noise,
+                   (float(t_range[0]), float(t_range[1])), _integer(doc, "units", 1, 10 ** 9))
+
+
+class PriorFieldError(ValueError):
+    """A field of a fleet.json prior entry is missing or outside its allowed range."""
+
+    def __init__(self, name: str, allowed: str):
+        self.name, self.allowed = name, allowed
+        super().__init__(f"{name or 'the entry'} must be {allowed}")
+
+
+def _number(doc: dict, name: str, allowed: str) -> float:
+    """doc[name] as a finite float of magnitude < MAX_COEFFICIENT (not a bool or a string)."""
+    value = doc.get(name)
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not abs(value) < MAX_COEFFICIENT:
+        raise PriorFieldError(name, allowed)
+    return float(value)
+
+
+def _integer(doc: dict, name: str, low: int, high: int) -> int:
+    """doc[name] as an integer in [low, high] (2.0 counts, 1.7 does not)."""
+    value = doc.get(name)
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or value != int(value) \
+            or not low <= value <= high:
+        raise PriorFieldError(name, f"an integer in {low}..{high}")
+    return int(value)
+
+
+def _numbers(doc: dict, name: str, size: int, allowed: str) -> np.ndarray:
+    """doc[name] as `size` finite floats of magnitude < MAX_COEFFICIENT."""
+    value = doc.get(name)
+    if not isinstance(value, list) or len(value) != size:
+        raise PriorFieldError(name, allowed)
+    return np.array([_number({name: v}, name, allowed) for v in value])
 
 
 def parameter_count(degree: int) -> int:
@@ -110,11 +161,21 @@ def load_prior(path: str | Path) -> dict[str, TriadPrior]:
     path = Path(path)
     try:
         doc = json.loads(path.read_text())
-        priors = {triad: TriadPrior.from_json(p) for triad, p in doc["prior"].items()}
     except FileNotFoundError:
         raise ModelError(f"{path}: fleet prior not found") from None
-    except (OSError, ValueError, KeyError, TypeError) as e:
-        raise ModelError(f"{path}: not a fleet.json with a prior ({type(e).__name__}: {e})") from None
+    except (OSError, ValueError, RecursionError) as e:
+        raise ModelError(f"{path}: not a fleet.json ({type(e).__name__}: {e})") from None
+    if not isinstance(doc, dict) or not isinstance(doc.get("prior"), dict):
+        raise ModelError(f"{path}: not a fleet.json with a prior: 'prior' must be an object of triads "
+                         f"({', '.join(TRIAD_ORDER)})")
+    priors = {}
+    for triad, entry in doc["prior"].items():
+        if triad not in TRIAD_ORDER:
+            raise ModelError(f"{path}: prior.{triad}: unknown triad (allowed: {', '.join(TRIAD_ORDER)})")
+        try:
+            priors[triad] = TriadPrior.from_json(entry)
+        except PriorFieldError as e:
+            raise ModelError(f"{path}: prior.{triad}{'.' + e.name if e.name else ''}: must be {e.allowed}") from None
     if not priors:
         raise ModelError(f"{path}: the fleet has no prior (fewer than {MIN_PRIOR_UNITS} units calibrated "
                          "against a reference)")
