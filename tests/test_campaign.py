@@ -4,6 +4,8 @@ Truth: a serial loop over the same runs in this process (the acceptance of issue
 LocalCluster equal to it bit for bit), and a fresh FMU instance per run for the reset the
 partitions rely on. The errors are against the simulated recording's exact truth.
 """
+import csv
+
 import numpy as np
 import pytest
 
@@ -110,3 +112,43 @@ def test_a_campaign_larger_than_memory_is_refused_up_front_with_the_estimate(ide
                  "noise_gyr=uniform(0,0.01)", "--out", str(tmp_path / "c"), "--workers", "1"]) == 1
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "the results would take about" in err[0] and not (tmp_path / "c").exists()
+
+
+@pytest.mark.parametrize("text, problem", [
+    ("noise_gyr=uniform(-1e308,1e308)", "HIGH − LOW must be a finite number"),
+    ("declination=uniform(0,10)", r"declination must stay in \[-3.14159, 3.14159\]"),
+    ("tau_acc=choice(0,3)", r"tau_acc must stay in \(0, 86400\]"),
+    ("field_norm=normal(2,1)", r"field_norm must stay in \[5, 1000\]"),
+])
+def test_variations_that_draw_outside_a_parameters_range_are_refused_up_front(text, problem):
+    """Issue 31 item 7: such draws were checked only inside the workers (one bad draw aborted the
+    campaign with Dask's dump; uniform(-1e308, 1e308) was an OverflowError traceback)."""
+    with pytest.raises(CampaignError, match=problem):
+        parse_variation(text)
+
+
+def test_a_run_whose_draw_the_fmu_refuses_fails_alone_with_its_reason(identity_fmu2, recording, tmp_path, capsys):
+    """tau_acc = normal(0.3, 1): about 38 % of the draws are ≤ 0, which the FMU refuses at initialisation.
+    Those runs are failed rows with their reason, the others complete, the report says how many
+    failed, and the exit status is EXIT_PARTIAL."""
+    from training.completeness import EXIT_PARTIAL
+    assert main(["campaign", str(identity_fmu2), str(recording), "--runs", "12", "--vary", "tau_acc=normal(0.3,1)",
+                 "--out", str(tmp_path), "--workers", "1"]) == EXIT_PARTIAL
+    rows = list(csv.DictReader((tmp_path / "runs.csv").open()))
+    failed = [r for r in rows if r["failed"]]
+    assert 0 < len(failed) < 12 and all(float(r["tau_acc"]) <= 0 for r in failed)
+    assert all(float(r["tau_acc"]) > 0 and np.isfinite(float(r["tilt_err_deg"])) for r in rows if not r["failed"])
+    assert f"{len(failed)} of 12 runs failed" in (tmp_path / "campaign.md").read_text()
+    last = capsys.readouterr().err.strip().splitlines()[-1]  # after the progress bar
+    assert last.startswith("imufmu campaign: ") and "tau_acc must be finite and within (0, 86400] s" in last
+    assert last.endswith(f"exit status {EXIT_PARTIAL}")
+
+
+def test_a_recording_without_any_reference_is_refused(identity_fmu2, recording, tmp_path, capsys):
+    """It exited 0 with an all-NaN runs.csv."""
+    from training.data.reference_source import strip_references
+    bare = write_imu_csv(strip_references(read_imu_csv(recording)), tmp_path / "bare.csv.gz")
+    assert main(["campaign", str(identity_fmu2), str(bare), "--runs", "2", "--out", str(tmp_path / "c"),
+                 "--workers", "1"]) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "bare.csv.gz: no reference" in err[0]

@@ -90,10 +90,12 @@ def cmd_fleet_train(args) -> int:
     return 0
 
 
-def cmd_campaign(args) -> None:
-    """imufmu campaign FMU DATA --runs N --vary NAME=DIST ... --out DIR [--workers K | --scheduler ADDRESS]."""
+def cmd_campaign(args) -> int:
+    """imufmu campaign FMU DATA --runs N --vary NAME=DIST ... --out DIR [--workers K | --scheduler ADDRESS]:
+    exit status 0 when every run gave its errors, EXIT_PARTIAL when some failed, 1 when all did."""
+    from training.completeness import EXIT_PARTIAL
     from training.fleet.campaign import campaign_runs, parse_variation
-    from training.fleet.campaign_report import write_campaign_report
+    from training.fleet.campaign_report import failed_runs, write_campaign_report
     variations = tuple(parse_variation(v) for v in args.vary or [])
     fmu = _existing_file(args.fmu, "FMU")
     data = _existing_file(args.data, "data file")
@@ -101,6 +103,13 @@ def cmd_campaign(args) -> None:
                          scheduler=args.scheduler)
     md = write_campaign_report(runs, variations, fmu, data, args.seed, args.out)
     print(f"ran {len(runs)} co-simulations of {fmu} on {data}; wrote {md}")
+    failed = failed_runs(runs)
+    if failed:
+        status = 1 if len(failed) == len(runs) else EXIT_PARTIAL
+        print(f"imufmu campaign: {len(failed)} of {len(runs)} runs failed (first: run {failed[0]['run']}: "
+              f"{failed[0]['failed']}); exit status {status}", file=sys.stderr)
+        return status
+    return 0
 
 
 def cmd_train(args) -> int:

@@ -26,7 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
-from contract.errors import ImuFusionError
+from contract.errors import ImuFusionError, one_line
 from contract.layout import INPUTS
 from contract.mounting import MOUNT_SETTINGS, settings_codes
 from contract.variables import by_name
@@ -94,8 +94,29 @@ def parse_variation(text: str) -> Variation:
         raise CampaignError(f"--vary {text!r}: {distribution} takes {wanted or 'one or more'} finite numbers")
     if distribution == "normal" and args[1] < 0 or distribution == "uniform" and args[1] < args[0]:
         raise CampaignError(f"--vary {text!r}: need SIGMA ≥ 0 / LOW ≤ HIGH")
+    if distribution == "uniform" and not math.isfinite(args[1] - args[0]):
+        raise CampaignError(f"--vary {text!r}: HIGH − LOW must be a finite number (it overflows)")
     _check_name(name, text)
+    _check_support(name, distribution, args, text)
     return Variation(name, distribution, args)
+
+
+def _check_support(name: str, distribution: str, args: tuple[float, ...], text: str) -> None:
+    """CampaignError when a parameter's draws can leave its declared [min, max]: every value of a
+    uniform or a choice must lie in it, a normal's mean too (its tails may still leave it: such a run
+    fails alone, with its reason, run_partition)."""
+    if name in NOISE_INPUTS:
+        return
+    r = by_name(name).range
+    if r is None:
+        return
+    support = {"uniform": args, "choice": args, "normal": args[:1]}[distribution]
+    inside = all((v > r.min if r.min_open else v >= r.min) and (v < r.max if r.max_open else v <= r.max)
+                 for v in support)
+    if not inside:
+        interval = f"{'(' if r.min_open else '['}{r.min:g}, {r.max:g}{')' if r.max_open else ']'}"
+        raise CampaignError(f"--vary {text!r}: {name} must stay in {interval} (its declared range); "
+                            f"{distribution}({', '.join(f'{a:g}' for a in args)}) draws outside it")
 
 
 def _check_name(name: str, text: str) -> None:
@@ -156,10 +177,15 @@ def run_partition(runs: Iterable[int], fmu_path: str, data_path: str, variations
         for r in runs:
             parameters, noise_sigma, noise = run_draws(variations, seed, r, len(data))
             run_parameters = {**fixed, **parameters}
-            outputs = simulate(data.t, inputs + noise, run_parameters)
-            body = body_references(data, _mounting(fmu_path, run_parameters))
-            metrics = compute_metrics(outputs, body).as_dict()
-            out.append({"run": r, **parameters, **noise_sigma, **{m: metrics[m] for m in CAMPAIGN_METRICS}})
+            metrics, failed = dict.fromkeys(CAMPAIGN_METRICS, float("nan")), ""
+            try:
+                outputs = simulate(data.t, inputs + noise, run_parameters)
+                body = body_references(data, _mounting(fmu_path, run_parameters))
+                metrics = compute_metrics(outputs, body).as_dict()
+            except Exception as e:  # noqa: BLE001 - a run that fails is reported with its reason, the others go on
+                failed = one_line(f"{type(e).__name__}: {e}")
+            out.append({"run": r, **parameters, **noise_sigma, **{m: metrics[m] for m in CAMPAIGN_METRICS},
+                        "failed": failed})
     return out
 
 
@@ -204,7 +230,10 @@ def campaign_runs(fmu_path: str | Path, data_path: str | Path, runs: int, variat
         raise CampaignError(f"--runs must be ≥ 1, got {runs}")
     check_size(runs, variations, available_memory())
     fmu_path, data_path = str(Path(fmu_path).resolve()), str(Path(data_path).resolve())
-    _recording(data_path)  # a bad recording fails here, once, with its one-line error
+    data = _recording(data_path)  # a bad recording fails here, once, with its one-line error
+    if all(getattr(data, f"ref_{kind}") is None for kind in ("q", "gyr", "acc", "mag")):
+        raise CampaignError(f"{data_path}: no reference (ref_q or ref_gyr/ref_acc/ref_mag columns): the campaign "
+                            "measures each run's errors against it")
     results = []
     with dask_client(workers, scheduler) as client:
         parts = partitions(runs, workers or len(client.scheduler_info().get("workers", {})) or default_workers())

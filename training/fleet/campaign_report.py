@@ -26,6 +26,24 @@ def percentile_rows(runs: list[dict]) -> list[dict]:
     return rows
 
 
+def failed_runs(runs: list[dict]) -> list[dict]:
+    """The runs that failed (their 'failed' reason is not empty)."""
+    return [r for r in runs if r.get("failed")]
+
+
+def missing_notes(runs: list[dict], rows: list[dict]) -> list[str]:
+    """Lines saying which errors have no row (no run has a value: the recording has no reference for
+    them) and which runs failed, with the first reasons."""
+    shown = {r["metric"] for r in rows}
+    notes = [f"- {m}: no run has a value (the recording has no reference for it)" for m in CAMPAIGN_METRICS
+             if m not in shown]
+    failed = failed_runs(runs)
+    if failed:
+        notes.append(f"- {len(failed)} of {len(runs)} runs failed and are left out of the table; the first: "
+                     + "; ".join(f"run {r['run']}: {r['failed']}" for r in failed[:3]))
+    return notes or ["Every run gave every error."]
+
+
 def _histograms(runs: list[dict], rows: list[dict], path: Path) -> Path:
     """One PNG with a histogram per metric."""
     import matplotlib
@@ -65,6 +83,7 @@ def write_campaign_report(runs: list[dict], variations: tuple[Variation, ...], f
              "|---|---|" + "---|" * (len(PERCENTILES) + 1)]
     lines += [f"| {r['metric']} | {r['runs']} | " + " | ".join(f"{r[f'p{p}']:.4g}" for p in PERCENTILES)
               + f" | {r['max']:.4g} |" for r in rows]
+    lines += ["", *missing_notes(runs, rows)]
     lines += ["", f"![histograms]({plot.name})", "", "Every run: runs.csv and campaign.json."]
     md = out_dir / "campaign.md"
     md.write_text("\n".join(lines) + "\n")
