@@ -202,3 +202,22 @@ def test_a_scheduler_without_workers_is_one_line_not_a_wait_forever(tmp_path, ca
                      "--scheduler", cluster.scheduler_address]) == 1
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and f"the Dask scheduler at {cluster.scheduler_address} has no worker after 2 s" in err[0], err
+
+
+def test_ctrl_c_ends_a_distributed_verb_with_one_line_and_status_130(tmp_path):
+    """Issue 31 item 11: SIGINT printed a KeyboardInterrupt traceback. The verb closes its cluster on
+    the way out (the context managers) and says it was interrupted."""
+    import signal
+    import subprocess
+    import sys
+    import time
+    from training.cli import EXIT_INTERRUPTED
+    simulate_fleet(FLEET, 2, tmp_path / "fleet", seed=0, progress=False)
+    p = subprocess.Popen([sys.executable, "-m", "training.cli", "fleet", "train", str(tmp_path / "fleet"), "--out",
+                          str(tmp_path / "out"), "--workers", "1"], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                         text=True, start_new_session=True, cwd=ROOT)
+    time.sleep(6)  # the cluster is up and the first unit is training (about 10 s each)
+    p.send_signal(signal.SIGINT)
+    _, err = p.communicate(timeout=120)
+    assert p.returncode == EXIT_INTERRUPTED, err
+    assert "Traceback" not in err and "imufmu fleet: interrupted" in err.splitlines(), err

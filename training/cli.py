@@ -401,6 +401,10 @@ def build_parser() -> argparse.ArgumentParser:
     return p
 
 
+#: Exit status after Ctrl-C (SIGINT): 128 + 2, as a shell reports a command the signal ended.
+EXIT_INTERRUPTED = 130
+
+
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the `imufmu` console script; returns the exit status."""
     from training.data.io import report_load_notes
@@ -414,6 +418,9 @@ def main(argv: list[str] | None = None) -> int:
     except OSError as e:  # unwritable output folder, disk full, ...
         print(f"imufmu {args.verb}: error: {e.filename or ''}: {one_line(e.strerror or str(e))}", file=sys.stderr)
         return 1
+    except KeyboardInterrupt:  # Ctrl-C: the context managers (Dask cluster, files) have closed on the way
+        print(f"imufmu {args.verb}: interrupted", file=sys.stderr)
+        return EXIT_INTERRUPTED
     return status or 0
 
 
