@@ -137,3 +137,22 @@ def test_run_refuses_an_fmu_archive_with_an_absolute_entry(tmp_path, capsys):
         zf.writestr("modelDescription.xml", "<x/>")
         zf.writestr("/tmp/imufusion-escape.txt", "x")
     fails(capsys, ["run", str(f), str(p), "--out", str(tmp_path / "o.csv")], "abs.fmu", "absolute path")
+
+
+@pytest.mark.parametrize("argv, victim", [
+    (["diagnose", "{d}/data.csv", "--model", "{d}/m/model.json", "--out", "{d}/m"], "m/model.json"),
+    (["run", "{d}/ImuFusion.fmu", "{d}/data.csv", "--out", "{d}/data.csv"], "data.csv"),
+    (["build-fmu", "--model", "{d}/m/model.json", "--out", "{d}/m/model.json"], "m/model.json"),
+    (["train", "{d}/m/model.json", "--out", "{d}/m"], "m/model.json"),
+    (["import", "{d}/data.csv", "--out", "{d}/data.csv"], "data.csv"),
+])
+def test_a_verb_never_writes_over_its_own_input(tmp_path, capsys, argv, victim):
+    """Issue 31 item 5: `diagnose --model m/model.json --out m` replaced the model it read. Each is one
+    line naming the input, before anything is read or written; the input keeps its bytes."""
+    (tmp_path / "m").mkdir()
+    for name in ("data.csv", "m/model.json", "ImuFusion.fmu"):
+        (tmp_path / name).write_text(f"the original {name}\n")
+    assert main([a.format(d=tmp_path) for a in argv]) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and f"{tmp_path / victim}: imufmu {argv[0]} would write over this input" in err[0], err
+    assert (tmp_path / victim).read_text() == f"the original {victim}\n"

@@ -93,3 +93,13 @@ def test_cli_refuses_a_scenario_that_is_not_a_fleet_file(tmp_path, capsys):
                  "--out", str(tmp_path)]) == 1
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "key 'fleet': missing" in err[0]
+
+
+def test_a_smaller_fleet_into_the_folder_of_a_larger_one_leaves_none_of_its_units(tmp_path):
+    """Issue 31 item 5: --devices 2 into a 4-unit folder left units 3-4 of another seed; a folder that
+    is not one of the earlier run's units is left alone."""
+    simulate_fleet(FLEET, 3, tmp_path, seed=1, progress=False)
+    (tmp_path / "notes").mkdir()
+    simulate_fleet(FLEET, 1, tmp_path, seed=2, progress=False)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["fleet_simulation.json", "notes", "unit_0000"]
+    assert json.loads((tmp_path / "fleet_simulation.json").read_text())["units"] == ["unit_0000"]

@@ -213,6 +213,8 @@ def test_ctrl_c_ends_a_distributed_verb_with_one_line_and_status_130(tmp_path):
     import time
     from training.cli import EXIT_INTERRUPTED
     simulate_fleet(FLEET, 2, tmp_path / "fleet", seed=0, progress=False)
+    (tmp_path / "out").mkdir()
+    (tmp_path / "out" / "fleet.json").write_text("{}")  # an earlier run's: a stopped run must not leave it
     p = subprocess.Popen([sys.executable, "-m", "training.cli", "fleet", "train", str(tmp_path / "fleet"), "--out",
                           str(tmp_path / "out"), "--workers", "1"], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
                          text=True, start_new_session=True, cwd=ROOT)
@@ -221,3 +223,24 @@ def test_ctrl_c_ends_a_distributed_verb_with_one_line_and_status_130(tmp_path):
     _, err = p.communicate(timeout=120)
     assert p.returncode == EXIT_INTERRUPTED, err
     assert "Traceback" not in err and "imufmu fleet: interrupted" in err.splitlines(), err
+    assert not (tmp_path / "out" / "fleet.json").exists()
+
+
+def test_a_unit_that_fails_leaves_no_model_of_an_earlier_run_and_a_run_never_writes_into_its_fleet(tmp_path, capsys):
+    """Issue 31 item 5: after a run in which a unit failed, the previous run's model of that unit was
+    still in its folder while fleet.json listed it as failed; `--out` equal to the fleet folder would
+    replace the unit folders (the recordings) by models."""
+    fleet, out = tmp_path / "fleet", tmp_path / "out"
+    simulate_fleet(FLEET, 2, fleet, seed=0, progress=False)
+    assert main(["fleet", "train", str(fleet), "--out", str(out), "--workers", "1"]) == 0
+    assert (out / "unit_0001" / "model.json").is_file()
+    broken = fleet / "unit_0001" / "calibration" / "calibration.csv.gz"
+    broken.write_bytes(broken.read_bytes()[:3000])
+    assert main(["fleet", "train", str(fleet), "--out", str(out), "--workers", "1"]) == EXIT_PARTIAL
+    assert not (out / "unit_0001").exists() and (out / "unit_0000" / "model.json").is_file()
+    assert not [p for p in out.iterdir() if p.name.startswith(".")]  # no staging folder left
+    capsys.readouterr()
+    assert main(["fleet", "train", str(fleet), "--out", str(fleet)]) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "would write each unit's model over its input unit folder" in err[0]
+    assert (fleet / "unit_0000" / "calibration" / "calibration.csv.gz").is_file()

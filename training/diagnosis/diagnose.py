@@ -355,6 +355,9 @@ def _iterate(artefact: ModelArtefact, datasets: list[ImuData], targets: dict[str
     return current, r, iterations, first or [], plot_data, notes
 
 
+#: The files `diagnose` writes into its folder (report.md by diagnose_report.write_report).
+OUTPUT_FILES = ("model.json", "diagnosis.json", "report.md")
+
 def _check_aux_columns(paths: list[Path], datasets: list[ImuData], artefact, model_path: Path) -> None:
     """DataError naming the recording, the column and the model when a recording lacks an auxiliary
     column the model's terms read."""
@@ -409,7 +412,7 @@ def diagnose(paths: list[Path], model_path: Path, out_dir: Path, seed: int = 0,
         "conclusion": ("nothing significant left" if not iterations else
                        f"added: {', '.join(s['selected']['name'] + ' -> ' + s['target'] for s in iterations)}"),
     }
-    current.save(out_dir / "model.json")
-    (out_dir / "diagnosis.json").write_text(json.dumps(result, indent=2, ensure_ascii=False) + "\n", encoding="utf-8")
+    current.save(out_dir / OUTPUT_FILES[0])
+    (out_dir / OUTPUT_FILES[1]).write_text(json.dumps(result, indent=2, ensure_ascii=False) + "\n", encoding="utf-8")
     write_report(out_dir, result, plot_data if plots else None)
     return result

@@ -10,6 +10,8 @@ import numpy as np
 
 from training.fleet.campaign import CAMPAIGN_METRICS, Variation
 
+#: The files `campaign` writes into its folder.
+OUTPUT_FILES = ("campaign.json", "runs.csv", "campaign.png", "campaign.md")
 #: Percentiles of the campaign table [%].
 PERCENTILES = (5, 50, 95, 99)
 
@@ -69,14 +71,14 @@ def write_campaign_report(runs: list[dict], variations: tuple[Variation, ...], f
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     rows = percentile_rows(runs)
-    (out_dir / "campaign.json").write_text(json.dumps(
+    (out_dir / OUTPUT_FILES[0]).write_text(json.dumps(
         {"fmu": str(fmu_path), "data": str(data_path), "seed": seed, "runs": len(runs),
          "variations": [v.text() for v in variations], "percentiles": rows, "results": runs}, indent=1) + "\n")
-    with open(out_dir / "runs.csv", "w", newline="") as f:
+    with open(out_dir / OUTPUT_FILES[1], "w", newline="") as f:
         writer = csv.DictWriter(f, fieldnames=list(runs[0]))
         writer.writeheader()
         writer.writerows(runs)
-    plot = _histograms(runs, rows, out_dir / "campaign.png")
+    plot = _histograms(runs, rows, out_dir / OUTPUT_FILES[2])
     lines = [f"# Campaign: {len(runs)} runs of {Path(fmu_path).name} on {Path(data_path).name}", "",
              f"Seed {seed}; variations: " + (", ".join(f"`{v.text()}`" for v in variations) or "none") + ".", "",
              "| error | runs | " + " | ".join(f"{p} %" for p in PERCENTILES) + " | max |",
@@ -85,6 +87,6 @@ def write_campaign_report(runs: list[dict], variations: tuple[Variation, ...], f
               + f" | {r['max']:.4g} |" for r in rows]
     lines += ["", *missing_notes(runs, rows)]
     lines += ["", f"![histograms]({plot.name})", "", "Every run: runs.csv and campaign.json."]
-    md = out_dir / "campaign.md"
+    md = out_dir / OUTPUT_FILES[3]
     md.write_text("\n".join(lines) + "\n")
     return md

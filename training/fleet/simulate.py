@@ -22,6 +22,7 @@ from tqdm import tqdm
 from contract.errors import ScenarioError
 from training.data.io import write_imu_csv
 from training.fleet.spec import FleetSpec, load_fleet
+from training.outputs import forget_previous_run
 from training.simulator.population import draw_unit, spreads
 from training.simulator.scenario import sensor_from_raw
 from training.simulator.simulate import simulate
@@ -77,6 +78,8 @@ def simulate_fleet(fleet_path: str | Path, devices: int, out_dir: str | Path, se
     spec = load_fleet(fleet_path)
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
+    forget_previous_run(out_dir, ("fleet_simulation.json",), "fleet_simulation.json",
+                        [unit_name(k) for k in range(devices)])
     for k in tqdm(range(devices), desc="units", unit="unit", disable=not progress):
         simulate_unit(spec, k, seed, out_dir)
     summary = out_dir / "fleet_simulation.json"

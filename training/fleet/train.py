@@ -15,11 +15,15 @@ from pathlib import Path
 
 from contract.errors import DataError
 from training.fleet.engine import dask_client, run_tasks
+from training.outputs import OutputError, forget_previous_run
 
 #: Recording file names `imufmu train` reads.
 RECORDING_PATTERNS = ("*.csv", "*.csv.gz")
 #: Sub-folder of a unit folder holding its calibration recordings (training.fleet.simulate).
 CALIBRATION_DIR = "calibration"
+#: What describes a whole `fleet train` run in OUT (removed when the next run starts: a run stopped
+#: half-way leaves none, so a later `--prior` cannot trust a population it did not compute).
+FLEET_SUMMARIES = ("fleet.json", "fleet.md", "units.json")
 
 
 @dataclass(frozen=True)
@@ -81,13 +85,18 @@ def unit_folders(fleet_dir: Path) -> tuple[list[Path], list[UnitResult]]:
 
 
 def train_unit(folder: Path, out_dir: Path, seed: int) -> UnitResult:
-    """Train one unit into out_dir/<unit> as `imufmu train` does; any failure becomes its reason
-    (one line), never an exception: one unit never stops the fleet."""
+    """Train one unit into out_dir/<unit> as `imufmu train` does (in a folder beside it, moved into
+    place when complete: training.outputs.replace_folder); any failure becomes its reason (one line),
+    never an exception: one unit never stops the fleet, and leaves no model of an earlier run."""
     from contract.errors import one_line
+    from training.outputs import replace_folder
     from training.train import elm_rows, train_to_folder
+    target = out_dir / folder.name
     try:
-        done = train_to_folder(unit_recordings(folder), out_dir / folder.name, seed=seed, progress=False)
-        return UnitResult(folder.name, str(done.model), None, elm_rows(done.datasets, done.artefact.thermal, seed))
+        done = replace_folder(target, lambda where: train_to_folder(unit_recordings(folder), where, seed=seed,
+                                                                    progress=False))
+        return UnitResult(folder.name, str(target / done.model.name), None,
+                          elm_rows(done.datasets, done.artefact.thermal, seed))
     except Exception as e:  # noqa: BLE001 - the reason is reported per unit, the fleet goes on
         return UnitResult(folder.name, None, one_line(f"{type(e).__name__}: {e}"))
 
@@ -98,8 +107,12 @@ def train_fleet(fleet_dir: str | Path, out_dir: str | Path, seed: int = 0, worke
     (an entry that cannot be read as a unit folder is a failed unit with its reason) and writes
     out_dir/units.json."""
     fleet_dir, out_dir = Path(fleet_dir), Path(out_dir)
+    if out_dir.resolve() == fleet_dir.resolve():
+        raise OutputError(f"{out_dir}: imufmu fleet train would write each unit's model over its input unit folder; "
+                          "choose another --out")
     units, results = unit_folders(fleet_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
+    forget_previous_run(out_dir, FLEET_SUMMARIES, "units.json", [u.name for u in units] + [r.unit for r in results])
     if units:
         with dask_client(workers, scheduler) as client:
             results += [r for _, r in run_tasks(client, train_unit, units, "units", progress,
