@@ -144,7 +144,6 @@ def test_run_refuses_an_fmu_archive_with_an_absolute_entry(tmp_path, capsys):
     (["run", "{d}/ImuFusion.fmu", "{d}/data.csv", "--out", "{d}/data.csv"], "data.csv"),
     (["build-fmu", "--model", "{d}/m/model.json", "--out", "{d}/m/model.json"], "m/model.json"),
     (["train", "{d}/m/model.json", "--out", "{d}/m"], "m/model.json"),
-    (["import", "{d}/data.csv", "--out", "{d}/data.csv"], "data.csv"),
 ])
 def test_a_verb_never_writes_over_its_own_input(tmp_path, capsys, argv, victim):
     """Issue 31 item 5: `diagnose --model m/model.json --out m` replaced the model it read. Each is one

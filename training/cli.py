@@ -96,7 +96,7 @@ def cmd_campaign(args) -> int:
     from training.completeness import EXIT_PARTIAL
     from training.fleet.campaign import campaign_runs, parse_variation
     from training.fleet.campaign_report import OUTPUT_FILES, failed_runs, write_campaign_report
-    from training.outputs import refuse_overwriting_inputs
+    from training.data.outputs import refuse_overwriting_inputs
     refuse_overwriting_inputs("campaign", [args.fmu, args.data], [Path(args.out) / n for n in OUTPUT_FILES])
     variations = tuple(parse_variation(v) for v in args.vary or [])
     fmu = _existing_file(args.fmu, "FMU")
@@ -119,7 +119,7 @@ def cmd_train(args) -> int:
     exit status EXIT_INCOMPLETE (model written) when a recorded triad is not fully calibrated and neither
     --allow-partial nor --allow-identity was given."""
     from training.completeness import EXIT_INCOMPLETE
-    from training.outputs import refuse_overwriting_inputs
+    from training.data.outputs import refuse_overwriting_inputs
     from training.train import train_to_folder
     refuse_overwriting_inputs("train", [*args.data, *([args.prior] if args.prior else [])],
                               [Path(args.out) / n for n in ("model.json", "calibration.md")])
@@ -140,8 +140,6 @@ def cmd_train(args) -> int:
 def cmd_import(args) -> None:
     """imufmu import FILE --out NAME.csv.gz [--columns MAP] [--units MAP] [--rate HZ] [sidecar options]."""
     from training.data.importer import ImportOptions, import_recording
-    from training.outputs import refuse_overwriting_inputs
-    refuse_overwriting_inputs("import", [args.file], [args.out])
     options = ImportOptions(columns=tuple(args.columns or ()), units=tuple(args.units or ()), rate_hz=args.rate,
                             sensor=args.sensor, reference=args.reference, earth_field=args.earth_field,
                             site=args.site)
@@ -151,7 +149,7 @@ def cmd_import(args) -> None:
 def cmd_build_fmu(args) -> None:
     """imufmu build-fmu --model DIR/model.json --out FILE.fmu."""
     from training.fmu_build import build_fmu_from_model
-    from training.outputs import refuse_overwriting_inputs
+    from training.data.outputs import refuse_overwriting_inputs
     refuse_overwriting_inputs("build-fmu", [args.model], [args.out])
     path = build_fmu_from_model(_existing_file(args.model, "model artefact"), args.out, fmi_version=args.fmi)
     print(f"wrote {path} (FMI {args.fmi}.0 co-simulation)")
@@ -178,7 +176,7 @@ def cmd_validate(args) -> None:
 def cmd_run(args) -> None:
     """imufmu run FILE.fmu DATA --out OUT.csv [--param NAME=VALUE ...]."""
     from training.main_job import run_recording
-    from training.outputs import refuse_overwriting_inputs
+    from training.data.outputs import refuse_overwriting_inputs
     refuse_overwriting_inputs("run", [args.fmu, args.data], [args.out])
     done = run_recording(_existing_file(args.fmu, "FMU"), _existing_file(args.data, "data file"), args.out,
                          dict(args.param or []))
@@ -201,7 +199,7 @@ def cmd_compare_thermal(args) -> None:
 def cmd_diagnose(args) -> None:
     """imufmu diagnose DATA... --model DIR/model.json --out REPORT_DIR."""
     from training.diagnosis.diagnose import OUTPUT_FILES, diagnose
-    from training.outputs import refuse_overwriting_inputs
+    from training.data.outputs import refuse_overwriting_inputs
     refuse_overwriting_inputs("diagnose", [*args.data, args.model], [Path(args.out) / n for n in OUTPUT_FILES])
     paths = [_existing_file(p, "data file") for p in args.data]
     result = diagnose(paths, _existing_file(args.model, "model artefact"), Path(args.out), seed=args.seed)

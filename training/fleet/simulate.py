@@ -22,7 +22,7 @@ from tqdm import tqdm
 from contract.errors import ScenarioError
 from training.data.io import write_imu_csv
 from training.fleet.spec import FleetSpec, load_fleet
-from training.outputs import forget_previous_run
+from training.data.outputs import forget_previous_run
 from training.simulator.population import draw_unit, spreads
 from training.simulator.scenario import sensor_from_raw
 from training.simulator.simulate import simulate

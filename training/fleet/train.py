@@ -15,7 +15,7 @@ from pathlib import Path
 
 from contract.errors import DataError
 from training.fleet.engine import dask_client, run_tasks
-from training.outputs import OutputError, forget_previous_run
+from training.data.outputs import OutputError, forget_previous_run
 
 #: Recording file names `imufmu train` reads.
 RECORDING_PATTERNS = ("*.csv", "*.csv.gz")
@@ -86,10 +86,10 @@ def unit_folders(fleet_dir: Path) -> tuple[list[Path], list[UnitResult]]:
 
 def train_unit(folder: Path, out_dir: Path, seed: int) -> UnitResult:
     """Train one unit into out_dir/<unit> as `imufmu train` does (in a folder beside it, moved into
-    place when complete: training.outputs.replace_folder); any failure becomes its reason (one line),
+    place when complete: training.data.outputs.replace_folder); any failure becomes its reason (one line),
     never an exception: one unit never stops the fleet, and leaves no model of an earlier run."""
     from contract.errors import one_line
-    from training.outputs import replace_folder
+    from training.data.outputs import replace_folder
     from training.train import elm_rows, train_to_folder
     target = out_dir / folder.name
     try:
