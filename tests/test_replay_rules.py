@@ -34,12 +34,12 @@ def test_a_change_is_taken_only_when_every_recording_agrees(candidate, incumbent
 
 
 def _replay_table(monkeypatch, table: dict[float, list[float]]):
-    """recording_rmse / replay_rmse answer from `table` (motion_bias value -> per-recording RMSE);
+    """replayed answers from `table` (motion_bias value -> per-recording RMSE; the total their RMS);
     gyro_hold's alternative is always worse."""
     def per(coefficients, settings, sets):
         return [v + (0.5 if settings.get("gyro_hold") == 0.0 else 0.0) for v in table[settings["motion_bias"]]]
-    monkeypatch.setattr(replay, "recording_rmse", per)
-    monkeypatch.setattr(replay, "replay_rmse", lambda c, s, sets: float(np.sqrt(np.mean(np.square(per(c, s, sets))))))
+    monkeypatch.setattr(replay, "replayed", lambda c, s, sets: (per(c, s, sets),
+                                                                float(np.sqrt(np.mean(np.square(per(c, s, sets)))))))
     monkeypatch.setattr(replay, "referenced", lambda datasets: _SETS)
 
 
@@ -77,8 +77,8 @@ def test_a_triad_keeps_its_reference_derived_calibration_only_where_every_record
 
     def per(coefficients, settings, sets):
         changed = [t for t, k in (("gyr", 2.125), ("acc", 3.375)) if np.isclose(coefficients, k).any()]
-        return errors[changed[0] if changed else "none"]
-    monkeypatch.setattr(replay, "recording_rmse", per)
+        return errors[changed[0] if changed else "none"], float("nan")
+    monkeypatch.setattr(replay, "replayed", per)
     monkeypatch.setattr(replay, "referenced", lambda datasets: _SETS)
     kept, notes = replay.triads_the_reference_improves(derived, blind, [])
     assert kept == ("acc",)
@@ -90,7 +90,7 @@ def test_a_triad_keeps_its_reference_derived_calibration_only_where_every_record
 def test_a_reference_that_cannot_be_replayed_keeps_its_calibration_and_says_it_was_not_judged(monkeypatch):
     """No reference sample inside any eval_mask: every replay is NaN, nothing can be judged, so the
     calibration derived from the reference stays (it is what the data offer) and the note says so."""
-    monkeypatch.setattr(replay, "recording_rmse", lambda c, s, sets: [float("nan")] * len(sets))
+    monkeypatch.setattr(replay, "replayed", lambda c, s, sets: ([float("nan")] * len(sets), float("nan")))
     monkeypatch.setattr(replay, "referenced", lambda datasets: _SETS)
     derived = _artefact({"gyr": 2.125, "acc": 1.0, "mag": 1.0}, "attitude")
     kept, notes = replay.triads_the_reference_improves(derived, _artefact({"gyr": 1.0, "acc": 1.0, "mag": 1.0}, "none"), [])

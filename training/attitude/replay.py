@@ -58,15 +58,17 @@ def _squared_errors(coefficients: np.ndarray, settings: dict[str, float], data: 
     return (2.0 * np.arccos(np.clip(np.abs(w[mask]), 0.0, 1.0))) ** 2
 
 
-def replay_rmse(coefficients: np.ndarray, settings: dict[str, float], datasets: list[ImuData]) -> float:
-    """Total attitude RMSE [°] over every reference sample of `datasets`."""
-    errors = np.concatenate([_squared_errors(coefficients, settings, d) for d in datasets])
-    return float(np.rad2deg(np.sqrt(np.mean(errors)))) if errors.size else float("nan")
+def _rmse_deg(squared: np.ndarray) -> float:
+    """RMS [°] of squared angles [rad²]; NaN when there are none."""
+    return float(np.rad2deg(np.sqrt(np.mean(squared)))) if squared.size else float("nan")
 
 
-def recording_rmse(coefficients: np.ndarray, settings: dict[str, float], datasets: list[ImuData]) -> list[float]:
-    """Total attitude RMSE [°] of each recording of `datasets` against its own reference."""
-    return [replay_rmse(coefficients, settings, [d]) for d in datasets]
+def replayed(coefficients: np.ndarray, settings: dict[str, float],
+             datasets: list[ImuData]) -> tuple[list[float], float]:
+    """(total attitude RMSE [°] of each recording of `datasets` against its own reference, the same
+    over all their reference samples), from one run of the pipeline per recording."""
+    errors = [_squared_errors(coefficients, settings, d) for d in datasets]
+    return [_rmse_deg(e) for e in errors], _rmse_deg(np.concatenate(errors) if errors else np.zeros(0))
 
 
 def lower_on_every(candidate: list[float], incumbent: list[float]) -> bool:
@@ -97,8 +99,8 @@ def choose_by_replay(coefficients: np.ndarray, settings: dict[str, float], datas
             notes.append(f"{name} = {values[0]:g} (the FMU's default): no attitude reference to replay "
                          f"({samples} reference samples, {MIN_REFERENCE_SAMPLES} needed)")
             continue
-        per = {v: recording_rmse(coefficients, {**chosen, name: v}, sets) for v in values}
-        scores = {v: replay_rmse(coefficients, {**chosen, name: v}, sets) for v in values}
+        runs = {v: replayed(coefficients, {**chosen, name: v}, sets) for v in values}
+        per, scores = {v: r[0] for v, r in runs.items()}, {v: r[1] for v, r in runs.items()}
         challenger = min(values[1:], key=lambda v: (scores[v], values.index(v)))
         best = challenger if lower_on_every(per[challenger], per[values[0]]) else values[0]
         chosen[name] = best
@@ -136,7 +138,7 @@ def triads_the_reference_improves(with_reference, without_reference,
     from training.completeness import NAMES
     settings = settings_dict(without_reference)
     every = referenced(datasets)
-    base = recording_rmse(coefficients_array(without_reference), settings, every)
+    base = replayed(coefficients_array(without_reference), settings, every)[0]
     sets = [d for d, b in zip(every, base) if np.isfinite(b)]
     base = [b for b in base if np.isfinite(b)]
     derived = [t for t in TRIAD_ORDER if with_reference.fit_stats.get(t, {}).get("reference") == "attitude"]
@@ -146,7 +148,7 @@ def triads_the_reference_improves(with_reference, without_reference,
     kept, notes = [], []
     for triad in derived:
         hybrid = _with_triad(without_reference, with_reference, triad)
-        scores = recording_rmse(coefficients_array(hybrid), settings, sets)
+        scores = replayed(coefficients_array(hybrid), settings, sets)[0]
         figures = ("total attitude RMSE against the reference, self-calibrated / reference-derived: "
                    + _figures((0, 1), {0: base, 1: scores}, sets))
         if lower_on_every(scores, base):
