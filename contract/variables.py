@@ -242,6 +242,12 @@ _FILTER_FROM_DATA: tuple[Variable, ...] = (
     _parameter("motion_bias", 84, 1.0, FLAG,
                "The quaternion filter also estimates the gyro bias in motion, from its inclination "
                "correction (VQF's motion bias estimation; 0: at rest only)"),
+    _parameter("acc_norm_tolerance", 85, 0.0, UNIT_FRACTION,
+               "How far the corrected specific-force norm of the still sensor may be from standard gravity "
+               "(relative: |f| / g - 1); the quaternion filter's motion bias estimate takes a low-passed "
+               "specific force whose norm departs by more than this as carrying linear acceleration and trusts "
+               "it less, within it as the accelerometer's own scale error; `train` writes the largest "
+               "departure of its calibration recordings' rests"),
 )
 
 

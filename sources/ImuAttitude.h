@@ -69,6 +69,8 @@ typedef struct {
                               * averages over its sample interval); 0: trapezoid of two samples */
     int magHeading;          /* 1: the field corrects the heading; 0: 6D (the field is not used) */
     int motionBias;          /* 1: quaternion mode also estimates the gyro bias in motion (ImuMotionBias.h) */
+    double accNormTolerance; /* 1, |f| / g - 1 the still, corrected accelerometer may show (its own scale
+                              * error, not linear acceleration; >= 0) */
     int eulerAdditions;      /* sum of ImuEulerAddition bits in use by the Euler mode (not an FMU
                               * parameter: IMU_EULER_ALL_ADDITIONS except in ImuBatchRunEuler) */
 } ImuAttitudeSettings;

@@ -68,6 +68,17 @@ static void ImuAttitudeQuaternionPredict(ImuAttitude *a, const double gyr[3], do
     }
 }
 
+/**
+ * @brief Inclination-rate error [rad/s] that linear acceleration may leave in a low-passed specific
+ *        force of norm n [m/s^2]: the departure of n from g beyond the still accelerometer's own
+ *        (acc_norm_tolerance: a scale error is not linear acceleration), over g tau_acc.
+ */
+static double ImuAttitudeLinearAccelerationRate(const ImuAttitude *a, double n)
+{
+    const double excess = fabs(n - IMU_ATTITUDE_GRAVITY) - a->settings.accNormTolerance * IMU_ATTITUDE_GRAVITY;
+    return fmax(0.0, excess) / (IMU_ATTITUDE_GRAVITY * a->settings.tauAcc);
+}
+
 /** @brief Quaternion mode: low-pass f [m/s^2] in the inertial frame, turn qAcc to level it. */
 static void ImuAttitudeQuaternionTilt(ImuAttitude *a, const double acc[3], double dt)
 {
@@ -109,8 +120,7 @@ static void ImuAttitudeQuaternionTilt(ImuAttitude *a, const double acc[3], doubl
             e[i] /= n;
         }
         ImuQuaternionMultiply(a->qAcc, a->qGyr, product);
-        ImuMotionBiasUpdate(&a->motionBias, product, e,
-                            fabs(n - IMU_ATTITUDE_GRAVITY) / (IMU_ATTITUDE_GRAVITY * a->settings.tauAcc), &design, dt,
+        ImuMotionBiasUpdate(&a->motionBias, product, e, ImuAttitudeLinearAccelerationRate(a, n), &design, dt,
                             a->tiltInitialised && !a->atRest, a->bias);
     }
     a->tiltInitialised = 1;

@@ -120,6 +120,7 @@ typedef enum {
     ImuSetGyroHold,           /* 0 or 1 */
     ImuSetMagHeading,         /* 0 or 1 */
     ImuSetMotionBias,         /* 0 or 1 */
+    ImuSetAccNormTolerance,   /* 1 */
     IMU_SETTING_COUNT
 } ImuSetting;
 /* generated:end settings */
@@ -184,7 +185,8 @@ typedef struct {
     {-3.0, 3.0, 12, "mount_z must be a whole number in -3..3 other than 0"}, \
     {0.0, 1.0, 4, "gyro_hold must be 0 or 1"}, \
     {0.0, 1.0, 4, "mag_heading must be 0 or 1"}, \
-    {0.0, 1.0, 4, "motion_bias must be 0 or 1"} \
+    {0.0, 1.0, 4, "motion_bias must be 0 or 1"}, \
+    {0.0, 1.0, 0, "acc_norm_tolerance must be finite and within [0, 1]"} \
 }
 /* generated:end setting-ranges */
 

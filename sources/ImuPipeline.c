@@ -92,6 +92,7 @@ int ImuPipelineSettingsFromArray(ImuPipelineSettings *s, const double *a, size_t
     s->gyroHold = ImuPipelineFlag(a[ImuSetGyroHold]);
     s->magHeading = ImuPipelineFlag(a[ImuSetMagHeading]);
     s->motionBias = ImuPipelineFlag(a[ImuSetMotionBias]);
+    s->accNormTolerance = a[ImuSetAccNormTolerance];
     s->enableElm = ImuPipelineFlag(a[ImuSetEnableElm]);
     s->enablePf = ImuPipelineFlag(a[ImuSetEnablePf]);
     s->pfSeed = ImuPipelineInteger(a[ImuSetPfSeed]);
@@ -167,6 +168,7 @@ static void ImuPipelineAttitudeSettings(const ImuPipelineSettings *s, ImuAttitud
     a->gyroHold = s->gyroHold;
     a->magHeading = s->magHeading;
     a->motionBias = s->motionBias;
+    a->accNormTolerance = s->accNormTolerance;
     a->eulerAdditions = IMU_EULER_ALL_ADDITIONS; /* the FMU's filter; ImuBatchRunEuler ablates them */
 }
 

@@ -49,6 +49,7 @@ typedef struct {
     int gyroHold;            /* a rate sample holds over the interval before it (else trapezoid) */
     int magHeading;          /* the field corrects the heading (else 6D) */
     int motionBias;          /* the quaternion filter estimates the gyro bias in motion too */
+    double accNormTolerance; /* 1, |f| / g - 1 of the still, corrected accelerometer */
     int enableElm;           /* 0 or 1: apply the ELM nonlinear field model */
     int enablePf;            /* 0 or 1: online hard/soft-iron particle filter */
     int pfSeed;              /* particle-filter seed, -1 marks an invalid value for the check */

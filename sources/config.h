@@ -98,10 +98,11 @@ typedef enum {
     vr_gyro_hold = 81,
     vr_mag_disturbed = 82,
     vr_mag_heading = 83,
-    vr_motion_bias = 84
+    vr_motion_bias = 84,
+    vr_acc_norm_tolerance = 85
 } ValueReference;
 
-#define VR_COUNT 85
+#define VR_COUNT 86
 
 /** Parameters of type Boolean (FMI 3: Boolean). */
 #define VR_IS_BOOLEAN(vr) ((vr) == vr_enable_thermal || (vr) == vr_enable_elm || (vr) == vr_enable_pf || (vr) == vr_enable_psobp || (vr) == vr_pf_rao_blackwell || (vr) == vr_pf_hold_prior || (vr) == vr_gyro_hold || (vr) == vr_mag_heading || (vr) == vr_motion_bias)
@@ -194,7 +195,8 @@ typedef enum {
     {'s', ImuSetGyroHold}, \
     {'o', ImuOutMagDisturbed}, \
     {'s', ImuSetMagHeading}, \
-    {'s', ImuSetMotionBias} \
+    {'s', ImuSetMotionBias}, \
+    {'s', ImuSetAccNormTolerance} \
 }
 /** The value references of the inputs, in ImuInput order. */
 #define IMU_INPUT_VRS {vr_gyr_x, vr_gyr_y, vr_gyr_z, vr_acc_x, vr_acc_y, vr_acc_z, vr_mag_x, vr_mag_y, vr_mag_z, vr_temp, vr_aux_1, vr_aux_2, vr_aux_3, vr_aux_4}

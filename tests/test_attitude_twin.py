@@ -93,8 +93,8 @@ def _disturbed_simulation():
 
 
 @pytest.mark.parametrize("options", [{"gyro_hold": 1.0}, {"gyro_hold": 0.0}, {"mag_heading": 0.0},
-                                     {"motion_bias": 0.0}],
-                         ids=["gyro_hold", "trapezoid", "6D", "rest_bias_only"])
+                                     {"motion_bias": 0.0}, {"acc_norm_tolerance": 0.008}],
+                         ids=["gyro_hold", "trapezoid", "6D", "rest_bias_only", "acc_norm_tolerance"])
 @pytest.mark.parametrize("recording", [_broad_slice, _disturbed_simulation], ids=["broad", "disturbed"])
 def test_twin_equals_the_c_filter(recording, options):
     t, gyr, acc, mag, extra = recording()

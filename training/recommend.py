@@ -2,6 +2,7 @@
 
 The sidecars (or the IGRF field at their site) give the earth field; the calibrated gyro at rest
 gives its noise density, the bias the calibration leaves and the rest-detection threshold; the
+calibrated accelerometer at rest the norm error its filter must not take for linear acceleration; the
 calibrated field gives the particle filter's noise and thresholds (training.models.pf_settings); the
 self-calibration's field norm and dip stand in when the sidecars say nothing; the direction of
 gravity at rest gives the mounting (training.mounting).
@@ -15,6 +16,7 @@ from contract.layout import settings_defaults
 from training.data.dataset import ImuData
 from training.data.reference import true_runs
 from training.data.reference_source import TriadReference
+from training.attitude.acc_norm import acc_norm_tolerance_setting
 from training.attitude.magnetic_trust import mag_heading_setting
 from training.models.thermal import ThermalModel, apply_thermal
 from training.mounting import recommended_mounting
@@ -198,6 +200,7 @@ def recommended_settings(datasets: list[ImuData], refs: dict[str, TriadReference
         notes.append("gyro_noise, gyro_bias_residual, rest_gyro_threshold: no gyro at rest after "
                      "calibration; defaults kept")
     settings.update(mag_heading_setting(datasets, thermal["mag"], settings, notes))
+    settings.update(acc_norm_tolerance_setting(datasets, thermal["acc"], notes))
     settings.update(_pf_settings(datasets, thermal["mag"], settings["field_norm"], notes))
     settings.update(recommended_mounting(datasets, notes))
     return settings

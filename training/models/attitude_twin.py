@@ -230,7 +230,9 @@ class QuaternionFilter:
             turn = np.array([0.0, 1.0, 0.0, 0.0])
         self.q_acc = _normalised(quat_multiply(_normalised(turn), self.q_acc))
         if self.s["motion_bias"] and dt > 0.0:
-            rate_error = abs(n - GRAVITY) / (GRAVITY * self.s["tau_acc"])
+            # linear acceleration: the norm's departure beyond the still accelerometer's own scale error
+            excess = abs(n - GRAVITY) - self.s["acc_norm_tolerance"] * GRAVITY
+            rate_error = max(0.0, excess) / (GRAVITY * self.s["tau_acc"])
             self.bias = self.motion_bias.update(quat_multiply(self.q_acc, self.q_gyr), e / n, rate_error,
                                                 self.s["tau_acc"], dt, self.tilt_initialised and not self.at_rest,
                                                 self.bias)

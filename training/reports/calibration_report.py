@@ -29,7 +29,8 @@ SETTINGS_SHOWN = {"attitude_mode": ("", 1.0), "rest_gyro_threshold": ("°/s", fl
                   "field_dip": ("°", float(np.rad2deg(1.0))), "declination": ("°", float(np.rad2deg(1.0))),
                   "pf_measurement_noise": ("µT", 1.0), "enable_elm": ("", 1.0), "enable_psobp": ("", 1.0),
                   "mount_x": ("", 1.0), "mount_y": ("", 1.0), "mount_z": ("", 1.0), "gyro_hold": ("", 1.0),
-                  "mag_heading": ("", 1.0), "motion_bias": ("", 1.0), "enable_pf": ("", 1.0)}
+                  "mag_heading": ("", 1.0), "motion_bias": ("", 1.0), "acc_norm_tolerance": ("%", 100.0),
+                  "enable_pf": ("", 1.0)}
 #: Rows of a recording plotted at most (evenly thinned): enough to show every rest and motion.
 PLOT_ROWS = 20000
 
