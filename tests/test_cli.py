@@ -37,12 +37,12 @@ def test_simulate_unknown_key(tmp_path, capsys):
 
 def test_train_missing_column(tmp_path, capsys):
     p = _csv(tmp_path, "nocol.csv", ["0,0,0,0,0,0,-9.81,20,0,40"], header=HEADER.rsplit(",", 1)[0])
-    fails(capsys, ["train", str(p), "--out", str(tmp_path)], "nocol.csv", "temp")
+    fails(capsys, ["train", str(p), "--out", str(tmp_path / "model")], "nocol.csv", "temp")
 
 
 def test_train_non_increasing_time(tmp_path, capsys):
     p = _csv(tmp_path, "time.csv", [_row(0.0), _row(0.01), _row(0.01)])
-    fails(capsys, ["train", str(p), "--out", str(tmp_path)], "time.csv", "row 4")
+    fails(capsys, ["train", str(p), "--out", str(tmp_path / "model")], "time.csv", "row 4")
 
 
 def test_run_field_in_nanotesla(tmp_path, capsys):

@@ -123,7 +123,7 @@ def test_the_prior_leaves_an_outlier_unit_out(tmp_path):
         stats = {t: {"reference": "columns", "rms_after": 0.01} for t in thermal}
         path = ModelArtefact(seed=0, thermal=thermal, settings={}, fit_stats=stats).save(tmp_path / f"{k}.json")
         results.append(UnitResult(f"unit_{k:04d}", str(path), None))
-    doc = fleet_document(results)
+    doc = fleet_document(results, tmp_path)
     assert {o["unit"] for o in doc["outliers"]} == {"unit_0007"} and doc["prior_excludes"] == ["unit_0007"]
     prior = doc["prior"]["gyr"]
     assert prior["units"] == 39 and max(prior["sigma"][-3:]) < 0.015
@@ -206,24 +206,29 @@ def test_a_scheduler_without_workers_is_one_line_not_a_wait_forever(tmp_path, ca
 
 def test_ctrl_c_ends_a_distributed_verb_with_one_line_and_status_130(tmp_path):
     """Issue 31 item 11: SIGINT printed a KeyboardInterrupt traceback. The verb closes its cluster on
-    the way out (the context managers) and says it was interrupted."""
+    the way out (the context managers) and says it was interrupted; the output of an earlier run, which
+    --force was replacing, is left as it was (the new one was being written beside it)."""
     import signal
     import subprocess
     import sys
     import time
     from training.cli import EXIT_INTERRUPTED
+    from training.data.outputs import MARKER
     simulate_fleet(FLEET, 2, tmp_path / "fleet", seed=0, progress=False)
     (tmp_path / "out").mkdir()
-    (tmp_path / "out" / "fleet.json").write_text("{}")  # an earlier run's: a stopped run must not leave it
+    (tmp_path / "out" / MARKER).write_text("{}")
+    (tmp_path / "out" / "fleet.json").write_text("{}")  # an earlier run's
     p = subprocess.Popen([sys.executable, "-m", "training.cli", "fleet", "train", str(tmp_path / "fleet"), "--out",
-                          str(tmp_path / "out"), "--workers", "1"], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                         text=True, start_new_session=True, cwd=ROOT)
+                          str(tmp_path / "out"), "--workers", "1", "--force"], stdout=subprocess.PIPE,
+                         stderr=subprocess.PIPE, text=True, start_new_session=True, cwd=ROOT)
     time.sleep(6)  # the cluster is up and the first unit is training (about 10 s each)
     p.send_signal(signal.SIGINT)
     _, err = p.communicate(timeout=120)
     assert p.returncode == EXIT_INTERRUPTED, err
     assert "Traceback" not in err and "imufmu fleet: interrupted" in err.splitlines(), err
-    assert not (tmp_path / "out" / "fleet.json").exists()
+    assert sorted(q.name for q in (tmp_path / "out").iterdir()) == sorted([MARKER, "fleet.json"])
+    assert (tmp_path / "out" / "fleet.json").read_text() == "{}"
+    assert sorted(q.name for q in tmp_path.iterdir()) == ["fleet", "out"]  # no staging folder left
 
 
 def test_a_unit_that_fails_leaves_no_model_of_an_earlier_run_and_a_run_never_writes_into_its_fleet(tmp_path, capsys):
@@ -236,11 +241,11 @@ def test_a_unit_that_fails_leaves_no_model_of_an_earlier_run_and_a_run_never_wri
     assert (out / "unit_0001" / "model.json").is_file()
     broken = fleet / "unit_0001" / "calibration" / "calibration.csv.gz"
     broken.write_bytes(broken.read_bytes()[:3000])
-    assert main(["fleet", "train", str(fleet), "--out", str(out), "--workers", "1"]) == EXIT_PARTIAL
+    assert main(["fleet", "train", str(fleet), "--out", str(out), "--workers", "1", "--force"]) == EXIT_PARTIAL
     assert not (out / "unit_0001").exists() and (out / "unit_0000" / "model.json").is_file()
-    assert not [p for p in out.iterdir() if p.name.startswith(".")]  # no staging folder left
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["fleet", "out"]  # no staging folder left
     capsys.readouterr()
     assert main(["fleet", "train", str(fleet), "--out", str(fleet)]) == 1
     err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1 and "would write each unit's model over its input unit folder" in err[0]
+    assert len(err) == 1 and "would write over this input" in err[0]
     assert (fleet / "unit_0000" / "calibration" / "calibration.csv.gz").is_file()

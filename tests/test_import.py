@@ -366,7 +366,7 @@ ERRORS = [  # (name, how to make the input: tmp_path -> argv tail, needles)
     ("not a mat file", lambda p: _cli(_garbage(p / "x.mat"), p), ["x.mat", "cannot read as a MATLAB .mat file"]),
     ("no delimiter", lambda p: _cli(_garbage_text(p), p), ["gt.csv", "cannot tell the delimiter"]),
     ("bad out", lambda p: ["import", str(_user_csv(p)), "--out", str(p / "out.txt")], ["out.txt", "NAME.csv.gz"]),
-    ("out is input", lambda p: ["import", str(_user_csv(p)), "--out", str(p / "user.csv")], ["is the input file"]),
+    ("out is input", lambda p: ["import", str(_user_csv(p)), "--out", str(p / "user.csv")], ["would write over this input"]),
     ("bad reference", lambda p: _cli(_user_csv(p), p, "--reference", "vibes"), ["--reference vibes", "none"]),
     ("earth field form", lambda p: _cli(_user_csv(p), p, "--earth-field", "48,60"), ["--earth-field 48,60",
                                                                                      "NORM_UT,DIP_DEG"]),
@@ -439,7 +439,7 @@ def test_the_fuzz_tests_malformed_files_give_one_line_or_a_recording(tmp_path, c
     units = "t=s,gyr=rad/s,acc=m/s2,mag=uT,temp=C"
     refused = 0
     for case in cases.items:
-        code = main(["import", str(tmp_path / case["needle"]), "--out", str(tmp_path / "o.csv"), "--units", units])
+        code = main(["import", str(tmp_path / case["needle"]), "--out", str(tmp_path / "o.csv"), "--units", units, "--force"])
         err = [line for line in capsys.readouterr().err.splitlines() if "%|" not in line]
         assert code in (0, 1), (case["what"], err)
         if code == 1:

@@ -7,7 +7,9 @@ in time, one line per recording) are printed as the recordings are read, by ever
 from __future__ import annotations
 
 import argparse
+import signal
 import sys
+import threading
 from pathlib import Path
 
 from contract.errors import ImuFusionError, one_line
@@ -53,15 +55,19 @@ def _degree(text: str):
 
 def cmd_simulate(args) -> None:
     """imufmu simulate SCENARIO.toml --out DIR [--seed N]."""
+    from training.data.outputs import INTO, staged_output
     from training.simulator import simulate_to_dir
-    path = simulate_to_dir(args.scenario, args.out, seed=args.seed)
+    with staged_output("simulate", args.out, args.force, INTO, inputs=[args.scenario]) as out:
+        path = out.final(simulate_to_dir(args.scenario, out.path, seed=args.seed))
     print(f"wrote {path}")
 
 
 def cmd_simulate_fleet(args) -> None:
     """imufmu simulate-fleet FLEET.toml --devices N --out DIR [--seed S]."""
+    from training.data.outputs import staged_output
     from training.fleet.simulate import simulate_fleet
-    summary = simulate_fleet(args.fleet, args.devices, args.out, seed=args.seed)
+    with staged_output("simulate-fleet", args.out, args.force, inputs=[args.fleet]) as out:
+        summary = out.final(simulate_fleet(args.fleet, args.devices, out.path, seed=args.seed))
     print(f"wrote {args.devices} unit folder(s) and {summary}")
 
 
@@ -69,10 +75,14 @@ def cmd_fleet_train(args) -> int:
     """imufmu fleet train FLEET_DIR --out OUT [--workers K | --scheduler ADDRESS] [--seed N]: exit
     status 0 when every unit was trained, EXIT_PARTIAL when some were, 1 when none was."""
     from training.completeness import EXIT_PARTIAL
+    from training.data.outputs import staged_output
     from training.fleet.report import fleet_elm_summary, write_fleet_report
     from training.fleet.train import train_fleet
-    results = train_fleet(args.fleet_dir, args.out, seed=args.seed, workers=args.workers, scheduler=args.scheduler)
-    json_path, md_path, doc = write_fleet_report(results, args.out, seed=args.seed, progress=True)
+    with staged_output("fleet train", args.out, args.force, inputs=[args.fleet_dir]) as out:
+        results = train_fleet(args.fleet_dir, out.path, seed=args.seed, workers=args.workers,
+                              scheduler=args.scheduler)
+        json_path, md_path, doc = write_fleet_report(results, out.path, seed=args.seed, progress=True)
+    json_path, md_path = out.final(json_path), out.final(md_path)
     print(f"trained {doc['trained']} of {len(results)} units; {len(doc['failed'])} failed, "
           f"{len({o['unit'] for o in doc['outliers']})} outlier unit(s)")
     for failure in doc["failed"]:
@@ -95,15 +105,15 @@ def cmd_campaign(args) -> int:
     exit status 0 when every run gave its errors, EXIT_PARTIAL when some failed, 1 when all did."""
     from training.completeness import EXIT_PARTIAL
     from training.fleet.campaign import campaign_runs, parse_variation
-    from training.fleet.campaign_report import OUTPUT_FILES, failed_runs, write_campaign_report
-    from training.data.outputs import refuse_overwriting_inputs
-    refuse_overwriting_inputs("campaign", [args.fmu, args.data], [Path(args.out) / n for n in OUTPUT_FILES])
+    from training.fleet.campaign_report import failed_runs, write_campaign_report
+    from training.data.outputs import staged_output
     variations = tuple(parse_variation(v) for v in args.vary or [])
     fmu = _existing_file(args.fmu, "FMU")
     data = _existing_file(args.data, "data file")
-    runs = campaign_runs(fmu, data, args.runs, variations, seed=args.seed, workers=args.workers,
-                         scheduler=args.scheduler)
-    md = write_campaign_report(runs, variations, fmu, data, args.seed, args.out)
+    with staged_output("campaign", args.out, args.force, inputs=[fmu, data]) as out:
+        runs = campaign_runs(fmu, data, args.runs, variations, seed=args.seed, workers=args.workers,
+                             scheduler=args.scheduler)
+        md = out.final(write_campaign_report(runs, variations, fmu, data, args.seed, out.path))
     print(f"ran {len(runs)} co-simulations of {fmu} on {data}; wrote {md}")
     failed = failed_runs(runs)
     if failed:
@@ -119,17 +129,16 @@ def cmd_train(args) -> int:
     exit status EXIT_INCOMPLETE (model written) when a recorded triad is not fully calibrated and neither
     --allow-partial nor --allow-identity was given."""
     from training.completeness import EXIT_INCOMPLETE
-    from training.data.outputs import refuse_overwriting_inputs
+    from training.data.outputs import staged_output
     from training.train import train_to_folder
-    refuse_overwriting_inputs("train", [*args.data, *([args.prior] if args.prior else [])],
-                              [Path(args.out) / n for n in ("model.json", "calibration.md")])
-    done = train_to_folder([_existing_file(p, "data file") for p in args.data], args.out, seed=args.seed,
-                           degree=args.degree, allow_identity=args.allow_identity, prior_path=args.prior)
+    with staged_output("train", args.out, args.force, inputs=[*args.data, *([args.prior] if args.prior else [])]) as out:
+        done = train_to_folder([_existing_file(p, "data file") for p in args.data], out.path, seed=args.seed,
+                               degree=args.degree, allow_identity=args.allow_identity, prior_path=args.prior)
     for note in done.notes:
         print(f"note: {note}")
     print()
     print(done.summary)
-    print(f"wrote {done.model} and {done.report}")
+    print(f"wrote {out.final(done.model)} and {out.final(done.report)}")
     if done.gaps and not (args.allow_partial or args.allow_identity):
         print(f"imufmu train: {len(done.gaps)} recorded triad(s) not fully calibrated (INCOMPLETE CALIBRATION above); "
               f"the model was written; exit status {EXIT_INCOMPLETE} — pass --allow-partial to accept it", file=sys.stderr)
@@ -140,18 +149,24 @@ def cmd_train(args) -> int:
 def cmd_import(args) -> None:
     """imufmu import FILE --out NAME.csv.gz [--columns MAP] [--units MAP] [--rate HZ] [sidecar options]."""
     from training.data.importer import ImportOptions, import_recording
+    from training.data.io import sidecar_path
+    from training.data.outputs import FILE, staged_output
     options = ImportOptions(columns=tuple(args.columns or ()), units=tuple(args.units or ()), rate_hz=args.rate,
                             sensor=args.sensor, reference=args.reference, earth_field=args.earth_field,
                             site=args.site)
-    print(import_recording(args.file, args.out, options).summary)
+    sidecar = sidecar_path(args.out).name if args.out.endswith((".csv", ".csv.gz")) else None
+    with staged_output("import", args.out, args.force, FILE, inputs=[args.file],
+                       names=[sidecar] if sidecar else []) as out:
+        print(import_recording(args.file, out.path, options, shown=args.out).summary)
 
 
 def cmd_build_fmu(args) -> None:
     """imufmu build-fmu --model DIR/model.json --out FILE.fmu."""
     from training.fmu_build import build_fmu_from_model
-    from training.data.outputs import refuse_overwriting_inputs
-    refuse_overwriting_inputs("build-fmu", [args.model], [args.out])
-    path = build_fmu_from_model(_existing_file(args.model, "model artefact"), args.out, fmi_version=args.fmi)
+    from training.data.outputs import FILE, staged_output
+    with staged_output("build-fmu", args.out, args.force, FILE, inputs=[args.model]) as out:
+        path = out.final(build_fmu_from_model(_existing_file(args.model, "model artefact"), out.path,
+                                              fmi_version=args.fmi))
     print(f"wrote {path} (FMI {args.fmi}.0 co-simulation)")
 
 
@@ -176,33 +191,34 @@ def cmd_validate(args) -> None:
 def cmd_run(args) -> None:
     """imufmu run FILE.fmu DATA --out OUT.csv [--param NAME=VALUE ...]."""
     from training.main_job import run_recording
-    from training.data.outputs import refuse_overwriting_inputs
-    refuse_overwriting_inputs("run", [args.fmu, args.data], [args.out])
-    done = run_recording(_existing_file(args.fmu, "FMU"), _existing_file(args.data, "data file"), args.out,
-                         dict(args.param or []))
+    from training.data.outputs import FILE, staged_output
+    with staged_output("run", args.out, args.force, FILE, inputs=[args.fmu, args.data]) as out:
+        done = run_recording(_existing_file(args.fmu, "FMU"), _existing_file(args.data, "data file"), out.path,
+                             dict(args.param or []))
     for message in done.log:
         print(f"FMU: {message}")
     for note in done.notes:
         print(f"note: {note}")
-    print(f"wrote {done.path} ({done.samples} samples)")
+    print(f"wrote {out.final(done.path)} ({done.samples} samples)")
 
 
 def cmd_compare_thermal(args) -> None:
     """imufmu compare-thermal DATA... --out DIR [--runs N] [--seed N]."""
     from training.bench.compare_thermal import compare_thermal
+    from training.data.outputs import staged_output
     paths = [_existing_file(p, "data file") for p in args.data]
-    compare_thermal(paths, Path(args.out), runs=args.runs, seed=args.seed,
-                    train_fraction=args.train_fraction)
+    with staged_output("compare-thermal", args.out, args.force, inputs=paths) as out:
+        compare_thermal(paths, out.path, runs=args.runs, seed=args.seed, train_fraction=args.train_fraction)
     print(f"wrote {Path(args.out) / 'compare_thermal.md'}")
 
 
 def cmd_diagnose(args) -> None:
     """imufmu diagnose DATA... --model DIR/model.json --out REPORT_DIR."""
-    from training.diagnosis.diagnose import OUTPUT_FILES, diagnose
-    from training.data.outputs import refuse_overwriting_inputs
-    refuse_overwriting_inputs("diagnose", [*args.data, args.model], [Path(args.out) / n for n in OUTPUT_FILES])
-    paths = [_existing_file(p, "data file") for p in args.data]
-    result = diagnose(paths, _existing_file(args.model, "model artefact"), Path(args.out), seed=args.seed)
+    from training.diagnosis.diagnose import diagnose
+    from training.data.outputs import staged_output
+    with staged_output("diagnose", args.out, args.force, inputs=[*args.data, args.model]) as out:
+        paths = [_existing_file(p, "data file") for p in args.data]
+        result = diagnose(paths, _existing_file(args.model, "model artefact"), out.path, seed=args.seed)
     selected = result.get("selected")
     what = "nothing significant left" if not selected else \
         f"selected {selected['name']} on {selected['target']}"
@@ -221,23 +237,27 @@ def cmd_bench(args) -> None:
     """imufmu bench broad|broad-trained [--trials ...] --out DIR | imufmu bench speed --out DIR."""
     from training.bench.bench import bench_broad, bench_speed
     from training.bench.bench_trained import bench_broad_trained
-    if args.what == "broad":
-        bench_broad(args.trials, Path(args.out))
-    elif args.what == "broad-trained":
-        bench_broad_trained(Path(args.out), args.trials)
-    else:
-        bench_speed(Path(args.out))
+    from training.data.outputs import staged_output
+    with staged_output("bench", args.out, args.force) as out:
+        if args.what == "broad":
+            bench_broad(args.trials, out.path)
+        elif args.what == "broad-trained":
+            bench_broad_trained(out.path, args.trials)
+        else:
+            bench_speed(out.path)
     print(f"wrote results to {args.out}")
 
 
 def cmd_pipeline(args) -> None:
     """imufmu pipeline [--out DIR] [--seed N]: the main job on the bundled defaults."""
+    from training.data.outputs import staged_output
     from training.main_job import check_summary, run_main_job
     from training.reports.report import summary_table
-    summary = run_main_job(Path(args.out), seed=args.seed)
+    with staged_output("pipeline", args.out, args.force) as out:
+        summary = run_main_job(out.path, seed=args.seed)
     print()
     print(summary_table(summary))
-    print(f"\nFMU: {summary.fmu_path}  (validation problems: {len(summary.validation_problems)})")
+    print(f"\nFMU: {out.final(summary.fmu_path)}  (validation problems: {len(summary.validation_problems)})")
     print(f"report: {Path(args.out) / 'report.md'}")
     check_summary(summary)
 
@@ -267,6 +287,17 @@ def _add_verb(sub, verb: str, help_text: str) -> argparse.ArgumentParser:
                           formatter_class=argparse.RawDescriptionHelpFormatter)
 
 
+def _add_out(s: argparse.ArgumentParser, help_text: str, default: str | None = None) -> None:
+    """--out (required unless it has a default) and --force: the rule of every verb's output
+    (training.data.outputs.staged_output)."""
+    s.add_argument("--out", required=default is None, default=default,
+                   help=help_text + ("" if default is None else f" (default: {default})"))
+    s.add_argument("--force", action="store_true",
+                   help="replace an existing output (a folder only when it is an earlier imufmu output); the new "
+                        "one is written beside it and moved into place only when complete. Without it an existing "
+                        "output is kept and the verb stops")
+
+
 def _add_dask_options(s: argparse.ArgumentParser) -> None:
     """--workers K | --scheduler ADDRESS: where a distributed verb runs (training.fleet.engine)."""
     from training.fleet.engine import ADDRESS_FORM, CONNECT_TIMEOUT_S
@@ -283,7 +314,7 @@ def _add_import_verb(sub) -> None:
     s = _add_verb(sub, "import", "turn a CSV or MATLAB .mat file into imu-csv/1 (CSV + sidecar), with train's unit checks")
     s.add_argument("file", help="delimited text with a header row (',', ';', tab or whitespace; .gz allowed) or a "
                    "MATLAB .mat file (v4-v7; a v7.3 file is refused)")
-    s.add_argument("--out", required=True, help="the recording to write, NAME.csv.gz or NAME.csv (+ NAME.json)")
+    _add_out(s, "the recording to write, NAME.csv.gz or NAME.csv (+ NAME.json)")
     s.add_argument("--columns", action="append", metavar="MAP",
                    help="TARGET=COLUMN entries, e.g. t=Time,gyr_x=GyroX,... or per triad gyr=GX,GY,GZ (a .mat file: "
                         "variable or struct field names; gyr=gyro for an N×3 matrix); targets t, gyr, acc, mag, "
@@ -319,19 +350,19 @@ def build_parser() -> argparse.ArgumentParser:
     sub = p.add_subparsers(dest="verb", required=True, metavar="VERB")
     s = _add_verb(sub, "simulate", "simulate a scenario into an imu-csv/1 file")
     s.add_argument("scenario")
-    s.add_argument("--out", required=True, help="output folder")
+    _add_out(s, "output folder: the recording is added to it (NAME.csv.gz + NAME.json)")
     s.add_argument("--seed", type=int, default=None, help="random seed (default: the scenario's)")
     s.set_defaults(func=cmd_simulate)
     s = _add_verb(sub, "simulate-fleet", "simulate N units of one sensor type, each with its own errors")
     s.add_argument("fleet", help="fleet file (TOML): the unit type and its calibration and test scenarios")
     s.add_argument("--devices", type=int, required=True, help="number of units")
-    s.add_argument("--out", required=True, help="output folder: one folder per unit")
+    _add_out(s, "output folder: one folder per unit")
     s.add_argument("--seed", type=int, default=0, help="random seed of the fleet (default 0)")
     s.set_defaults(func=cmd_simulate_fleet)
     s = _add_verb(sub, "train", "train the models on calibration recordings")
     s.add_argument("data", nargs="+", help="imu-csv/1 files (.csv or .csv.gz); reference columns, an "
                    "attitude reference or a static sidecar are used when present, else self-calibration")
-    s.add_argument("--out", required=True, help="output folder for model.json and calibration.md")
+    _add_out(s, "output folder for model.json and calibration.md")
     s.add_argument("--seed", type=int, default=0)
     s.add_argument("--degree", type=_degree, default="auto", metavar="{auto,0,1,2,3}",
                    help="temperature polynomial degree of G(T) and B(T). auto (default): chosen per triad from "
@@ -355,7 +386,7 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("action", choices=("train",))
     s.add_argument("fleet_dir", help="folder of unit folders (each with a calibration/ folder of recordings, "
                    "as simulate-fleet writes, or with its own recordings)")
-    s.add_argument("--out", required=True, help="output folder: OUT/<unit>/model.json, fleet.json, fleet.md")
+    _add_out(s, "output folder: OUT/<unit>/model.json, fleet.json, fleet.md")
     s.add_argument("--seed", type=int, default=0)
     _add_dask_options(s)
     s.set_defaults(func=cmd_fleet_train)
@@ -366,13 +397,13 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--vary", action="append", metavar="NAME=DIST",
                    help="NAME=normal(MEAN,SIGMA) | uniform(LOW,HIGH) | choice(A,B,...); NAME an FMU parameter or "
                         "noise_gyr [rad/s], noise_acc [m/s²], noise_mag [µT] (σ of white noise added to that input). Repeatable")
-    s.add_argument("--out", required=True, help="output folder: campaign.md, campaign.json, runs.csv, campaign.png")
+    _add_out(s, "output folder: campaign.md, campaign.json, runs.csv, campaign.png")
     s.add_argument("--seed", type=int, default=0)
     _add_dask_options(s)
     s.set_defaults(func=cmd_campaign)
     s = _add_verb(sub, "build-fmu", "write the trained model into the FMU sources and build it")
     s.add_argument("--model", required=True, help="model.json from 'imufmu train'")
-    s.add_argument("--out", required=True, help="FMU file to write")
+    _add_out(s, "FMU file to write")
     s.add_argument("--fmi", type=int, choices=(2, 3), default=2, help="FMI version (default 2)")
     s.set_defaults(func=cmd_build_fmu)
     s = _add_verb(sub, "validate", "validate an FMU (model description, exports, smoke run)")
@@ -381,13 +412,13 @@ def build_parser() -> argparse.ArgumentParser:
     s = _add_verb(sub, "run", "co-simulate a recording through the FMU with fmpy")
     s.add_argument("fmu")
     s.add_argument("data")
-    s.add_argument("--out", required=True, help="CSV file for the FMU outputs")
+    _add_out(s, "CSV file for the FMU outputs")
     s.add_argument("--param", type=_param, action="append", metavar="NAME=VALUE",
                    help="FMU parameter (repeatable); declination and field_norm default to the sidecar")
     s.set_defaults(func=cmd_run)
     s = _add_verb(sub, "compare-thermal", "compare gyro temperature models on static recordings")
     s.add_argument("data", nargs="+", help="imu-csv/1 recordings of a static sensor")
-    s.add_argument("--out", required=True, help="report folder")
+    _add_out(s, "report folder")
     s.add_argument("--runs", type=int, default=50, help="Monte-Carlo repetitions (default 50)")
     s.add_argument("--train-fraction", type=float, default=0.6,
                    help="leading share of each recording (by time) used for training (default 0.6; "
@@ -397,16 +428,16 @@ def build_parser() -> argparse.ArgumentParser:
     s = _add_verb(sub, "diagnose", "find the effect the model lacks, add it, report before/after")
     s.add_argument("data", nargs="+", help="imu-csv/1 recordings with a reference")
     s.add_argument("--model", required=True, help="model.json from 'imufmu train'")
-    s.add_argument("--out", required=True, help="report folder (diagnosis.json, report.md, model.json)")
+    _add_out(s, "report folder (diagnosis.json, report.md, model.json)")
     s.add_argument("--seed", type=int, default=0)
     s.set_defaults(func=cmd_diagnose)
     s = _add_verb(sub, "bench", "benchmarks: BROAD attitude accuracy (filters, or trained FMU) or runtime speed")
     s.add_argument("what", choices=("broad", "broad-trained", "speed"))
     s.add_argument("--trials", nargs="*", default=None, help="BROAD trial prefixes (default: all)")
-    s.add_argument("--out", required=True, help="output folder")
+    _add_out(s, "output folder")
     s.set_defaults(func=cmd_bench)
     s = _add_verb(sub, "pipeline", "the main job on the bundled scenarios")
-    s.add_argument("--out", default="out", help="output folder (default: out)")
+    _add_out(s, "output folder", default="out")
     s.add_argument("--seed", type=int, default=0)
     s.set_defaults(func=cmd_pipeline)
     return p
@@ -416,10 +447,17 @@ def build_parser() -> argparse.ArgumentParser:
 EXIT_INTERRUPTED = 130
 
 
+def _terminated(signum, frame) -> None:
+    """SIGTERM (a job scheduler's stop, `kill`) ends a verb as Ctrl-C does: outputs cleaned up on the way."""
+    raise KeyboardInterrupt
+
+
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the `imufmu` console script; returns the exit status."""
     from training.data.io import report_load_notes
     args = build_parser().parse_args(argv)
+    if threading.current_thread() is threading.main_thread():
+        signal.signal(signal.SIGTERM, _terminated)
     try:
         with report_load_notes(lambda note: print(note, flush=True)):
             status = args.func(args)
@@ -429,7 +467,7 @@ def main(argv: list[str] | None = None) -> int:
     except OSError as e:  # unwritable output folder, disk full, ...
         print(f"imufmu {args.verb}: error: {e.filename or ''}: {one_line(e.strerror or str(e))}", file=sys.stderr)
         return 1
-    except KeyboardInterrupt:  # Ctrl-C: the context managers (Dask cluster, files) have closed on the way
+    except KeyboardInterrupt:  # Ctrl-C, SIGTERM: the context managers (Dask cluster, outputs) have closed on the way
         print(f"imufmu {args.verb}: interrupted", file=sys.stderr)
         return EXIT_INTERRUPTED
     return status or 0

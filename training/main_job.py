@@ -5,6 +5,7 @@ Each step is one library call; `imufmu pipeline` calls `run_main_job`.
 from __future__ import annotations
 
 import json
+import os
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -204,8 +205,9 @@ def run_main_job(out_dir: Path, seed: int = 0, calibration: str = DEFAULT_CALIBR
 
 
 def summary_dict(summary: MainJobSummary) -> dict:
-    """JSON-ready form of the summary."""
-    return {"model": summary.model_path, "fmu": summary.fmu_path,
+    """JSON-ready form of the summary (the model and FMU named relative to the folder summary.json is in)."""
+    return {"model": os.path.relpath(summary.model_path, summary.out_dir),
+            "fmu": os.path.relpath(summary.fmu_path, summary.out_dir),
             "validation_problems": summary.validation_problems,
             "acceptance": ACCEPTANCE, "passed": summary.passed(), "timings_s": summary.timings_s,
             "scenarios": [s.as_dict() for s in summary.scenarios]}

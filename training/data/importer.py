@@ -60,8 +60,10 @@ class ImportResult:
     summary: str
 
 
-def import_recording(source: str | Path, out: str | Path, options: ImportOptions = ImportOptions()) -> ImportResult:
-    """Convert `source` into the imu-csv/1 recording `out` (NAME.csv or NAME.csv.gz) and its sidecar."""
+def import_recording(source: str | Path, out: str | Path, options: ImportOptions = ImportOptions(),
+                     shown: str | Path | None = None) -> ImportResult:
+    """Convert `source` into the imu-csv/1 recording `out` (NAME.csv or NAME.csv.gz) and its sidecar;
+    `shown`: the path the summary names (where `imufmu import` moves `out` when complete; default `out`)."""
     source, out = Path(source), Path(out)
     _check_out(source, out)
     if options.rate_hz is not None and not RATE_MIN_HZ <= options.rate_hz <= RATE_MAX_HZ:
@@ -79,8 +81,9 @@ def import_recording(source: str | Path, out: str | Path, options: ImportOptions
                  "source": source.name + (f" ({plan.fmt.name} format)" if plan.fmt else ""),
                  "notes": _notes(source, plan)}
     written = _write_checked(data, out, table, plan, columns)
-    gaps = time_gap_note(out, time_gaps(written.t, rate_hz))
-    summary = summary_text(source, out, table, plan, written, rate_hz, [*plan.notes, *filter(None, [gaps])])
+    shown = Path(shown) if shown is not None else out
+    gaps = time_gap_note(shown, time_gaps(written.t, rate_hz))
+    summary = summary_text(source, shown, table, plan, written, rate_hz, [*plan.notes, *filter(None, [gaps])])
     return ImportResult(out, sidecar_path(out), len(written), summary)
 
 

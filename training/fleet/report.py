@@ -46,8 +46,9 @@ def fleet_elm_document(results: list[UnitResult], excluded: list[str], seed: int
         return fleet_elm_json(*fit_fleet_elm(rows, seed, bar.update))
 
 
-def fleet_document(results: list[UnitResult], seed: int = 0, progress: bool = False) -> dict:
-    """The content of fleet.json: per-unit status, the population, outliers, failures and the prior.
+def fleet_document(results: list[UnitResult], out_dir: Path, seed: int = 0, progress: bool = False) -> dict:
+    """The content of out_dir/fleet.json: per-unit status (models named relative to out_dir), the
+    population, outliers, failures and the prior.
     The prior and the fleet ELM leave out every outlier unit (`prior_excludes`): one unit with a 10×
     bias would otherwise widen the population's σ for every new unit."""
     artefacts = {r.unit: load_artefact(r.model) for r in results if r.model}
@@ -57,7 +58,7 @@ def fleet_document(results: list[UnitResult], seed: int = 0, progress: bool = Fa
     excluded = sorted({o["unit"] for o in found})
     return {"format": "imufusion-fleet", "format_version": FLEET_FORMAT,
             "population_temperature_c": POPULATION_TEMP_C, "outlier_sigmas": OUTLIER_SIGMAS,
-            "units": {r.unit: {"model": r.model, "reason": r.reason} for r in results},
+            "units": {r.unit: {k: v for k, v in r.summary(out_dir).items() if k != "unit"} for r in results},
             "trained": len(trained), "failed": [{"unit": r.unit, "reason": r.reason} for r in results if not r.model],
             "population": stats, "outliers": found, "prior_excludes": excluded,
             "prior": fleet_prior([a for unit, a in artefacts.items() if unit not in excluded]),
@@ -134,7 +135,7 @@ def write_fleet_report(results: list[UnitResult], out_dir: str | Path, seed: int
                        progress: bool = False) -> tuple[Path, Path, dict]:
     """Write out_dir/fleet.json, fleet.md and the histograms; returns (json, md, document)."""
     out_dir = Path(out_dir)
-    doc = fleet_document(results, seed, progress)
+    doc = fleet_document(results, out_dir, seed, progress)
     plots = _histograms(doc["population"], out_dir) if doc["trained"] else []
     json_path, md_path = out_dir / "fleet.json", out_dir / "fleet.md"
     json_path.write_text(json.dumps(doc, indent=1, default=lambda v: float(v) if isinstance(v, np.floating) else v) + "\n")

@@ -10,6 +10,7 @@ describe the population (training.fleet.population).
 from __future__ import annotations
 
 import json
+import os
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -37,9 +38,11 @@ class UnitResult:
     reason: str | None
     elm_rows: tuple | None = field(default=None, repr=False, compare=False)
 
-    def summary(self) -> dict:
-        """units.json entry."""
-        return {"unit": self.unit, "model": self.model, "reason": self.reason}
+    def summary(self, out_dir: Path) -> dict:
+        """units.json entry; the model named relative to out_dir (the folder the listing is written in:
+        the listing stays true when `imufmu fleet train` moves its output into place)."""
+        model = self.model and os.path.relpath(Path(self.model).resolve(), Path(out_dir).resolve())
+        return {"unit": self.unit, "model": model, "reason": self.reason}
 
 
 def unit_recordings(folder: Path) -> list[Path]:
@@ -118,5 +121,5 @@ def train_fleet(fleet_dir: str | Path, out_dir: str | Path, seed: int = 0, worke
             results += [r for _, r in run_tasks(client, train_unit, units, "units", progress,
                                                 out_dir=out_dir.resolve(), seed=seed)]
     results.sort(key=lambda r: r.unit)
-    (out_dir / "units.json").write_text(json.dumps([r.summary() for r in results], indent=1) + "\n")
+    (out_dir / "units.json").write_text(json.dumps([r.summary(out_dir) for r in results], indent=1) + "\n")
     return results

@@ -1,6 +1,7 @@
 """Human-readable results of the main job: a console table and a Markdown report with PNG plots."""
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 import numpy as np
@@ -86,8 +87,8 @@ def write_report(summary, out_dir: Path) -> Path:
     plots = out_dir / "plots"
     plots.mkdir(parents=True, exist_ok=True)
     parts = ["# ImuFusion main job report", "",
-             f"- model artefact: `{summary.model_path}`",
-             f"- FMU: `{summary.fmu_path}`",
+             f"- model artefact: `{os.path.relpath(summary.model_path, out_dir)}`",
+             f"- FMU: `{os.path.relpath(summary.fmu_path, out_dir)}`",
              f"- FMU validation problems: {len(summary.validation_problems)}"
              + "".join(f"\n  - {p}" for p in summary.validation_problems),
              "", "## Accuracy against simulator truth", "",
