@@ -119,6 +119,10 @@ def test_a_campaign_larger_than_memory_is_refused_up_front_with_the_estimate(ide
     ("declination=uniform(0,10)", r"declination must stay in \[-3.14159, 3.14159\]"),
     ("tau_acc=choice(0,3)", r"tau_acc must stay in \(0, 86400\]"),
     ("field_norm=normal(2,1)", r"field_norm must stay in \[5, 1000\]"),
+    ("noise_gyr=normal(-1,0.1)", r"noise_gyr must stay in \[0, 100\] \(the input's plausibility limit\)"),
+    ("noise_acc=uniform(0,1e300)", r"noise_acc must stay in \[0, 2000\]"),
+    ("enable_pf=choice(0,0.5)", "enable_pf is a Boolean parameter: vary it as choice"),
+    ("pf_particles=uniform(64,128)", "pf_particles is an Integer parameter: vary it as choice"),
 ])
 def test_variations_that_draw_outside_a_parameters_range_are_refused_up_front(text, problem):
     """Issue 31 item 7: such draws were checked only inside the workers (one bad draw aborted the

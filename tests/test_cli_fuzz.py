@@ -1,12 +1,15 @@
-"""CLI fuzz test: >= 300 generated malformed inputs across every verb and file kind.
+"""CLI fuzz test: >= 500 generated malformed inputs across every verb and file kind (issue 31).
 
 Every case must exit with status 1 (or 2 for a usage error), print no traceback, and print its error
-as one line `imufmu VERB: error: ...` naming the culprit file (or the parameter), numbers written
-plainly (no numpy repr such as np.float64(0.99)). The cases are
-generated from one seed into a temporary folder, then run in ONE child process that calls
-training.cli.main(argv) in-process per case (stderr captured, SystemExit caught) and reports its
-peak RSS (resource.getrusage ru_maxrss), which must stay below 1 GB: a 1 GB gzip bomb and a 2 GB
-zip member are among the inputs.
+as one line `imufmu VERB: error: ...` naming the culprit file (or the parameter, the address, the
+output), numbers written plainly (no numpy repr such as np.float64(0.99)), within MAX_CASE_S. A case
+that meets an earlier output (`--out` taken, with or without `--force`) must leave it byte for byte,
+and no staging folder beside it. The cases are generated from one seed into a temporary folder, then
+run in ONE child process that calls training.cli.main(argv) in-process per case (stderr captured,
+SystemExit caught; fake Dask schedulers — silent, HTTP, garbage — listen on loopback in it) and
+reports its peak RSS (resource.getrusage ru_maxrss), which must stay below 1 GB: a 1 GB gzip bomb, a
+2 GB zip member and a billion-run campaign are among the inputs. Verbs stopped by a signal mid-run:
+test_a_verb_stopped_by_a_signal_leaves_the_previous_output_or_the_new_one.
 
 Run the child alone: python tests/test_cli_fuzz.py CASES.json RESULTS.json
 """
@@ -26,11 +29,15 @@ import zipfile
 from pathlib import Path
 
 import numpy as np
+import pytest
+
+from training.data.outputs import MARKER
 
 SEED = 15
-MIN_CASES = 300
+MIN_CASES = 500
 MAX_RSS_BYTES = 2**30              # 1 GiB: no case may cost more (acceptance of issue 15)
-CHILD_TIMEOUT_S = 300              # a hung case fails the test instead of hanging it
+MAX_CASE_S = 60.0                  # no case may run longer (acceptance of issue 31)
+CHILD_TIMEOUT_S = 600              # a hung case fails the test instead of hanging it
 HEADER = "t,gyr_x,gyr_y,gyr_z,acc_x,acc_y,acc_z,mag_x,mag_y,mag_z,temp"
 N_ROWS = 300                       # enough rows for the loader's unit checks (>= 10)
 BOMB_INFLATED_BYTES = 2**30        # the gzip bomb inflates to 1 GiB
@@ -51,6 +58,20 @@ def _row(rng: np.random.Generator, k: int) -> list[float]:
 def _table(rng: np.random.Generator) -> list[list[str]]:
     """Header cells then N_ROWS rows of cell texts."""
     return [HEADER.split(",")] + [[repr(round(float(v), 6)) for v in _row(rng, k)] for k in range(N_ROWS)]
+
+
+def _referenced_table(rng: np.random.Generator) -> list[list[str]]:
+    """_table with a rate reference (ref_gyr = the gyro's readings): a recording a campaign can score."""
+    table = _table(rng)
+    table[0] = table[0] + ["ref_gyr_x", "ref_gyr_y", "ref_gyr_z"]
+    return [table[0]] + [row + row[1:4] for row in table[1:]]
+
+
+def _hashes(path: Path) -> dict[str, str]:
+    """{file: sha256} of the file `path`, or of every file under the folder `path`."""
+    import hashlib
+    files = [path] if path.is_file() else sorted(p for p in path.rglob("*") if p.is_file())
+    return {str(p): hashlib.sha256(p.read_bytes()).hexdigest() for p in files}
 
 
 def _text(table: list[list[str]], sep: str = ",") -> str:
@@ -144,6 +165,7 @@ class Cases:
         self.folder, self.rng, self.items = folder, rng, []
         self.n = 0
         self.good_csv = self.recording("good", _text(_table(rng)), _meta())
+        self.referenced = self.recording("referenced", _text(_referenced_table(rng)), _meta())
         self.fmu = self._shell_fmu(folder / "shell.fmu")
         self.model = folder / "model.json"
         self.model.write_bytes(MODEL.read_bytes())
@@ -335,8 +357,7 @@ class Cases:
             self.add("run", "fmu", what, ["run", str(path), str(self.good_csv), "--out", str(f / "o.csv")], path.name)
 
     def scenario_cases(self) -> None:
-        base = {"sensor": json.dumps(str(REPO / "scenarios" / "sensors" / "mems_grade.toml")), "rate": "100.0",
-                "seed": "1", "duration": "10.0", "extra": ""}
+        base = SCENARIO_FIELDS
         variants = [("rate", v) for v in ("1e-300", "0.0", "-1.0", '"100"', "inf", "nan", "1e300", "true")]
         variants += [("duration", v) for v in ("1e300", "-1.0", "0.0", "inf", '"10 s"', "1e6")]
         variants += [("seed", v) for v in ("-1", "1.5", '"one"')]
@@ -383,6 +404,222 @@ class Cases:
                      ["simulate", str(self.folder / "gone.toml"), "--out", "s"]):
             self.add(argv[0], "missing file", "missing", argv, "gone")
 
+    # -- outputs (issue 31): an earlier output is never lost, nothing is written over an input
+
+    def _earlier(self, path: Path, folder: bool, marker: bool = True) -> None:
+        """An earlier run's output at path: a folder (with MARKER when `marker`, a model and a unit folder
+        of its own) or a file."""
+        if not folder:
+            path.write_bytes(b"earlier " + path.name.encode())
+            return
+        path.mkdir()
+        if marker:
+            (path / MARKER).write_text('{"verb": "earlier"}\n')
+        (path / "model.json").write_text(json.dumps({"earlier": path.name}))
+        (path / "unit_0003").mkdir()
+        (path / "unit_0003" / "model.json").write_text("earlier unit")
+
+    def add_kept(self, verb: str, what: str, argv: list[str], needle: str, kept: Path) -> None:
+        """A case whose earlier output `kept` (file or folder) must be left byte for byte."""
+        self.add(verb, "output", what, argv, needle)
+        self.items[-1]["intact"] = _hashes(kept)
+        self.items[-1]["no_staging_in"] = str(kept.parent)
+
+    def _bad_recording(self) -> Path:
+        return self.recording(self.name("badrows"), HEADER + "\n" + "x,y\n" * 20, _meta())
+
+    def output_cases(self) -> None:
+        f = self.folder
+        fleet_toml = REPO / "scenarios" / "fleet" / "mems_grade.toml"
+        unit_fleet = f / "fleet_in"
+        (unit_fleet / "unit").mkdir(parents=True)
+        (unit_fleet / "unit" / "a.csv").write_text("t\n")
+        no_units = f / "fleet_without_units"
+        no_units.mkdir()
+        folder_verbs = {  # verb -> (argv with --out OUT, argv whose input fails after the output is staged, its needle)
+            "train": (lambda o: ["train", str(self.good_csv), "--out", o], lambda o, b: ["train", str(b), "--out", o]),
+            "diagnose": (lambda o: ["diagnose", str(self.good_csv), "--model", str(self.model), "--out", o],
+                         lambda o, b: ["diagnose", str(b), "--model", str(self.model), "--out", o]),
+            "compare-thermal": (lambda o: ["compare-thermal", str(self.good_csv), "--out", o, "--runs", "1"],
+                                lambda o, b: ["compare-thermal", str(b), "--out", o, "--runs", "1"]),
+            "campaign": (lambda o: ["campaign", str(self.fmu), str(self.good_csv), "--runs", "2", "--out", o],
+                         lambda o, b: ["campaign", str(self.fmu), str(b), "--runs", "2", "--out", o]),
+            "fleet": (lambda o: ["fleet", "train", str(unit_fleet), "--out", o],
+                      lambda o, b: ["fleet", "train", str(no_units), "--out", o]),
+            "simulate-fleet": (lambda o: ["simulate-fleet", str(fleet_toml), "--devices", "1", "--out", o],
+                               lambda o, b: ["simulate-fleet", str(REPO / "scenarios" / "calibration.toml"),
+                                             "--devices", "1", "--out", o]),
+            "bench": (lambda o: ["bench", "speed", "--out", o], None),
+            "pipeline": (lambda o: ["pipeline", "--out", o], None),
+        }
+        failing_needle = {"fleet": no_units.name, "simulate-fleet": "calibration.toml"}
+        for verb, (argv, failing) in folder_verbs.items():
+            out = f / self.name(f"out_{verb}")
+            self._earlier(out, folder=True)
+            self.add_kept(verb, "earlier output, no --force", argv(str(out)), out.name, out)
+            mine = f / self.name(f"mine_{verb}")
+            self._earlier(mine, folder=True, marker=False)
+            self.add_kept(verb, "the user's folder, --force", argv(str(mine)) + ["--force"], mine.name, mine)
+            file_out = f / self.name(f"file_{verb}")
+            self._earlier(file_out, folder=False)
+            self.add_kept(verb, "--out is a file", argv(str(file_out)), file_out.name, file_out)
+            if failing is not None:
+                bad = self._bad_recording()
+                self.add_kept(verb, "--force, the input fails after staging", failing(str(out), bad) + ["--force"],
+                              failing_needle.get(verb, bad.name), out)
+        for verb, argv in (("train", lambda o, i: ["train", str(i), "--out", o, "--force"]),
+                           ("diagnose", lambda o, i: ["diagnose", str(i), "--model", str(self.model), "--out", o, "--force"]),
+                           ("compare-thermal", lambda o, i: ["compare-thermal", str(i), "--out", o, "--force"])):
+            holder = f / self.name(f"holder_{verb}")
+            self._earlier(holder, folder=True)
+            inside = holder / "rec.csv"
+            inside.write_bytes(self.good_csv.read_bytes())
+            self.add_kept(verb, "--out holds an input, --force", argv(str(holder), inside), "rec.csv", holder)
+        file_verbs = {  # verb -> (argv with --out OUT, its input files, argv with a failing input)
+            "build-fmu": (lambda o: ["build-fmu", "--model", str(self.model), "--out", o], [self.model],
+                          lambda o, b: ["build-fmu", "--model", str(b), "--out", o]),
+            "run": (lambda o: ["run", str(self.fmu), str(self.good_csv), "--out", o], [self.good_csv],
+                    lambda o, b: ["run", str(self.fmu), str(b), "--out", o]),
+            "import": (lambda o: ["import", str(self.good_csv), "--out", o], [self.good_csv],
+                       lambda o, b: ["import", str(b), "--out", o]),
+        }
+        for verb, (argv, inputs, failing) in file_verbs.items():
+            suffix = {"build-fmu": ".fmu", "run": ".csv", "import": ".csv"}[verb]
+            out = f / self.name(f"out_{verb}")
+            out = out.with_name(out.name + suffix)
+            self._earlier(out, folder=False)
+            self.add_kept(verb, "earlier output, no --force", argv(str(out)), out.name, out)
+            bad = self._bad_recording() if verb != "build-fmu" else self._bad_model()
+            self.add_kept(verb, "--force, the input fails after staging", failing(str(out), bad) + ["--force"],
+                          bad.name, out)
+            folder_out = f / self.name(f"folder_{verb}")
+            self._earlier(folder_out, folder=True)
+            self.add_kept(verb, "--out is a folder", argv(str(folder_out)) + ["--force"], folder_out.name, folder_out)
+            self.add_kept(verb, "--out is an input, --force", argv(str(inputs[-1])) + ["--force"], inputs[-1].name,
+                          inputs[-1])
+        side_out = f / self.name("out_import")
+        csv_out, sidecar = side_out.with_name(side_out.name + ".csv"), side_out.with_name(side_out.name + ".json")
+        self._earlier(sidecar, folder=False)
+        self.add_kept("import", "the sidecar exists, no --force", ["import", str(self.good_csv), "--out", str(csv_out)],
+                      sidecar.name, sidecar)
+        sim = f / self.name("sim_into")
+        sim.mkdir()
+        (sim / "fuzz.csv.gz").write_bytes(b"an earlier recording")
+        good_scenario = f / self.name("scenario_good")
+        good_scenario = good_scenario.with_name(good_scenario.name + ".toml")
+        good_scenario.write_text(SCENARIO.format(**SCENARIO_FIELDS))
+        self.add_kept("simulate", "a recording of the same name, no --force", ["simulate", str(good_scenario), "--out",
+                      str(sim)], "fuzz.csv.gz", sim)
+        broken = good_scenario.with_name("broken_" + good_scenario.name)
+        broken.write_text("= broken")
+        self.add_kept("simulate", "--force, the scenario fails", ["simulate", str(broken), "--out", str(sim), "--force"],
+                      broken.name, sim)
+        sim_file = f / self.name("sim_file")
+        self._earlier(sim_file, folder=False)
+        self.add_kept("simulate", "--out is a file", ["simulate", str(good_scenario), "--out", str(sim_file)],
+                      sim_file.name, sim_file)
+
+    def _bad_model(self) -> Path:
+        path = self.folder / f"{self.name('model')}.json"
+        path.write_text("{ not json")
+        return path
+
+    # -- train --prior with a damaged fleet.json (issue 31 item 4)
+
+    def prior_cases(self) -> None:
+        from training.models.prior import TriadPrior
+        good = TriadPrior(25.0, 10.0, 1, np.linspace(0.9, 1.1, 15), np.full(15, 0.01), 0.01, (5.0, 35.0), 20).to_json()
+        edits = [("degree", v) for v in (50, 1.7, True, -1, "1", None)]
+        edits += [("mean", v) for v in ([math.nan] * 15, [1e300] * 15, ["x"] * 15, [1.0] * 14, 5, None, [[1.0]] * 15)]
+        edits += [("sigma", v) for v in ([0.0] * 15, [-1.0] * 15, [math.inf] * 15, ["x"] * 15, [1.0] * 16)]
+        edits += [("noise", v) for v in (-1.0, math.inf, "big", [1.0])]
+        edits += [("t_range", v) for v in ([0, 10, 20], [50, -10], [math.nan, 10], "5..35", None)]
+        edits += [("ts", v) for v in (0, -3, math.inf, "ten")]
+        edits += [("t0", v) for v in (None, math.nan, "25 C", 1e300)]
+        edits += [("units", v) for v in (-3, 0, 2.5, 1e12, "many")]
+        docs = [(f"gyr.{key} = {json.dumps(value)}", {"prior": {"gyr": {**good, key: value}}}) for key, value in edits]
+        docs += [("prior a list", {"prior": [1, 2]}), ("top-level list", [1, 2]), ("unknown triad", {"prior": {"gyro": good}}),
+                 ("triad a list", {"prior": {"acc": [1]}}), ("prior missing", {"format": "imufusion-fleet"}),
+                 ("prior null", {"prior": None}), ("empty triad", {"prior": {"mag": {}}})]
+        raw = [("not JSON", b"{ not json"), ("empty file", b""), ("invalid UTF-8", b'{"prior": "\xff"}'),
+               ("deeply nested", b"[" * 100_000 + b"]" * 100_000), ("NaN literal", b'{"prior": NaN}')]
+        for what, content in [(w, json.dumps(d).encode()) for w, d in docs] + raw:
+            path = self.folder / f"{self.name('fleet')}.json"
+            path.write_bytes(content)
+            self.add("train", "fleet.json", what, ["train", str(self.good_csv), "--prior", str(path), "--out",
+                                                    str(self.folder / f"out_{path.stem}")], path.name)
+
+    # -- --scheduler (issue 31 item 2): malformed addresses and peers that are no Dask scheduler
+
+    def scheduler_cases(self) -> None:
+        fleet = self.folder / "fleet_for_scheduler"
+        (fleet / "unit").mkdir(parents=True)
+        (fleet / "unit" / "a.csv").write_text("t\n")
+        referenced = self.referenced
+        addresses = ["", "garbage", "http://127.0.0.1:8786", "tcp://[::1", "inproc://nothing", "tcp://127.0.0.1:99999",
+                     "tcp://host", "tcp://:8786", "tls://", "tcp://127.0.0.1:-5", "ucx://x:1"]
+        peers = ["{peer:http}", "{peer:garbage}", "{peer:silent}"]
+        for k, address in enumerate(addresses + peers):
+            out = str(self.folder / self.name("sched_out"))
+            if address == "{peer:silent}" or k % 2 == 0:
+                argv, verb = ["fleet", "train", str(fleet), "--out", out, "--scheduler", address], "fleet"
+            else:
+                argv, verb = ["campaign", str(self.fmu), str(referenced), "--runs", "2", "--out", out,
+                              "--scheduler", address], "campaign"
+            self.add(verb, "scheduler", address or "empty", argv, "{peer}" if address.startswith("{peer") else repr(address)[1:-1] or "''")
+        for verb_argv in (["fleet", "train", str(fleet), "--out", str(self.folder / "s1")],
+                          ["campaign", str(self.fmu), str(referenced), "--runs", "2", "--out", str(self.folder / "s2")]):
+            for address in ("{peer:http}", "{peer:garbage}"):
+                self.add(verb_argv[0], "scheduler", f"{address} on {verb_argv[0]}", verb_argv + ["--scheduler", address], "{peer}")
+
+    # -- campaign (issue 31 items 3 and 7): variations, run counts, recordings
+
+    def campaign_cases(self) -> None:
+        referenced = self.referenced
+        variations = ["declination=normal(0.05)", "declination=uniform(1)", "declination", "=normal(0,1)",
+                      "nope=normal(0,1)", "declination=gauss(0,1)", "declination=normal(0,-1)", "declination=normal(a,b)",
+                      "declination=uniform(-1e308,1e308)", "declination=uniform(5,1)", "declination=choice()",
+                      "pf_particles=choice(1.5,2)", "enable_pf=choice(0,0.5)", "tau_acc=uniform(-5,-1)",
+                      "noise_gyr=normal(-1,0.1)", "noise_acc=uniform(0,1e300)", "declination=normal(nan,1)",
+                      "declination=normal(0,inf)", "field_norm=uniform(0,1e9)", "declination=normal(0,1,2)",
+                      "mount_x=choice(4)", "declination=uniform(0,1)trailing"]
+        for text in variations:
+            self.add("campaign", "variation", text, ["campaign", str(self.fmu), str(referenced), "--runs", "3", "--vary",
+                                                     text, "--out", str(self.folder / self.name("camp"))],
+                     text.split("=")[0] or "=normal")
+        for runs in ("0", "-5", "1000000000", "abc", "1e3"):
+            self.add("campaign", "runs", runs, ["campaign", str(self.fmu), str(referenced), "--runs", runs, "--vary",
+                                                "declination=normal(0,0.01)", "--out", str(self.folder / self.name("camp"))],
+                     "runs")
+        self.add("campaign", "recording", "no reference", ["campaign", str(self.fmu), str(self.good_csv), "--runs", "2",
+                                                           "--out", str(self.folder / self.name("camp"))], self.good_csv.name)
+
+    # -- simulate-fleet and fleet train
+
+    def fleet_cases(self) -> None:
+        spec = (REPO / "scenarios" / "fleet" / "mems_grade.toml").read_text()
+        good = REPO / "scenarios" / "fleet" / "mems_grade.toml"
+        for devices in ("0", "-1", "100000000", "two", "1.5"):
+            self.add("simulate-fleet", "devices", devices, ["simulate-fleet", str(good), "--devices", devices, "--out",
+                                                            str(self.folder / self.name("sf"))], "devices")
+        mutations = [("fleet table missing", spec.replace("[fleet]", "[fleet_gone]")),
+                     ("binary", self.rng.bytes(512)), ("empty", ""), ("truncated", spec[: len(spec) // 3]),
+                     ("unknown sensor file", spec.replace('"../sensors/mems_grade.toml"', '"nowhere.toml"')
+                      .replace('"calibration.toml"', json.dumps(str(good.parent / "calibration.toml")))
+                      .replace('"test_handheld.toml"', json.dumps(str(good.parent / "test_handheld.toml"))))]
+        for what, content in mutations:
+            path = self.folder / f"{self.name('fleetspec')}.toml"
+            path.write_bytes(content if isinstance(content, bytes) else content.encode())
+            needle = "nowhere.toml" if what == "unknown sensor file" else path.name
+            self.add("simulate-fleet", "fleet file", what, ["simulate-fleet", str(path), "--devices", "1", "--out",
+                                                             str(self.folder / self.name("sf"))], needle)
+        empty = self.folder / "fleet_empty"
+        empty.mkdir()
+        self.add("fleet", "fleet folder", "no unit folder", ["fleet", "train", str(empty), "--out",
+                                                             str(self.folder / self.name("ft"))], empty.name)
+        self.add("fleet", "fleet folder", "missing", ["fleet", "train", str(self.folder / "no_such_fleet"), "--out",
+                                                      str(self.folder / self.name("ft"))], "no_such_fleet")
+
     def _data_argv(self, verb: str, path: Path) -> list[str]:
         out = str(self.folder / f"out_{path.name}")
         return {"train": ["train", str(path), "--out", out],
@@ -391,6 +628,9 @@ class Cases:
                 "compare-thermal": ["compare-thermal", str(path), "--out", out, "--runs", "1"]}[verb]
 
 
+#: The fields of a valid SCENARIO (10 s still at 100 Hz).
+SCENARIO_FIELDS = {"sensor": json.dumps(str(REPO / "scenarios" / "sensors" / "mems_grade.toml")), "rate": "100.0",
+                   "seed": "1", "duration": "10.0", "extra": ""}
 SCENARIO = """sensor = {sensor}
 {extra}
 [scenario]
@@ -435,7 +675,8 @@ def generate(folder: Path) -> list[dict]:
     """Write every case's inputs into folder; returns the cases."""
     cases = Cases(folder, np.random.default_rng(SEED))
     for kind in (cases.csv_cases, cases.csv_gz_cases, cases.sidecar_cases, cases.model_cases, cases.fmu_cases,
-                 cases.scenario_cases, cases.param_cases, cases.missing_file_cases):
+                 cases.scenario_cases, cases.param_cases, cases.missing_file_cases, cases.output_cases,
+                 cases.prior_cases, cases.scheduler_cases, cases.campaign_cases, cases.fleet_cases):
         kind()
     return cases.items
 
@@ -460,15 +701,33 @@ def run_case(argv: list[str]) -> tuple[int, str]:
     return code, err.getvalue()
 
 
+def _with_peers(case: dict, peers: dict) -> dict:
+    """The case with every '{peer:KIND}' of its argv replaced by the address of a fake scheduler of that
+    kind (fake_peers, started once per kind) and its needle '{peer}' by that address."""
+    from fake_peers import REPLIES, FakeScheduler
+    argv, needle = [], case["needle"]
+    for arg in case["argv"]:
+        if arg.startswith("{peer:"):
+            kind = arg[len("{peer:"):-1]
+            peers.setdefault(kind, FakeScheduler(REPLIES[kind]))
+            arg = needle = peers[kind].address
+        argv.append(arg)
+    return {**case, "argv": argv, "needle": needle}
+
+
 def child(cases_path: str, results_path: str) -> None:
-    """Run every case of cases_path in-process; write results with the peak RSS."""
+    """Run every case of cases_path in-process; write results (status, stderr, seconds, the needle) with
+    the peak RSS."""
+    import time
     os.environ.setdefault("OMP_NUM_THREADS", "1")
     cases = json.loads(Path(cases_path).read_text())
-    results = []
+    results, peers = [], {}
     for case in cases:
         Path(results_path + ".current").write_text(json.dumps(case))
+        case = _with_peers(case, peers)
+        start = time.monotonic()
         code, err = run_case(case["argv"])
-        results.append({"code": code, "stderr": err})
+        results.append({"code": code, "stderr": err, "seconds": time.monotonic() - start, "needle": case["needle"]})
     rss = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024  # Linux: kB
     Path(results_path).write_text(json.dumps({"results": results, "max_rss_bytes": rss}))
 
@@ -494,6 +753,19 @@ def _problem(case: dict, code: int, err: str) -> str | None:
     return None
 
 
+def _harm(case: dict, result: dict) -> str | None:
+    """What the case did beyond its error line: ran longer than MAX_CASE_S, changed or removed an earlier
+    output it had to keep, or left a staging folder (.NAME.partial-PID, .NAME.old-PID) behind."""
+    if result["seconds"] > MAX_CASE_S:
+        return f"ran {result['seconds']:.0f} s > {MAX_CASE_S:.0f} s"
+    changed = [p for p, digest in case.get("intact", {}).items() if _hashes(Path(p)).get(p) != digest]
+    if changed:
+        return f"the earlier output changed: {changed[:3]}"
+    folder = case.get("no_staging_in")
+    left = [p.name for p in Path(folder).rglob(".*") if ".partial-" in p.name or ".old-" in p.name] if folder else []
+    return f"staging left behind: {left[:3]}" if left else None
+
+
 def _summary(cases: list[dict]) -> str:
     counts = collections.Counter((c["verb"], c["kind"]) for c in cases)
     lines = [f"{'verb':<16}{'file kind':<14}cases"] + [f"{v:<16}{k:<14}{n}" for (v, k), n in sorted(counts.items())]
@@ -513,12 +785,66 @@ def test_cli_fuzz(tmp_path):
         f": {proc.stderr[-2000:]}\n{_summary(cases)}")
     report = json.loads(results_file.read_text())
     failures = [f"{c['verb']} {c['kind']} [{c['what']}]: {p}" for c, r in zip(cases, report["results"])
-                if (p := _problem(c, r["code"], r["stderr"]))]
+                if (p := _problem({**c, "needle": r["needle"]}, r["code"], r["stderr"]) or _harm(c, r))]
     assert not failures, f"{len(failures)} of {len(cases)} cases break the contract:\n" + "\n".join(failures[:40]) + \
         "\n" + _summary(cases)
     assert report["max_rss_bytes"] < MAX_RSS_BYTES, (
         f"peak RSS {report['max_rss_bytes'] / 2**20:.0f} MiB >= {MAX_RSS_BYTES / 2**20:.0f} MiB\n{_summary(cases)}")
-    print(f"\n{len(cases)} malformed inputs; peak RSS {report['max_rss_bytes'] / 2**20:.0f} MiB\n{_summary(cases)}")
+    slowest = max(r["seconds"] for r in report["results"])
+    print(f"\n{len(cases)} malformed inputs; peak RSS {report['max_rss_bytes'] / 2**20:.0f} MiB; slowest case "
+          f"{slowest:.1f} s\n{_summary(cases)}")
+
+
+#: Verbs stopped mid-run: (verb, argv before --out, the output kind, files a complete new output holds).
+INTERRUPTED = [("train", lambda c: ["train", str(c.good_csv), "--allow-identity"], "folder",
+                 ["model.json", "calibration.md"]),
+               ("simulate", lambda c: ["simulate", str(REPO / "scenarios" / "eval_handheld.toml")], "into",
+                ["eval_handheld.csv.gz", "eval_handheld.json"]),
+               ("simulate-fleet", lambda c: ["simulate-fleet", str(REPO / "scenarios" / "fleet" / "mems_grade.toml"),
+                                             "--devices", "2"], "folder", ["fleet_simulation.json"]),
+               ("import", lambda c: ["import", str(c.good_csv), "--units", "t=s,gyr=rad/s,acc=m/s2,mag=uT,temp=C"],
+                "file", []),
+               ("build-fmu", lambda c: ["build-fmu", "--model", str(c.model)], "file", []),
+               ("train", lambda c: ["train", str(c.good_csv), "--allow-identity"], "folder",
+                ["model.json", "calibration.md"])]
+
+
+@pytest.mark.parametrize("k", range(len(INTERRUPTED)), ids=[f"{v[0]}-{k}" for k, v in enumerate(INTERRUPTED)])
+def test_a_verb_stopped_by_a_signal_leaves_the_previous_output_or_the_new_one(tmp_path, k):
+    """Issue 31: each verb, with --force over an earlier output, gets SIGINT or SIGTERM after a seeded delay
+    (0.5-6 s: before, while and after it works). It ends with status 130 and the earlier output byte for
+    byte, or with the complete new one: status 0, or killed by the signal while the interpreter was
+    already exiting (Python restores the default handlers then); never a mix, never a staging folder left."""
+    import signal
+    import time
+    verb, argv, kind, complete = INTERRUPTED[k]
+    rng = np.random.default_rng([SEED, k])
+    (tmp_path / "in").mkdir()
+    cases = Cases(tmp_path / "in", rng)
+    out = tmp_path / {"folder": "out", "into": "data", "file": "out.csv" if verb == "import" else "out.fmu"}[kind]
+    if kind == "file":
+        out.write_bytes(b"earlier")
+    else:
+        out.mkdir()
+        (out / MARKER).write_text("{}")
+        (out / "eval_handheld.csv.gz" if kind == "into" else out / "model.json").write_bytes(b"earlier")
+    before = _hashes(out)
+    delay = float(rng.uniform(0.5, 6.0))
+    stop = (signal.SIGINT, signal.SIGTERM)[k % 2]
+    p = subprocess.Popen([sys.executable, "-m", "training.cli", *argv(cases), "--out", str(out), "--force"],
+                         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=REPO,
+                         env=dict(os.environ, OMP_NUM_THREADS="1"))
+    time.sleep(delay)
+    p.send_signal(stop)
+    _, err = p.communicate(timeout=120)
+    assert p.returncode in (0, 130, -stop) and "Traceback" not in err, (delay, p.returncode, err[-2000:])
+    if p.returncode == 130:
+        assert _hashes(out) == before, delay
+    else:
+        assert _hashes(out) != before and all((out / name).is_file() for name in complete), delay
+        assert kind == "file" or (out / MARKER).is_file() or kind == "into"
+    left = [q.name for q in tmp_path.rglob(".*") if ".partial-" in q.name or ".old-" in q.name]
+    assert not left, left
 
 
 if __name__ == "__main__":

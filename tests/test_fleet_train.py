@@ -13,6 +13,8 @@ from training.fleet.population import MIN_UNITS_FOR_OUTLIERS, OUTLIER_SIGMAS, ou
 from training.fleet.simulate import simulate_fleet
 from training.train import train_to_folder
 
+from fake_peers import REPLIES, FakeScheduler
+
 ROOT = Path(__file__).resolve().parent.parent
 FLEET = ROOT / "scenarios" / "fleet" / "mems_grade.toml"
 #: Fields of model.json that record when and how long, not what was fitted.
@@ -142,36 +144,8 @@ def test_a_malformed_scheduler_address_is_one_line_naming_it(tmp_path, capsys, a
     assert len(err) == 1 and f"--scheduler {address!r}: not a Dask scheduler address" in err[0], err
 
 
-class _FakeScheduler:
-    """A TCP server on loopback that accepts and then stays silent, or answers like an HTTP server."""
-
-    def __init__(self, reply: bytes | None):
-        import socket
-        self.reply, self.server = reply, socket.create_server(("127.0.0.1", 0))
-        self.address = f"tcp://127.0.0.1:{self.server.getsockname()[1]}"
-        self.connections: list = []
-        import threading
-        threading.Thread(target=self._serve, daemon=True).start()
-
-    def _serve(self) -> None:
-        while True:
-            try:
-                conn, _ = self.server.accept()
-            except OSError:
-                return
-            self.connections.append(conn)
-            if self.reply is not None:
-                conn.sendall(self.reply)
-
-    def close(self) -> None:
-        self.server.close()
-        for c in self.connections:
-            c.close()
-
-
-@pytest.mark.parametrize("reply, words", [(None, "no Dask answer within 2 s"),
-                                          (b"HTTP/1.1 200 OK\r\nContent-Length: 5\r\n\r\nhello" * 4,
-                                           "the peer does not speak Dask's protocol")])
+@pytest.mark.parametrize("reply, words", [(REPLIES["silent"], "no Dask answer within 2 s"),
+                                          (REPLIES["http"], "the peer does not speak Dask's protocol")])
 def test_a_peer_that_is_no_dask_scheduler_is_one_line_within_the_deadline(tmp_path, capsys, monkeypatch, reply, words):
     """Issue 31 item 2: a silent peer hung `fleet train` past 15 minutes; an HTTP peer gave a traceback
     (`_ArrayMemoryError: Unable to allocate 3.07 EiB`). Deadline 2 s here: the command ends within
@@ -180,7 +154,7 @@ def test_a_peer_that_is_no_dask_scheduler_is_one_line_within_the_deadline(tmp_pa
     monkeypatch.setattr(engine, "CONNECT_TIMEOUT_S", 2)
     (tmp_path / "fleet" / "unit").mkdir(parents=True)
     (tmp_path / "fleet" / "unit" / "a.csv").write_text("t\n")
-    peer = _FakeScheduler(reply)
+    peer = FakeScheduler(reply)
     try:
         start = time.monotonic()
         assert main(["fleet", "train", str(tmp_path / "fleet"), "--out", str(tmp_path / "out"),
@@ -249,3 +223,26 @@ def test_a_unit_that_fails_leaves_no_model_of_an_earlier_run_and_a_run_never_wri
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "would write over this input" in err[0]
     assert (fleet / "unit_0000" / "calibration" / "calibration.csv.gz").is_file()
+
+
+def test_a_busy_dashboard_port_gives_no_warning(tmp_path, capsys):
+    """The fuzz test found four lines of Dask's 'Port 8787 is already in use' warning before a campaign's
+    one error line: the local cluster's HTTP server now takes a free port."""
+    import socket
+    import warnings
+    (tmp_path / "fleet" / "unit").mkdir(parents=True)
+    (tmp_path / "fleet" / "unit" / "a.csv").write_text("t\n")
+    try:
+        holder = socket.create_server(("", 8787))
+    except OSError:     # held already, by another cluster of this machine
+        holder = None
+    try:
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            assert main(["fleet", "train", str(tmp_path / "fleet"), "--out", str(tmp_path / "out"), "--workers", "1"]) == 1
+    finally:
+        if holder is not None:
+            holder.close()
+    assert not [w for w in caught if "already in use" in str(w.message)]
+    err = [line for line in capsys.readouterr().err.strip().splitlines() if "%|" not in line]
+    assert err == ["imufmu fleet train: 1 of 1 units failed (listed above); exit status 1"], err

@@ -453,11 +453,22 @@ def _terminated(signum, frame) -> None:
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Entry point of the `imufmu` console script; returns the exit status."""
-    from training.data.io import report_load_notes
-    args = build_parser().parse_args(argv)
+    """Entry point of the `imufmu` console script; returns the exit status. SIGTERM is handled from the
+    first line on: parsing imports much of the package (seconds), and a stop then is an interruption too."""
     if threading.current_thread() is threading.main_thread():
         signal.signal(signal.SIGTERM, _terminated)
+    words = sys.argv[1:] if argv is None else argv
+    try:
+        return _run(argv)
+    except KeyboardInterrupt:  # Ctrl-C, SIGTERM: the context managers (Dask cluster, outputs) have closed on the way
+        print(f"imufmu {words[0] if words else ''}: interrupted".replace("  ", " "), file=sys.stderr)
+        return EXIT_INTERRUPTED
+
+
+def _run(argv: list[str] | None) -> int:
+    """Parse argv and run the verb; its errors as one line and status 1."""
+    from training.data.io import report_load_notes
+    args = build_parser().parse_args(argv)
     try:
         with report_load_notes(lambda note: print(note, flush=True)):
             status = args.func(args)
@@ -467,9 +478,6 @@ def main(argv: list[str] | None = None) -> int:
     except OSError as e:  # unwritable output folder, disk full, ...
         print(f"imufmu {args.verb}: error: {e.filename or ''}: {one_line(e.strerror or str(e))}", file=sys.stderr)
         return 1
-    except KeyboardInterrupt:  # Ctrl-C, SIGTERM: the context managers (Dask cluster, outputs) have closed on the way
-        print(f"imufmu {args.verb}: interrupted", file=sys.stderr)
-        return EXIT_INTERRUPTED
     return status or 0
 
 

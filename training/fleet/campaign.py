@@ -29,7 +29,9 @@ import numpy as np
 from contract.errors import ImuFusionError, one_line
 from contract.layout import INPUTS
 from contract.mounting import MOUNT_SETTINGS, settings_codes
+from contract.ranges import BOOLEAN, FIELD_NORM_MAX_UT, INTEGER, REAL, SettingRange
 from contract.variables import by_name
+from training.data.input_limits import ACC_LIMIT_M_S2, GYR_LIMIT_RAD_S, MAG_SATURATION
 from training.data.dataset import ImuData
 from training.data.io import read_imu_csv
 from training.evaluate import compute_metrics
@@ -38,6 +40,11 @@ from training.mounting import body_references
 
 #: Input perturbations a variation may name, with the INPUTS columns they add noise to.
 NOISE_INPUTS = {f"noise_{triad}": [INPUTS.index(f"{triad}_{axis}") for axis in "xyz"] for triad in ("gyr", "acc", "mag")}
+#: Largest noise σ of each perturbation [the input's unit]: the runtime's plausibility limit of that input
+#: (training.data.input_limits; the field's: saturation at the largest field norm a setting allows) —
+#: beyond it every perturbed sample is bad input, and nothing is measured.
+NOISE_MAX = {"noise_gyr": GYR_LIMIT_RAD_S, "noise_acc": ACC_LIMIT_M_S2,
+             "noise_mag": MAG_SATURATION * FIELD_NORM_MAX_UT}
 #: Distributions of a variation and their argument counts (None: any number ≥ 1).
 DISTRIBUTIONS = {"normal": 2, "uniform": 2, "choice": None}
 #: Metrics of each run (training.evaluate.Metrics.as_dict names, units in the name).
@@ -101,21 +108,32 @@ def parse_variation(text: str) -> Variation:
     return Variation(name, distribution, args)
 
 
-def _check_support(name: str, distribution: str, args: tuple[float, ...], text: str) -> None:
-    """CampaignError when a parameter's draws can leave its declared [min, max]: every value of a
-    uniform or a choice must lie in it, a normal's mean too (its tails may still leave it: such a run
-    fails alone, with its reason, run_partition)."""
+def _support(name: str) -> SettingRange | None:
+    """The values a variation of `name` may draw: a parameter's declared range, a noise σ's [0, NOISE_MAX]."""
     if name in NOISE_INPUTS:
-        return
-    r = by_name(name).range
+        return SettingRange(REAL, 0.0, NOISE_MAX[name])
+    return by_name(name).range
+
+
+def _check_support(name: str, distribution: str, args: tuple[float, ...], text: str) -> None:
+    """CampaignError when a variation's draws can leave what `name` takes (`_support`): every value of a
+    uniform or a choice must lie in it, a normal's mean too (its tails may still leave it: such a run
+    fails alone, with its reason, run_partition); an Integer or Boolean parameter takes a choice of
+    whole numbers only (a normal or uniform draws fractions)."""
+    r = _support(name)
     if r is None:
         return
+    if r.type in (INTEGER, BOOLEAN) and (distribution != "choice" or any(a != int(a) for a in args)):
+        article = "an" if r.type == INTEGER else "a"
+        raise CampaignError(f"--vary {text!r}: {name} is {article} {r.type} parameter: vary it as choice(A,B,...) of "
+                            "whole numbers")
     support = {"uniform": args, "choice": args, "normal": args[:1]}[distribution]
     inside = all((v > r.min if r.min_open else v >= r.min) and (v < r.max if r.max_open else v <= r.max)
                  for v in support)
     if not inside:
         interval = f"{'(' if r.min_open else '['}{r.min:g}, {r.max:g}{')' if r.max_open else ']'}"
-        raise CampaignError(f"--vary {text!r}: {name} must stay in {interval} (its declared range); "
+        what = "the input's plausibility limit" if name in NOISE_INPUTS else "its declared range"
+        raise CampaignError(f"--vary {text!r}: {name} must stay in {interval} ({what}); "
                             f"{distribution}({', '.join(f'{a:g}' for a in args)}) draws outside it")
 
 

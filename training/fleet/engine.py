@@ -96,8 +96,10 @@ def dask_client(workers: int | None = None, scheduler: str | None = None):
             client.close()
         return
     env = {"OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}  # one core per worker process
+    # the scheduler's HTTP server on a free port: with None it still tries 8787 and, on a machine where
+    # another cluster holds it, warns in four lines on stderr
     with LocalCluster(n_workers=workers or default_workers(), threads_per_worker=1, processes=True,
-                      dashboard_address=None, silence_logs=logging.ERROR, env=env) as cluster, \
+                      dashboard_address=":0", silence_logs=logging.ERROR, env=env) as cluster, \
             Client(cluster) as client:
         yield client
 
