@@ -81,6 +81,18 @@ def connect(address: str):
     return outcome["client"]
 
 
+def _quiet_resource_tracker() -> None:
+    """multiprocessing's resource tracker, started now with its shutdown warning silenced. A worker process
+    that Ctrl-C stops in the middle of a task is killed with a semaphore still registered; the tracker
+    removes it when the command ends (nothing leaks) but said so in a two-line UserWarning on stderr
+    after `imufmu <verb>: interrupted`. The tracker reads the filter from its environment."""
+    from multiprocessing import resource_tracker
+    quiet = "ignore::UserWarning:multiprocessing.resource_tracker"
+    if quiet not in os.environ.get("PYTHONWARNINGS", ""):
+        os.environ["PYTHONWARNINGS"] = ",".join(filter(None, [os.environ.get("PYTHONWARNINGS"), quiet]))
+    resource_tracker.ensure_running()
+
+
 @contextmanager
 def dask_client(workers: int | None = None, scheduler: str | None = None):
     """A `distributed.Client`: on a LocalCluster of `workers` single-threaded processes (default
@@ -95,6 +107,7 @@ def dask_client(workers: int | None = None, scheduler: str | None = None):
         finally:
             client.close()
         return
+    _quiet_resource_tracker()
     env = {"OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}  # one core per worker process
     # the scheduler's HTTP server on a free port: with None it still tries 8787 and, on a machine where
     # another cluster holds it, warns in four lines on stderr
