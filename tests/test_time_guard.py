@@ -27,9 +27,11 @@ import pytest
 
 from contract import layout
 from fmu.compiler import SOURCE_DIR
-from test_runtime import FS, ROLL, YAW, handheld, identity, wrap
+from test_runtime import FS, QW, ROLL, YAW, handheld, identity, wrap
 from test_step_size import YAW_RATE, turning_without_field
 from training import runtime
+
+TEMP = layout.INPUTS.index("temp")
 
 #: s: a repeated-sample time stamp this long after the previous one (the issue's case).
 SHORT_STEP_S = 1e-5
@@ -115,3 +117,45 @@ def test_a_lasting_change_of_the_sampling_rate_becomes_the_nominal_step():
     after = gaps[-1] + 1
     advance = wrap(out[after:, YAW] - out[after - 1:-1, YAW])
     np.testing.assert_allclose(advance, wrap(np.full(len(advance), YAW_RATE * slow_step)), atol=1e-9)
+
+
+#: rad: the largest change a duplicated sample (the same row written twice, one time stamp) may make to a
+#: later attitude output against the run without it: its measurement is fused once more, nothing is
+#: integrated — the heading takes 1/n of its innovation (n accepted field samples, the floor of its gain
+#: when dt = 0: ImuAttitudeQuaternion.c), the Euler fusion a tilt step of the same size. Measured: yaw
+#: 3.1e-5 to 1.1e-4 rad, roll and pitch below 7e-6 rad, corrected rates exactly equal; a step of zero
+#: reaching a rate (a temperature rate, a derivative, the motion bias) turns the outputs NaN or held.
+DUPLICATE_BOUND_RAD = 3e-4
+
+
+def _stages_with_rates() -> np.ndarray:
+    """Identity calibration with the correction terms that difference over time (gyro derivative, both
+    temperature rates) and a PSO-BP network on temperature and its rate."""
+    from test_psobp import random_model
+    terms = [("gyr_x", "d_gyr_y", None, 1e-3, -1e3, 1e3), ("gyr_y", "temp_rate", None, 1e-2, -1e3, 1e3),
+             ("gyr_z", "temp_rate_fast", None, 1e-2, -1e3, 1e3)]
+    return np.array(layout.pack_coefficients([layout.identity_block()] * 3, layout.terms_block(terms),
+                                             psobp=random_model(np.random.default_rng(3)).to_block()))
+
+
+@pytest.mark.parametrize("coefficients, overrides", [
+    (identity, {}), (identity, {"attitude_mode": 0.0}), (identity, {"motion_bias": 0.0, "gyro_hold": 0.0}),
+    (_stages_with_rates, {"enable_psobp": 1.0})],
+    ids=["quaternion", "euler", "trapezoid without motion bias", "terms and PSO-BP on rates"])
+def test_a_duplicated_sample_changes_nothing_after_it_but_its_own_fusion(coefficients, overrides):
+    """A logger that writes one row twice (one time stamp, a step of zero): every stage that divides by
+    the step or integrates over it must take the zero step as nothing (sources/ImuGuard.c hands it on as
+    dt = 0; ImuTerms.c, ImuPsoBp.c, ImuMotionBias.c guard their rates)."""
+    t, x, _ = handheld(4, duration=30.0)
+    x[:, TEMP] = 20.0 + 0.05 * t                    # a warming sensor: the temperature rates are live
+    k = len(t) // 2
+    twice_t, twice_x = np.insert(t, k + 1, t[k]), np.insert(x, k + 1, x[k], axis=0)
+    s = np.array(layout.settings_array(overrides))
+    clean = runtime.run_batch(coefficients(), s, t, x)
+    twice = runtime.run_batch(coefficients(), s, twice_t, twice_x)
+    # the repeated row is corrected as the original was: a derivative or rate is held over a zero step
+    np.testing.assert_array_equal(twice[k + 1, :3], twice[k, :3])
+    twice = np.delete(twice, k + 1, axis=0)
+    assert np.all(np.isfinite(twice[:, :QW + 4]))
+    np.testing.assert_allclose(wrap(twice[:, ROLL:YAW + 1] - clean[:, ROLL:YAW + 1]), 0.0, atol=DUPLICATE_BOUND_RAD)
+    np.testing.assert_allclose(twice[:, :3], clean[:, :3], atol=DUPLICATE_BOUND_RAD)   # corrected rates
