@@ -72,7 +72,7 @@ def _condition(data: Path, work: Path, runs: int, loaded: bool) -> tuple[float, 
     if hog is not None:
         hog.start()
     try:
-        times = [_timed_train(data, work / f"run{k}") for k in range(runs)]
+        times = [_timed_train(data, work / f"{'loaded' if loaded else 'quiet'}_run{k}") for k in range(runs)]
     finally:
         if hog is not None:
             hog.terminate()

@@ -109,7 +109,7 @@ def test_train_cli_refuses_a_still_log_without_reference(tmp_path, capsys):
     sidecar = tmp_path / "still.json"
     sidecar.write_text(json.dumps({**json.loads(sidecar.read_text()), "reference": "static"}))
     assert main(["train", str(path), "--out", str(tmp_path / "m")]) == EXIT_INCOMPLETE  # acc, mag: nothing
-    assert main(["train", str(path), "--out", str(tmp_path / "m"), "--allow-partial"]) == 0
+    assert main(["train", str(path), "--out", str(tmp_path / "m"), "--allow-partial", "--force"]) == 0
     out = capsys.readouterr().out
     assert "gyroscope: reference: static log" in out and (tmp_path / "m" / "calibration.md").is_file()
 
