@@ -209,8 +209,8 @@ void ImuPipelineReset(ImuPipeline *p)
 const char *ImuPipelineStateProblem(const ImuPipeline *p, double clock)
 {
     if (!ImuAlignStateValid(&p->align, clock)) {
-        return "the time-alignment buffer's count or head is outside 0..63, or its times are not finite, "
-               "increasing and no later than the guard's clock";
+        return "the time-alignment buffer's count or head is outside 0..63, or its times are not finite and "
+               "increasing up to the newest, which must equal the guard's clock";
     }
     if (!ImuAttitudeStateValid(&p->attitude)) {
         return "the attitude filter's flags, nominal step, low-pass counts or motion-bias covariance are invalid";
