@@ -119,18 +119,32 @@ def _move_into_place(verb: str, out: StagedOutput, force: bool) -> None:
     file by file into their folder (each refused when it exists without `force`)."""
     if out.kind == FOLDER:
         (out.staging / MARKER).write_text(json.dumps({"verb": verb}) + "\n")
-        old = out.target.with_name(f".{out.target.name}.old-{os.getpid()}")
-        with _signals_held():
-            if out.target.exists():
-                os.replace(out.target, old)
-            os.replace(out.staging, out.target)
-        shutil.rmtree(old, ignore_errors=True)
+        _swap_folder(out.staging, out.target)
         return
     written = sorted(p.name for p in out.staging.iterdir())
     _refuse_existing(verb, out.target, force, out.kind, written)
     with _signals_held():
         for name in written:
             os.replace(out.staging / name, out.destination / name)
+
+
+def _staging_folder(target: Path) -> Path:
+    """An empty hidden folder beside `target` (.NAME.partial-PID) to write it in."""
+    staging = target.with_name(f".{target.name}.partial-{os.getpid()}")
+    shutil.rmtree(staging, ignore_errors=True)
+    staging.mkdir(parents=True)
+    return staging
+
+
+def _swap_folder(staging: Path, target: Path) -> None:
+    """The complete folder `staging` in the place of `target` (the earlier one removed), the two renames
+    not cut short by a signal."""
+    old = target.with_name(f".{target.name}.old-{os.getpid()}")
+    with _signals_held():
+        if target.exists():
+            os.replace(target, old)
+        os.replace(staging, target)
+    shutil.rmtree(old, ignore_errors=True)
 
 
 @contextmanager
@@ -151,9 +165,7 @@ def staged_output(verb: str, target: str | Path, force: bool, kind: str = FOLDER
     else:
         refuse_overwriting_inputs(verb, inputs, [target / n if kind == INTO else target.with_name(n) for n in names])
     _refuse_existing(verb, target, force, kind, names)
-    staging = (target if kind == INTO else target.parent) / f".{target.name}.partial-{os.getpid()}"
-    shutil.rmtree(staging, ignore_errors=True)
-    staging.mkdir(parents=True)
+    staging = _staging_folder(target / target.name if kind == INTO else target)
     out = StagedOutput(target, staging, kind)
     try:
         yield out
@@ -192,18 +204,12 @@ def replace_folder(target: Path, write) -> object:
     was there); when it raises, the temporary folder and any earlier `target` are removed (no output
     of an earlier run stays in the place of one that failed) and the exception propagates."""
     target = Path(target)
-    staging = target.with_name(f".{target.name}.partial-{os.getpid()}")
-    shutil.rmtree(staging, ignore_errors=True)
-    staging.mkdir(parents=True)
+    staging = _staging_folder(target)
     try:
         result = write(staging)
     except BaseException:
         shutil.rmtree(staging, ignore_errors=True)
         shutil.rmtree(target, ignore_errors=True)
         raise
-    old = target.with_name(f".{target.name}.old-{os.getpid()}")
-    if target.exists():
-        os.replace(target, old)
-    os.replace(staging, target)
-    shutil.rmtree(old, ignore_errors=True)
+    _swap_folder(staging, target)
     return result
