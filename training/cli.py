@@ -10,6 +10,8 @@ import argparse
 import signal
 import sys
 import threading
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
 from contract.errors import ImuFusionError, one_line
@@ -447,22 +449,60 @@ def build_parser() -> argparse.ArgumentParser:
 EXIT_INTERRUPTED = 130
 
 
-def _terminated(signum, frame) -> None:
-    """SIGTERM (a job scheduler's stop, `kill`) ends a verb as Ctrl-C does: outputs cleaned up on the way."""
-    raise KeyboardInterrupt
+class Interrupted(KeyboardInterrupt):
+    """Ctrl-C or SIGTERM, raised by `_stopped`. A subclass, so that libraries' `except KeyboardInterrupt`
+    clean-ups still run, and not KeyboardInterrupt itself: CPython 3.11 remembers a KeyboardInterrupt raised
+    inside any `exec` of a string (dataclasses, namedtuples and torch's imports run several) and, when the
+    program was started with `python -m`, ends it by SIGINT at exit even after `main` caught it and returned
+    130 (it compares the exception's type exactly)."""
+
+
+#: The stops received while the verb runs: a library whose C code calls back into Python may turn the
+#: `Interrupted` raised there into its own error (matplotlib's Agg renderer: "ValueError: Invalid bounding
+#: box"); the verb still ends as interrupted.
+_received: list[int] = []
+
+
+def _stopped(signum, frame) -> None:
+    """SIGINT (Ctrl-C) and SIGTERM (a job scheduler's stop, `kill`) end a verb alike: outputs cleaned up on the
+    way, status 130."""
+    _received.append(signum)
+    raise Interrupted
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Entry point of the `imufmu` console script; returns the exit status. SIGTERM is handled from the
-    first line on: parsing imports much of the package (seconds), and a stop then is an interruption too."""
-    if threading.current_thread() is threading.main_thread():
-        signal.signal(signal.SIGTERM, _terminated)
+    """Entry point of the `imufmu` console script; returns the exit status. SIGINT and SIGTERM are handled
+    from the first line on: parsing imports much of the package (seconds), and a stop then is an
+    interruption too."""
     words = sys.argv[1:] if argv is None else argv
-    try:
-        return _run(argv)
-    except KeyboardInterrupt:  # Ctrl-C, SIGTERM: the context managers (Dask cluster, outputs) have closed on the way
+    with _stops_interrupt(command_line=argv is None):
+        try:
+            return _run(argv)
+        except Exception:  # an error while a stop was on its way is the stop, as a library reported it
+            if not _received:
+                raise
+        except KeyboardInterrupt:  # Ctrl-C, SIGTERM: the context managers (Dask cluster, outputs) have closed
+            pass
         print(f"imufmu {words[0] if words else ''}: interrupted".replace("  ", " "), file=sys.stderr)
         return EXIT_INTERRUPTED
+
+
+@contextmanager
+def _stops_interrupt(command_line: bool) -> Iterator[None]:
+    """SIGINT and SIGTERM raise `Interrupted` inside the block. After it, on the command line, they take their
+    default action (the verb is over: a stop while the interpreter exits ends it, with no traceback from an
+    exit handler); called from Python, the caller's handlers are put back."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    stops = (signal.SIGINT, signal.SIGTERM)
+    _received.clear()
+    previous = {stop: signal.signal(stop, _stopped) for stop in stops}
+    try:
+        yield
+    finally:
+        for stop in stops:
+            signal.signal(stop, signal.SIG_DFL if command_line else previous[stop])
 
 
 def _run(argv: list[str] | None) -> int:
@@ -473,9 +513,13 @@ def _run(argv: list[str] | None) -> int:
         with report_load_notes(lambda note: print(note, flush=True)):
             status = args.func(args)
     except ImuFusionError as e:  # messages embedding a tool's output may span lines: one line
+        if _received:
+            raise
         print(f"imufmu {args.verb}: error: {one_line(str(e))}", file=sys.stderr)
         return 1
     except OSError as e:  # unwritable output folder, disk full, ...
+        if _received:
+            raise
         print(f"imufmu {args.verb}: error: {e.filename or ''}: {one_line(e.strerror or str(e))}", file=sys.stderr)
         return 1
     return status or 0
