@@ -6,7 +6,7 @@ import numpy as np
 
 from contract.layout import AUX_INPUTS, MAX_DEGREE, TRIAD_BLOCK, identity_coefficients
 
-#: FMU (compiled with fmpy's CMake, -O3) and batch library (-O2) run the same C code; only the
+#: FMU (compiled with fmpy's CMake) and batch library run the same C code with other flags; only the
 #: compiler's instruction choice may differ, far below this bound.
 GOLDEN_TOLERANCE = 1e-12
 

@@ -27,7 +27,7 @@ RATE, FIELD_OUT, ACCEL = (slice(OUT[f"{q}_x"], OUT[f"{q}_z"] + 1) for q in ("rat
 ROTATION_RTOL = 1e-6
 #: Interpolation and extrapolation are a few double operations on values of order 1: a few ulps.
 INTERPOLATION_ATOL = 1e-12
-#: FMU (fmpy's CMake, -O3) and batch library (-O2) run the same C code (tests/test_fmu.py).
+#: FMU (fmpy's CMake) and batch library run the same C code with other flags (tests/test_fmu.py).
 GOLDEN_TOLERANCE = 1e-12
 
 
