@@ -55,30 +55,36 @@ void ImuMagMomentsAdd(double sums[IMU_MAG_MOMENT_COUNT], const double u[3])
     }
 }
 
+/** ImuMagShiftChain[axis]: the power-sum positions of the chains of ImuMagShiftAxis one after the
+ *  other — for each pair of the other two exponents (i, j) in order, ImuMagIndex with e_axis = 0, 1, ...
+ *  up to degree 4 — and ImuMagShiftChainLength their lengths (the same for every axis). A table, not
+ *  computed per call: the shift runs for every particle at every update (tests/test_mag_moments.py
+ *  rebuilds it from ImuMagIndex). */
+static const signed char ImuMagShiftChain[3][IMU_MAG_MOMENT_COUNT] = {
+    {0, 1, 4, 10, 20, 3, 6, 12, 22, 9, 15, 25, 19, 29, 34, 2, 5, 11, 21, 8, 14, 24, 18, 28, 33, 7, 13, 23, 17, 27, 32,
+     16, 26, 31, 30},
+    {0, 2, 7, 16, 30, 3, 8, 17, 31, 9, 18, 32, 19, 33, 34, 1, 5, 13, 26, 6, 14, 27, 15, 28, 29, 4, 11, 23, 12, 24, 25,
+     10, 21, 22, 20},
+    {0, 3, 9, 19, 34, 2, 8, 18, 33, 7, 17, 32, 16, 31, 30, 1, 6, 15, 29, 5, 14, 28, 13, 27, 26, 4, 12, 25, 11, 24, 23,
+     10, 22, 21, 20}};
+static const int ImuMagShiftChainLength[] = {5, 4, 3, 2, 1, 4, 3, 2, 1, 3, 2, 1, 2, 1, 1};
+
 /** @brief One axis of the shift, in place: t[e] <- sum_k C(e_axis, k) q^(e_axis - k) t[e with e_axis = k],
  *         one chain of monomials at a time (the other two exponents fixed, e_axis = 0, 1, ...) by
  *         repeated synthetic steps v[a] += q v[a - 1] (Taylor shift: L(L-1)/2 multiply-adds for a
  *         chain of length L, 35 per axis). */
 static void ImuMagShiftAxis(double t[IMU_MAG_MOMENT_COUNT], int axis, double q)
 {
-    const int first = axis == 0 ? 1 : 0, second = axis == 2 ? 1 : 2; /* the two other axes */
-    int i, j, a, step;
-    for (i = 0; i <= IMU_MAG_MAX_DEGREE; i++) {
-        for (j = 0; i + j <= IMU_MAG_MAX_DEGREE; j++) {
-            const int length = IMU_MAG_MAX_DEGREE + 1 - i - j;
-            int e[3], index[IMU_MAG_MAX_DEGREE + 1];
-            e[first] = i;
-            e[second] = j;
-            for (a = 0; a < length; a++) {
-                e[axis] = a;
-                index[a] = ImuMagIndex[e[0]][e[1]][e[2]];
-            }
-            for (step = 1; step < length; step++) {
-                for (a = length - 1; a >= step; a--) {
-                    t[index[a]] += q * t[index[a - 1]];
-                }
+    const signed char *index = ImuMagShiftChain[axis];
+    int chain, a, step;
+    for (chain = 0; chain < (int)(sizeof ImuMagShiftChainLength / sizeof ImuMagShiftChainLength[0]); chain++) {
+        const int length = ImuMagShiftChainLength[chain];
+        for (step = 1; step < length; step++) {
+            for (a = length - 1; a >= step; a--) {
+                t[index[a]] += q * t[index[a - 1]];
             }
         }
+        index += length;
     }
 }
 
