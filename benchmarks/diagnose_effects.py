@@ -81,7 +81,7 @@ def main(argv=None) -> int:
             base_fmu = _build(model, work / name / "base.fmu")
         data = effect(clean, np.random.default_rng(7))
         path = write_imu_csv(data, work / name / "diag_effects.csv.gz")
-        result = diagnose([path], model, work / name / "report", seed=0, plots=False, progress=False)
+        result = diagnose([path], model, work / name / "report", seed=0, plots=False, progress=False, limits=False)
         fmu_pct = None
         if result["selected"] is not None:
             new = work / name / "report" / "model.json"

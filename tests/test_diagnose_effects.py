@@ -83,7 +83,7 @@ def diagnosed(setup):
     for name, effect in EFFECTS.items():
         data = effect(clean, np.random.default_rng(7))
         path = write_imu_csv(data, tmp / name / "data" / "diag_effects.csv.gz")
-        out[name] = (diagnose([path], model, tmp / name / "report", seed=0, plots=False, progress=False), data, tmp / name)
+        out[name] = (diagnose([path], model, tmp / name / "report", seed=0, plots=False, progress=False, limits=False), data, tmp / name)
     return out
 
 
@@ -125,7 +125,7 @@ def time_drift(setup):
     data = simulate(load_scenario(VARIANTS / "diag_clean.toml"))
     data = EFFECTS["mag_warmup_drift"](replace(data, temp=np.full(len(data), np.nan)))
     path = write_imu_csv(data, tmp / "time" / "data" / "diag_clean.csv.gz")
-    result = diagnose([path], model, tmp / "time" / "report", seed=0, plots=False, progress=False)
+    result = diagnose([path], model, tmp / "time" / "report", seed=0, plots=False, progress=False, limits=False)
     return result, _build(tmp / "time" / "report" / "model.json", tmp / "time" / "diagnosed.fmu")
 
 

@@ -48,7 +48,8 @@ def _gyro_residuals(reference: np.ndarray, bias: np.ndarray) -> diagnose_fit.Res
     rows = np.ones(n, dtype=bool)
     return diagnose_fit.Residuals(t=np.arange(n) * 0.01, starts=np.array([0]), signals=signals,
                                   instruments={"gyr": signals}, residual={"gyr": bias}, direction={},
-                                  train=rows, test=rows, holdout=rows, fitted=rows, block=np.zeros(n, int))
+                                  train=rows, test=rows, holdout=rows, fitted=rows, block=np.zeros(n, int),
+                                  excited=diagnose_fit.excitation(signals, {"gyr": bias}, rows))
 
 
 def test_the_gain_is_refitted_only_where_the_reference_excites_it():

@@ -60,7 +60,7 @@ def diagnosed(tmp_path_factory):
         model = train([effect(calibration, np.random.default_rng(3), **magnitude)], seed=0,
                       progress=False).save(tmp / "model" / "model.json")
         path = write_imu_csv(effect(test, np.random.default_rng(7), **magnitude), tmp / "data" / "diag_effects.csv.gz")
-        out[name] = (diagnose([path], model, tmp / "report", seed=0, plots=False, progress=False), tmp)
+        out[name] = (diagnose([path], model, tmp / "report", seed=0, plots=False, progress=False, limits=False), tmp)
     return out
 
 

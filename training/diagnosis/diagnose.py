@@ -35,7 +35,8 @@ from training.data.reference import derive_references
 from training.diagnosis.candidates import (TRIAD_NAMES, build_candidates, central_differences,
                                            instrument_signals)
 from training.diagnosis.diagnose_export import add_effect, aux_slots_needed, refit_note, refit_summary, term_count
-from training.diagnosis.diagnose_fit import Fit, Residuals, fit_candidates, offset_fit, predict
+from training.diagnosis.detection import Rule, detection_limits
+from training.diagnosis.diagnose_fit import Fit, Residuals, excitation, fit_candidates, offset_fit, predict
 from training.diagnosis.effect_readings import DISPLAY, readings
 from training.main_job import recording_parameters
 from training.runtime import run_batch, term_signals
@@ -172,12 +173,14 @@ def residuals(artefact: ModelArtefact, datasets: list[ImuData], targets: dict[st
     keys = set.intersection(*(set(p["signals"]) for p in parts))
     signals = {k: np.concatenate([p["signals"][k] for p in parts]) for k in sorted(keys)}
     starts = np.cumsum([0] + [len(d) for d in datasets[:-1]])
+    residual = {t: np.concatenate([p["res"][t][0] for p in parts]) for t in targets}
+    rows = {k: np.concatenate([p[k] for p in parts]) for k in ("train", "test", "holdout", "fitted", "block")}
     return Residuals(
         t=np.concatenate([p["t"] for p in parts]), starts=starts, signals=signals,
         instruments={triad: instrument_signals(signals, triad, starts) for triad in TRIAD_NAMES},
-        residual={t: np.concatenate([p["res"][t][0] for p in parts]) for t in targets},
+        residual=residual,
         direction={t: np.concatenate([p["res"][t][1] for p in parts]) for t in targets if targets[t] == "norm"},
-        **{k: np.concatenate([p[k] for p in parts]) for k in ("train", "test", "holdout", "fitted", "block")})
+        excited=excitation(signals, residual, rows["train"]), **rows)
 
 
 def metric(r: Residuals, target: str) -> float:
@@ -369,9 +372,12 @@ def _check_aux_columns(paths: list[Path], datasets: list[ImuData], artefact, mod
 
 
 def diagnose(paths: list[Path], model_path: Path, out_dir: Path, seed: int = 0,
-             max_iterations: int = MAX_ITERATIONS, plots: bool = True, progress: bool = True) -> dict:
+             max_iterations: int = MAX_ITERATIONS, plots: bool = True, progress: bool = True,
+             limits: bool = True) -> dict:
     """Diagnose recordings `paths` with the artefact `model_path`; write out_dir/diagnosis.json,
     out_dir/model.json (the artefact carrying the effects found) and out_dir/report.md (+ PNG plots).
+    limits: also state the detection limit of every family on what the loop left
+    (training.diagnosis.detection; ~0.2 s per family).
 
     Returns the diagnosis.json document. Deterministic: least squares and fixed splits only; `seed`
     is recorded in the new artefact's provenance (nothing is drawn at random).
@@ -390,6 +396,9 @@ def diagnose(paths: list[Path], model_path: Path, out_dir: Path, seed: int = 0,
     current, r, iterations, first_fits, plot_data, why = _iterate(artefact, datasets, targets, max_iterations, progress)
     first = iterations[0] if iterations else None
     target = first["target"] if first else (first_fits[0].target if first_fits else next(iter(targets)))
+    candidates = build_candidates(r.signals, list(targets)) if limits else []
+    found_limits = detection_limits(r, candidates, Rule(MIN_EXPLAINED, ALPHA, len(candidates)), _rate(datasets),
+                                    {k: v["unit"] for k, v in _aux_info(datasets).items() if "unit" in v}, progress)
     before, after = start[target], metric(r, target)
     result = {
         "target": target, "metric": metric_name(target),
@@ -401,6 +410,8 @@ def diagnose(paths: list[Path], model_path: Path, out_dir: Path, seed: int = 0,
         "iterations": iterations,
         "metrics_before": {t: start[t] for t in targets},
         "metrics_after": {t: metric(r, t) for t in targets},
+        "metric_names": {t: metric_name(t) for t in targets},
+        "detection_limits": found_limits,
         "recordings": [{"name": d.name, "samples": len(d)} for d in datasets],
         "holdout": f"every {HOLDOUT_EVERY}rd of {HOLDOUT_EVERY * BLOCKS} contiguous blocks of each recording",
         "alpha_bonferroni": ALPHA, "min_explained": MIN_EXPLAINED,

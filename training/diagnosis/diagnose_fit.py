@@ -51,6 +51,7 @@ class Residuals:
     holdout: np.ndarray                    # (N,) bool, every held-out row counted by the metric
     fitted: np.ndarray                     # (N,) bool, every row of the training blocks (term ranges)
     block: np.ndarray                      # (N,) held-out block id (−1 in the training blocks)
+    excited: dict[str, bool]               # target -> its gain is refitted with every family (excitation)
 
 
 @dataclass
@@ -106,32 +107,36 @@ def _effects(cands, r: Residuals, rows: np.ndarray, instrument: bool) -> np.ndar
     return np.concatenate(parts, axis=1) if parts else np.zeros((int(rows.sum()), 0, 3))
 
 
-def _excited(target: str, r: Residuals) -> bool:
-    """The target's reference carries more than its residual on every axis (RMS over the training
-    rows): the triad's signal is then mostly the true quantity, which determines a gain. A static gyro
-    against ref_gyr = 0 is not: its signal is its drifting bias, and a "gain" on it would absorb the
-    bias's temperature drift (pan_thermal: the temperature family, 91 % explained, was no longer
-    selected)."""
-    triad = target.split("_")[0]
-    signal = np.column_stack([r.signals[f"{triad}_{a}"] for a in "xyz"])[r.train]
-    residual = r.residual[target][r.train]
-    ok = _finite(signal, residual)
-    if not ok.any():
-        return False
-    reference = signal[ok] - residual[ok]
-    return bool(np.all(np.sqrt(np.mean(reference ** 2, axis=0)) > np.sqrt(np.mean(residual[ok] ** 2, axis=0))))
+def excitation(signals: dict[str, np.ndarray], residual: dict[str, np.ndarray], train: np.ndarray) -> dict[str, bool]:
+    """Target -> its reference carries more than its residual on every axis (RMS over the training rows):
+    the triad's signal is then mostly the true quantity, which determines a gain. A static gyro against
+    ref_gyr = 0 is not: its signal is its drifting bias, and a "gain" on it would absorb the bias's
+    temperature drift (pan_thermal: the temperature family, 91 % explained, was no longer selected).
+    Decided once per set of residuals (Residuals.excited), for every candidate fitted on them."""
+    out = {}
+    for target, res in residual.items():
+        triad = target.split("_")[0]
+        if res.shape[1] != 3 or not all(f"{triad}_{a}" in signals for a in "xyz"):
+            out[target] = False
+            continue
+        signal = np.column_stack([signals[f"{triad}_{a}"] for a in "xyz"])[train]
+        ok = _finite(signal, res[train])
+        reference = signal[ok] - res[train][ok]
+        out[target] = bool(ok.any()) and bool(np.all(np.sqrt(np.mean(reference ** 2, axis=0))
+                                                     > np.sqrt(np.mean(res[train][ok] ** 2, axis=0))))
+    return out
 
 
 def refit_for(cands, target: str, r: Residuals) -> Candidate | None:
     """The linear refit fitted with `cands`: the target's (training.diagnosis.candidates.linear_refit)
-    when its reference excites the gain (_excited), except beside a time shift, whose column is the
+    when its reference excites the gain (Residuals.excited, `excitation`), except beside a time shift, whose column is the
     shift's linearisation: the gain would absorb the linearisation error, which the runtime's exact
     shift does not make (a gyro 7 samples early: held-out error 99.6 % lower without the refit, 85.8 %
     with it)."""
     if any(c.kind == "lag" for c in cands):
         return None
     refit = linear_refit(target, r.signals)
-    return refit if refit is not None and _excited(target, r) else None
+    return refit if refit is not None and r.excited.get(target, False) else None
 
 
 def with_refit(cands, target: str, r: Residuals) -> tuple[Candidate, ...]:
@@ -230,6 +235,13 @@ def fit_candidates(cands, r: Residuals, base: Fit, offset_only: Fit, n_tests: in
     e1, sample = test_errors(cands, beta, target, r)
     eb, _ = test_errors(base.candidates, base.beta, target, r)
     e0, _ = test_errors((), offset_only.beta, target, r)
+    return scored(cands, beta, (e1, eb, e0), sample, r, n_tests)
+
+
+def scored(cands, beta: np.ndarray, errors: tuple, sample: np.ndarray, r: Residuals, n_tests: int) -> Fit | None:
+    """The Fit of `cands` at `beta` from the held-out errors (candidate, base, offset alone) at the stacked
+    rows `sample` of test_errors: explained shares and the Bonferroni-corrected batch-means p."""
+    e1, eb, e0 = errors
     ok = np.isfinite(e1) & np.isfinite(eb) & np.isfinite(e0)
     if ok.sum() < 2 * len(beta):
         return None
@@ -238,7 +250,7 @@ def fit_candidates(cands, r: Residuals, base: Fit, offset_only: Fit, n_tests: in
     gain = 1.0 - sse1 / sseb if sseb > 0 else 0.0
     p = one_sided_p(batch_log_ratios(eb[ok], e1[ok], r.block[rows])) if gain > 0 else 1.0
     return Fit(tuple(cands), beta, 1.0 - sse1 / sse0 if sse0 > 0 else 0.0, gain, min(1.0, p * n_tests),
-               refit_for(cands, target, r))
+               refit_for(cands, cands[0].target, r))
 
 
 def predict(fit: Fit, r: Residuals) -> np.ndarray:

@@ -47,6 +47,27 @@ def _plots(out_dir: Path, plot_data) -> list[str]:
     return names
 
 
+def _limit_lines(limits: list[dict]) -> list[str]:
+    """The detection-limit table of report.md (nothing when the diagnosis computed none)."""
+    if not limits:
+        return []
+    from training.display import DISPLAY
+    lines = ["## Detection limits (what the loop left)", "",
+             "The smallest effect of each family that the loop would still select on these recordings: an "
+             "effect of the family (every regressor contributing alike) added to the residual the loop left, "
+             "and the selection's own fit and test repeated until it just passes (training.diagnosis.detection). "
+             "It counts the held-out noise, the reference's own error, what the linear refit absorbs and how "
+             "much the recordings excite the family. Held-out RMS of that effect, and its reading:", "",
+             "| family | target | detection limit (held-out RMS) | reading at the limit |", "|---|---|---|---|"]
+    for limit in limits:
+        unit = DISPLAY[limit["target"].split("_")[0]][0]
+        size = {"limit": f"{limit['rms']:.3g} {unit}" if limit["rms"] is not None else "",
+                "present": "significant already (left by the loop's iteration or term limit)",
+                "unreachable": "not detectable: the recordings do not excite it"}[limit["status"]]
+        lines.append(f"| {limit['family']} | {limit['target']} | {size} | {limit['reading'] or '–'} |")
+    return lines + [""]
+
+
 def write_report(out_dir: Path, result: dict, plot_data=None) -> Path:
     """Write out_dir/report.md from the diagnosis.json document (and the figures when plot_data)."""
     out_dir = Path(out_dir)
@@ -72,8 +93,12 @@ def write_report(out_dir: Path, result: dict, plot_data=None) -> Path:
                          f"{it['after']:.4g} | {'; '.join(s['readings'])} |")
         lines += [""] + [f"- iteration {k}: {it['selected']['linear_refit_note']}"
                          for k, it in enumerate(result["iterations"], 1) if it["selected"].get("linear_refit_note")] + [""]
-    lines += ["Held-out metric per target (before → after): " + "; ".join(
-        f"{t}: {result['metrics_before'][t]:.4g} → {result['metrics_after'][t]:.4g}" for t in result["metrics_before"]), "",
+    lines += ["## Error per target, the whole loop", "", "| target | metric | before | after | lower |", "|---|---|---|---|---|"]
+    for t, before in result["metrics_before"].items():
+        after = result["metrics_after"][t]
+        lower = f"{100.0 * (before - after) / before:.1f} %" if before > 0 else "–"
+        lines.append(f"| {t} | {result['metric_names'][t]} | {before:.4g} | {after:.4g} | {lower} |")
+    lines += [""] + _limit_lines(result["detection_limits"]) + [
         "## Candidates (first iteration, ranked by held-out explained share)", "",
         "| candidate | target | regressors | explained | p (Bonferroni) |", "|---|---|---|---|---|"]
     for c in result["candidates"][:25]:
