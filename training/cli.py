@@ -7,6 +7,7 @@ in time, one line per recording) are printed as the recordings are read, by ever
 from __future__ import annotations
 
 import argparse
+import os
 import signal
 import sys
 import threading
@@ -449,16 +450,8 @@ def build_parser() -> argparse.ArgumentParser:
 EXIT_INTERRUPTED = 130
 
 
-class Interrupted(KeyboardInterrupt):
-    """Ctrl-C or SIGTERM, raised by `_stopped`. A subclass, so that libraries' `except KeyboardInterrupt`
-    clean-ups still run, and not KeyboardInterrupt itself: CPython 3.11 remembers a KeyboardInterrupt raised
-    inside any `exec` of a string (dataclasses, namedtuples and torch's imports run several) and, when the
-    program was started with `python -m`, ends it by SIGINT at exit even after `main` caught it and returned
-    130 (it compares the exception's type exactly)."""
-
-
 #: The stops received while the verb runs: a library whose C code calls back into Python may turn the
-#: `Interrupted` raised there into its own error (matplotlib's Agg renderer: "ValueError: Invalid bounding
+#: KeyboardInterrupt raised there into its own error (matplotlib's Agg renderer: "ValueError: Invalid bounding
 #: box"); the verb still ends as interrupted.
 _received: list[int] = []
 
@@ -467,7 +460,7 @@ def _stopped(signum, frame) -> None:
     """SIGINT (Ctrl-C) and SIGTERM (a job scheduler's stop, `kill`) end a verb alike: outputs cleaned up on the
     way, status 130."""
     _received.append(signum)
-    raise Interrupted
+    raise KeyboardInterrupt
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -484,12 +477,26 @@ def main(argv: list[str] | None = None) -> int:
         except KeyboardInterrupt:  # Ctrl-C, SIGTERM: the context managers (Dask cluster, outputs) have closed
             pass
         print(f"imufmu {words[0] if words else ''}: interrupted".replace("  ", " "), file=sys.stderr)
-        return EXIT_INTERRUPTED
+    if argv is None:
+        _exit_now(EXIT_INTERRUPTED)
+    return EXIT_INTERRUPTED
+
+
+def _exit_now(status: int) -> None:
+    """End the process with `status` without the interpreter's teardown: after a stop the verb has
+    cleaned up on its way out, and the teardown gets the status wrong. A native library stopped half-way
+    through its initialisation can abort in it (once in 76 stopped `train` runs: "Fatal Python error:
+    PyThreadState_Get ... finalizing", SIGABRT), and CPython 3.11 ends a `python -m` program by SIGINT at
+    exit when a KeyboardInterrupt was ever raised inside an `exec` of a string (dataclasses, torch's
+    imports), even one that `main` caught (CI of stop 41: train killed by SIGINT after "interrupted")."""
+    sys.stdout.flush()
+    sys.stderr.flush()
+    os._exit(status)
 
 
 @contextmanager
 def _stops_interrupt(command_line: bool) -> Iterator[None]:
-    """SIGINT and SIGTERM raise `Interrupted` inside the block. After it, on the command line, they take their
+    """SIGINT and SIGTERM raise KeyboardInterrupt inside the block. After it, on the command line, they take their
     default action (the verb is over: a stop while the interpreter exits ends it, with no traceback from an
     exit handler); called from Python, the caller's handlers are put back."""
     if threading.current_thread() is not threading.main_thread():
