@@ -70,9 +70,9 @@ def _transfer(data_dir: Path, out: Path) -> Path:
              "diagnosed on 02 and 11 (mounting B).", "",
              "| trial | specific force, trained → diagnosed [m/s²] | field, trained → diagnosed [µT] |", "|---|---|---|"]
     for path in sorted((data_dir / "broad").glob("*_undisturbed_*.csv.gz")):
-        datasets, _ = load_recordings([path])
+        datasets, _, smoothed = load_recordings([path])
         targets = targets_of(datasets[0])
-        rms = {k: {t: _rms(residuals(m, datasets, targets).residual[t]) for t in ("acc", "mag")}
+        rms = {k: {t: _rms(residuals(m, datasets, targets, smoothed).residual[t]) for t in ("acc", "mag")}
                for k, m in models.items()}
         lines.append(f"| {path.name.removesuffix('.csv.gz')} | " + " | ".join(
             f"{rms['trained'][t]:.3f} → {rms['diagnosed'][t]:.3f}" for t in ("acc", "mag")) + " |")
