@@ -24,9 +24,16 @@ BROAD_TRIAL = ROOT.parent / "shared" / "data" / "broad" / "01_undisturbed_slow_r
 BROAD_SAMPLES = 5714
 #: Every ROW_STEP-th output row is stored.
 ROW_STEP = 25
-#: The FMU and the batch library agree to this (tests/test_pipeline.py FMU_BATCH_TOLERANCE); the
-#: same code on the same machine reproduces its own outputs to it too.
-TOLERANCE = 1e-12
+#: The record holds on other machines to |now − recorded| ≤ TOLERANCE + RELATIVE·|recorded|. The same
+#: code on the same machine reproduces its numbers to 1e-12 (the FMU and the batch library agree to
+#: that too: tests/test_pipeline.py FMU_BATCH_TOLERANCE), but the ELM's least squares and the PSO-BP
+#: network's training run through BLAS/LAPACK and torch kernels chosen by the CPU, and libm picks
+#: FMA variants: the record of 2026-11-28 (an AVX2 machine) against an AVX-512 machine, same code and
+#: packages, differed by 7.4e-7 of a PSO-BP weight (1.8e-4 on −305.6), 3.4e-10 in the ELM and 1.8e-10
+#: in any output. The bounds keep a margin of 5 to 13 over those, and a change meant to move the
+#: numbers moves them far more (acc_norm_tolerance: 3.8e-4 in the outputs).
+TOLERANCE = 1e-9
+RELATIVE = 1e-5
 #: Outputs that are angles [rad]: compared modulo 2π (a wrap at ±π is no change).
 _ANGLES = ("roll", "pitch", "yaw", "heading")
 
@@ -77,7 +84,7 @@ def differences(summary) -> dict[str, str]:
             for col in (OUTPUTS.index(n) for n in _ANGLES):
                 d[:, col] = np.abs(np.angle(np.exp(1j * (a[:, col] - b[:, col]))))
         d = np.where(np.isnan(a) & np.isnan(b), 0.0, d)
-        if not np.all(d <= TOLERANCE):
+        if not np.all(d <= TOLERANCE + RELATIVE * np.abs(np.nan_to_num(a))):
             worst = np.unravel_index(np.nanargmax(np.where(np.isnan(d), np.inf, d)), d.shape)
             problems[name] = f"max difference {np.nanmax(np.where(np.isnan(d), np.inf, d)):.3g} at {worst}"
     return problems
