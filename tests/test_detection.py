@@ -20,7 +20,7 @@ from training.artefact import ModelArtefact
 from training.diagnosis import detection
 from training.diagnosis.candidates import build_candidates
 from training.diagnosis.diagnose import ALPHA, MIN_EXPLAINED, _rate, residuals, targets_of
-from training.diagnosis.diagnose_fit import fit_candidates, offset_fit, predict
+from training.diagnosis.diagnose_fit import fit_candidates, metric, offset_fit, predict
 from training.main_job import SCENARIO_DIR
 from training.models.thermal import ThermalModel
 from training.simulator import load_scenario, simulate
@@ -62,7 +62,7 @@ def test_an_effect_at_the_limit_is_selected_and_one_3_percent_smaller_is_not(set
     limit = detection.detection_limit(r, c, rule, rate)
     assert limit["status"] == detection.LIMIT and limit["rms"] > 0, limit
     unit = predict(detection._as_fit(c, detection._direction(c, r)), r)
-    scale = limit["rms"] / detection._held_out_rms(r, c.target, unit)
+    scale = limit["rms"] / metric(replace(r, residual={c.target: unit}), c.target)
     assert _selected_directly(r, c, scale * unit, rule), limit
     assert not _selected_directly(r, c, (1.0 - BELOW) * scale * unit, rule), limit
 

@@ -23,10 +23,9 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from training.diagnosis.candidates import Candidate, column_effects
-from training.diagnosis.diagnose_fit import (OFFSETS, Fit, Residuals, fit_beta, offset_fit, predict, scored,
-                                             test_errors)
+from training.diagnosis.diagnose_fit import (OFFSETS, Fit, Residuals, fit_beta, metric, offset_fit, predict,
+                                             scored, test_errors)
 from training.diagnosis.effect_readings import readings
-from training.display import DISPLAY
 
 #: The search: from the residual's own RMS, doubled or halved at most this many times ...
 OCTAVES = 12
@@ -123,13 +122,6 @@ def _smallest_scale(injection: _Injection, start: float, rule: Rule) -> float | 
     return hi
 
 
-def _held_out_rms(r: Residuals, target: str, values: np.ndarray) -> float:
-    """RMS of values (N, m) over the held-out rows, in the target's display unit."""
-    e = values[r.holdout] * DISPLAY[target.split("_")[0]][1]
-    e = e[np.isfinite(e)]
-    return float(np.sqrt(np.mean(e * e))) if e.size else float("nan")
-
-
 #: What a limit says: the effect size at which the family is just selected; the family is selected
 #: already (it is in what the loop left: it stopped at its iteration or term limit); no size within the
 #: search is selected (the recordings do not excite the family's regressors).
@@ -149,8 +141,8 @@ def detection_limit(r: Residuals, c: Candidate, rule: Rule, rate_hz: float,
         return {**limit, "status": PRESENT, "rms": 0.0}
     if scale is not None:
         found = readings(_as_fit(c, scale * beta), rate_hz, aux_units)
-        limit.update(status=LIMIT, rms=_held_out_rms(r, c.target, scale * unit_effect),
-                     reading=found[0] if found else None)
+        size = metric(replace(r, residual={c.target: scale * unit_effect}), c.target)
+        limit.update(status=LIMIT, rms=size, reading=found[0] if found else None)
     return limit
 
 

@@ -37,7 +37,8 @@ from training.diagnosis.candidates import (TRIAD_NAMES, build_candidates, centra
                                            instrument_signals)
 from training.diagnosis.diagnose_export import add_effect, aux_slots_needed, refit_note, refit_summary, term_count
 from training.diagnosis.detection import Rule, detection_limits
-from training.diagnosis.diagnose_fit import Fit, Residuals, excitation, fit_candidates, offset_fit, predict
+from training.diagnosis.diagnose_fit import (Fit, Residuals, excitation, fit_candidates, metric, offset_fit,
+                                             predict)
 from training.diagnosis.effect_readings import DISPLAY, readings
 from training.main_job import recording_parameters
 from training.runtime import run_batch, term_signals
@@ -206,13 +207,6 @@ def residuals(artefact: ModelArtefact, datasets: list[ImuData], targets: dict[st
         residual=residual,
         direction={t: np.concatenate([p["res"][t][1] for p in parts]) for t in targets if targets[t] == "norm"},
         excited=excitation(signals, residual, rows["train"]), **rows)
-
-
-def metric(r: Residuals, target: str) -> float:
-    """Held-out RMS of a target's residual in its display unit (°/s, m/s², µT)."""
-    e = r.residual[target][r.holdout] * DISPLAY[target.split("_")[0]][1]
-    e = e[np.isfinite(e)]
-    return float(np.sqrt(np.mean(e * e))) if e.size else float("nan")
 
 
 def paired_metric(before: Residuals, after: Residuals, target: str) -> tuple[float, float]:

@@ -27,6 +27,7 @@ import numpy as np
 from scipy import stats
 
 from training.diagnosis.candidates import Candidate, column_effects, linear_refit
+from training.display import DISPLAY
 
 #: Relative singular-value cut of the column-scaled least squares: a combination of columns that
 #: varies by less than 1 % of the strongest one — e.g. mag_x²+mag_y²+mag_z² at a constant field
@@ -96,6 +97,13 @@ class Fit:
             out.append(self.beta[k:k + len(c.columns)])
             k += len(c.columns)
         return out
+
+
+def metric(r: Residuals, target: str) -> float:
+    """Held-out RMS of a target's residual in its display unit (°/s, m/s², µT)."""
+    e = r.residual[target][r.holdout] * DISPLAY[target.split("_")[0]][1]
+    e = e[np.isfinite(e)]
+    return float(np.sqrt(np.mean(e * e))) if e.size else float("nan")
 
 
 def _effects(cands, r: Residuals, rows: np.ndarray, instrument: bool) -> np.ndarray:
