@@ -37,13 +37,15 @@ def run_case(case: str, tmp: Path) -> dict:
 @pytest.fixture(scope="module")
 def gsens(tmp_path_factory):
     """The g-sensitivity case, with every significance test the diagnosis made recorded as (families
-    fitted together, the count it was Bonferroni-corrected by) in the order made."""
+    fitted together, the families of the base it is tested against, the residuals it is fitted on, the
+    count it was Bonferroni-corrected by) in the order made."""
     from training.diagnosis import diagnose as module
-    tmp, tests = tmp_path_factory.mktemp("gsens"), []
+    tmp, tests, alive = tmp_path_factory.mktemp("gsens"), [], {}
     fit = module.fit_candidates
 
     def recorded(cands, r, base, offset_only, n_tests):
-        tests.append((tuple(c.name for c in cands), n_tests))
+        alive[id(r)] = r    # held, so that no later residuals reuse the id
+        tests.append((tuple(c.name for c in cands), tuple(c.name for c in base.candidates), id(r), n_tests))
         return fit(cands, r, base, offset_only, n_tests)
 
     with pytest.MonkeyPatch.context() as patch:
@@ -61,13 +63,14 @@ def test_diagnosis_is_deterministic(gsens):
 
 
 def test_each_p_value_is_corrected_by_the_number_of_families_tried_beside_it(gsens):
-    # A round of tests is the families scored alone in one selection, or the families tried as the
-    # next addition to the same selected ones; each p is multiplied by that round's size.
+    # A round of tests is the families scored alone in one selection, or the additions tried to the same
+    # selected ones (a family, or train's bias model as one step), on one set of residuals; each p is
+    # multiplied by that round's size.
     _, _, tests = gsens
     rounds: list[list[int]] = []
     previous = None
-    for families, n_tests in tests:
-        key = (len(families), families[:-1])
+    for _, base, residuals, n_tests in tests:
+        key = (base, residuals)
         if key != previous:
             rounds.append([])
         rounds[-1].append(n_tests)

@@ -6,6 +6,8 @@ from __future__ import annotations
 
 from types import SimpleNamespace
 
+from dataclasses import replace
+
 import numpy as np
 
 from training.diagnosis import diagnose_fit
@@ -63,7 +65,18 @@ def test_the_gain_is_refitted_only_where_the_reference_excites_it():
     terms = SimpleNamespace(kind="terms")
     assert diagnose_fit.refit_for((terms,), "gyr", static) is None
     assert diagnose_fit.refit_for((terms,), "gyr", moving).name == "linear calibration"
-    assert diagnose_fit.refit_for((SimpleNamespace(kind="lag"),), "gyr", moving) is None
+    lag = SimpleNamespace(kind="lag", triad="gyr")
+    assert diagnose_fit.refit_for((lag,), "gyr", moving) is None
+    # a shift scanned beyond the linear range is not linearised: the gain is refitted beside it
+    assert diagnose_fit.refit_for((lag,), "gyr", replace(moving, wide_shifts={"gyr": 0.2})).name == "linear calibration"
+
+
+def test_a_calibration_bent_beyond_the_reference_still_gets_its_gain_refitted():
+    # an effect in the calibration recording bent train's gain: the residual (a 150 % gain error on x)
+    # is larger than the reference, but linear in the signal; the reference still excites the gain
+    turning = np.column_stack([np.sin(np.arange(ROWS) / 20.0 + p) for p in (0.0, 1.0, 2.0)])
+    bent = turning * np.array([1.5, 0.1, -0.1]) + 1e-3 * np.random.default_rng(3).standard_normal((ROWS, 3))
+    assert _gyro_residuals(turning, bent).excited["gyr"]
 
 
 def test_before_and_after_an_effect_are_compared_on_the_same_rows():

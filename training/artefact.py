@@ -67,6 +67,11 @@ def utc_now() -> str:
     return datetime.now(timezone.utc).isoformat(timespec="seconds")
 
 
+#: The neural stage that follows a triad's calibration in the runtime: triad -> (ModelArtefact field, the
+#: setting that switches it). A stage trained on calibration data carries what was in that data.
+NEURAL_STAGES = {"mag": ("elm", "enable_elm"), "gyr": ("psobp", "enable_psobp")}
+
+
 @dataclass
 class ModelArtefact:
     """A trained ImuFusion model.

@@ -117,7 +117,8 @@ def _with_triad(model, source, triad: str):
     """`model` with `triad`'s calibration (and the neural stage that follows it: ELM after the
     magnetometer, PSO-BP after the gyroscope) taken from `source`."""
     from dataclasses import replace
-    stage = {"mag": ("elm", "enable_elm"), "gyr": ("psobp", "enable_psobp")}.get(triad)
+    from training.artefact import NEURAL_STAGES
+    stage = NEURAL_STAGES.get(triad)
     changes = {"thermal": {**model.thermal, triad: source.thermal[triad]}}
     if stage is not None:
         changes[stage[0]] = getattr(source, stage[0])

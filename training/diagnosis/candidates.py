@@ -135,11 +135,17 @@ def time_shift_column(triad: str) -> tuple[Column, ...]:
     return (tuple((c, f"dc_{triad}_{a}", None, 1.0) for c, a in enumerate(AXES)),)
 
 
+#: The families of `train`'s bias model B(T) (a polynomial of degree ≤ 2 in the temperature): an effect in the
+#: calibration recording bends them together, so forward selection also tries them as one step
+#: (training.diagnosis.diagnose._grow): one at a time, neither lowers the held-out error enough.
+BIAS_MODEL = ("temperature", "temperature squared")
+
+
 def _families(target: str, signals: dict[str, np.ndarray]) -> list[Candidate]:
     """Every family for one target (before the presence check)."""
     triad, has_reference = target.split("_")[0], not target.endswith("_norm")
     out = [Candidate(n, target, _free(r)) for n, r in (
-        ("temperature", [("temp", None)]), ("temperature squared", [("temp", "temp")]),
+        (BIAS_MODEL[0], [("temp", None)]), (BIAS_MODEL[1], [("temp", "temp")]),
         ("temperature rate", [("temp_rate", None)]), ("temperature rate (1 s)", [("temp_rate_fast", None)]),
         ("time", [("time", None)]))]
     for source in TRIAD_NAMES:

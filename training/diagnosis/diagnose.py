@@ -28,18 +28,19 @@ import numpy as np
 from contract.errors import DataError
 from contract.layout import AUX_INPUTS, INPUTS, TERM_SIGNALS, TERMS_MAX, TRIAD_ORDER, settings_array
 from contract.mounting import mount_matrix, settings_codes
-from training.artefact import ModelArtefact, coefficients_array, load_artefact, settings_dict
+from training.artefact import NEURAL_STAGES, ModelArtefact, coefficients_array, load_artefact, settings_dict
 from training.data.dataset import ImuData
 from training.data.earth import local_gravity
 from training.data.io import read_imu_csv
 from training.data.reference import derive_references, matched_raw
-from training.diagnosis.candidates import (TRIAD_NAMES, build_candidates, central_differences,
-                                           instrument_signals)
+from training.diagnosis.candidates import (BIAS_MODEL, TRIAD_NAMES, build_candidates, central_differences,
+                                           instrument_signals, triad_signals)
 from training.diagnosis.diagnose_export import add_effect, aux_slots_needed, refit_note, refit_summary, term_count
 from training.diagnosis.detection import Rule, detection_limits
 from training.diagnosis.diagnose_fit import (Fit, Residuals, excitation, fit_candidates, metric, offset_fit,
                                              predict)
 from training.diagnosis.effect_readings import DISPLAY, readings
+from training.diagnosis.time_shift import WideShift, beyond_linear, scan_shift, shift_column, shifted
 from training.main_job import recording_parameters
 from training.runtime import run_batch, term_signals
 from training.train import REFERENCE_OUTLIER_SIGMAS
@@ -179,6 +180,35 @@ def _without_disturbances(r: np.ndarray) -> np.ndarray:
     return np.where(np.abs(r - centre) <= REFERENCE_OUTLIER_SIGMAS * scale, r, np.nan)
 
 
+def _scanned_shift_columns(parts: list[dict], triads: list[str]) -> dict[str, float]:
+    """Replace the time-shift columns (dc_<triad>_*) of every triad with a reference by the column of the
+    shift scanned over all recordings (training.diagnosis.time_shift); returns triad -> shift [s] of the
+    triads whose shift is beyond the central difference's linear range."""
+    rates = [1.0 / float(np.median(np.diff(p["t"]))) for p in parts]
+    wide = {}
+    for triad in triads:
+        cols = _SLICES[triad]
+        shift = scan_shift([(p["out0"][:, cols], p["res"][triad][0], p["train"], rate) for p, rate in zip(parts, rates)],
+                           float(np.median(rates)))
+        if beyond_linear(shift, float(np.median(rates))):
+            wide[triad] = shift
+        for p in parts:
+            column = shift_column(p["out0"][:, cols], p["t"], shift)
+            p["signals"].update({f"dc_{triad}_{a}": column[:, k] for k, a in enumerate("xyz")})
+            p.setdefault("shifted", {})[triad] = shifted(p["out0"][:, cols], p["t"], shift)
+    return wide
+
+
+def _wide_shift(triad: str, shift_s: float, parts: list[dict], signals: dict[str, np.ndarray],
+                starts: np.ndarray) -> WideShift:
+    """The WideShift of a triad: `signals` with its components (and their absolute values) shifted."""
+    x = np.concatenate([p["shifted"][triad] for p in parts])
+    moved = dict(signals)
+    for k, name in enumerate(triad_signals(triad)):
+        moved[name], moved[f"abs_{name}"] = x[:, k], np.abs(x[:, k])
+    return WideShift(shift_s, moved, instrument_signals(moved, triad, starts))
+
+
 def residuals(artefact: ModelArtefact, datasets: list[ImuData], targets: dict[str, str],
               smoothed: list[bool] | None = None) -> Residuals:
     """Residuals of every target and the candidate signals, stacked over the recordings; smoothed[k]:
@@ -194,8 +224,9 @@ def residuals(artefact: ModelArtefact, datasets: list[ImuData], targets: dict[st
         mask = np.ones(len(d), bool) if d.eval_mask is None else d.eval_mask.astype(bool)
         res = {t: _residual(t, kind, d, out, ~held, smoothed[k]) for t, kind in targets.items()}
         parts.append(dict(t=d.t, signals=_signals(d, out0), res=res, train=sampled & ~held, test=sampled & held,
-                          holdout=held & mask, fitted=~held,
+                          holdout=held & mask, fitted=~held, out0=out0,
                           block=np.where(held, k * HOLDOUT_EVERY * BLOCKS + block, -1)))
+    wide_shifts = _scanned_shift_columns(parts, [t for t, kind in targets.items() if kind == "triad"])
     keys = set.intersection(*(set(p["signals"]) for p in parts))
     signals = {k: np.concatenate([p["signals"][k] for p in parts]) for k in sorted(keys)}
     starts = np.cumsum([0] + [len(d) for d in datasets[:-1]])
@@ -206,7 +237,8 @@ def residuals(artefact: ModelArtefact, datasets: list[ImuData], targets: dict[st
         instruments={triad: instrument_signals(signals, triad, starts) for triad in TRIAD_NAMES},
         residual=residual,
         direction={t: np.concatenate([p["res"][t][1] for p in parts]) for t in targets if targets[t] == "norm"},
-        excited=excitation(signals, residual, rows["train"]), **rows)
+        excited=excitation(signals, residual, rows["train"]),
+        wide_shifts={triad: _wide_shift(triad, s, parts, signals, starts) for triad, s in wide_shifts.items()}, **rows)
 
 
 def paired_metric(before: Residuals, after: Residuals, target: str) -> tuple[float, float]:
@@ -256,16 +288,30 @@ def _select(fits: list[Fit], r: Residuals, artefact: ModelArtefact) -> tuple[Fit
     return best, notes
 
 
+def _additions(combo: Fit, candidates) -> list[tuple]:
+    """What forward selection may add to `combo`: every other family of its target (no time, no shift) on
+    its own, and train's bias model (candidates.BIAS_MODEL) as one step when neither of its families is in
+    yet (a temperature-rate gyro bias in the calibration too, with the PSO-BP stage off: 77 % explained
+    alone, 77 % with the temperature, 94 % with the temperature and its square, read within 0.5 %)."""
+    others = [c for c in candidates if c.target == combo.target and c not in combo.candidates
+              and "time" not in c.signals() and c.kind != "lag"]
+    steps = [(c,) for c in others]
+    bias = tuple(c for c in others if c.name in BIAS_MODEL)
+    if len(bias) == len(BIAS_MODEL):
+        steps.append(bias)
+    return steps
+
+
 def _grow(best: Fit, candidates, r: Residuals, base0: Fit, artefact: ModelArtefact) -> Fit:
-    """Forward selection: add the family of the same target that improves the held-out residual
-    most, while significant (Bonferroni over the families tried) and explaining ≥ MIN_EXPLAINED.
-    A time shift stands alone: its fit is linear in the lag, the runtime's shift is not
-    (training.diagnosis.diagnose.refine_lag), so a family grown on its linearisation would fit the difference."""
+    """Forward selection: add the family (or train's bias model, _additions) of the same target that
+    improves the held-out residual most, while significant (Bonferroni over the additions tried) and
+    explaining ≥ MIN_EXPLAINED. A time shift stands alone: its fit is linear in the lag, the runtime's
+    shift is not (training.diagnosis.diagnose.refine_lag), so a family grown on its linearisation would
+    fit the difference."""
     combo = best
     while len(combo.candidates) < MAX_FAMILIES and best.candidates[0].kind != "lag":
-        others = [c for c in candidates if c.target == combo.target and c not in combo.candidates
-                  and "time" not in c.signals() and c.kind != "lag"]
-        tries = [fit_candidates(combo.candidates + (c,), r, combo, base0, len(others)) for c in others]
+        steps = [s for s in _additions(combo, candidates) if len(combo.candidates) + len(s) <= MAX_FAMILIES]
+        tries = [fit_candidates(combo.candidates + s, r, combo, base0, len(steps)) for s in steps]
         ok = [f for f in tries if f is not None and f.p_value < ALPHA and f.gain >= MIN_EXPLAINED
               and _carriable(f, r, artefact)]
         if not ok:
@@ -348,48 +394,109 @@ def _aux_info(datasets: list[ImuData]) -> dict[str, dict]:
     return out
 
 
+def _sweep(current: ModelArtefact, r: Residuals, targets: dict[str, str], rejected: set, desc: str,
+           progress: bool) -> tuple[list[Fit], Fit | None, list[str]]:
+    """One candidate sweep on `r`: (fits sorted by explained share, the best significant fit grown by
+    forward selection or None, notes on what was passed over)."""
+    from tqdm import tqdm
+    candidates = [c for c in build_candidates(r.signals, list(targets)) if (c.target, c.name) not in rejected]
+    base = {t: offset_fit(t, r) for t in targets}
+    fits = [f for f in (fit_candidates((c,), r, base[c.target], base[c.target], len(candidates))
+                        for c in tqdm(candidates, desc=desc, unit="family", disable=not progress, leave=False))
+            if f is not None]
+    fits.sort(key=lambda f: -f.explained_fraction)
+    best, why = _select(fits, r, current)
+    return fits, (None if best is None else _grow(best, candidates, r, base[best.target], current)), why
+
+
+def _stage_off(artefact: ModelArtefact, triad: str) -> tuple[ModelArtefact, str] | None:
+    """(the artefact with the triad's neural stage switched off, the stage's setting) when it has one on."""
+    stage = NEURAL_STAGES.get(triad)
+    if stage is None or not artefact.settings.get(stage[1]):
+        return None
+    return replace(artefact, settings={**artefact.settings, stage[1]: 0.0}), stage[1]
+
+
+def _proposals(current: ModelArtefact, r: Residuals, datasets: list[ImuData], targets: dict[str, str],
+               smoothed: list[bool], rejected: dict[str, set], attempt: int, progress: bool):
+    """(first sweep's fits, notes, proposals): each proposal (artefact, its residuals, effect, stage switched
+    off or ''): the sweep on the current model and, per triad whose neural stage is on, the sweep with that
+    stage off. A stage trained on calibration data that carried an effect learned part of it — the ELM a
+    field-dependent soft iron or a late magnetometer, the PSO-BP network a temperature-rate bias — so the
+    family reads only the remainder (a temperature-rate gyro bias: 0.0164 (°/s)/(°C/min) for 0.05, not
+    significant), while with the stage off it reads the effect itself (0.0501) and the family, the linear
+    refit and train's bias model leave less than the stage did (0.184 → 0.0304 °/s)."""
+    fits, effect, notes = _sweep(current, r, targets, rejected[""], f"diagnose: candidates, iteration {attempt}",
+                                 progress)
+    out = [] if effect is None else [(current, r, effect, "")]
+    for triad in NEURAL_STAGES:
+        own = {t: kind for t, kind in targets.items() if t.split("_")[0] == triad and kind == "triad"}
+        off = _stage_off(current, triad)
+        if off is None or not own:
+            continue
+        r_off = residuals(off[0], datasets, own, smoothed)
+        _, found, _ = _sweep(off[0], r_off, own, rejected[off[1]],
+                             f"diagnose: candidates with {off[1]} = 0, iteration {attempt}", progress)
+        if found is not None:
+            out.append((off[0], r_off, found, off[1]))
+    return fits, notes, out
+
+
+def _accepted(before: float, after: float, stage: str) -> bool:
+    """An effect is kept when it lowers the held-out error through the runtime; one that switches a trained
+    stage off must lower it by MIN_EXPLAINED of the squared error (what a family must explain to be
+    selected), so that a stage is not traded for terms that merely match it."""
+    return after < before if not stage else after * after <= (1.0 - MIN_EXPLAINED) * before * before
+
+
+def _stage_note(stage: str, before: float, after: float) -> str:
+    return (f"{stage} = 0: the trained stage learned part of this effect from the calibration data; with it off, "
+            f"the effect, the linear refit and the bias model leave {after:.4g} against {before:.4g} with it on"
+            if stage else "")
+
+
 def _iterate(artefact: ModelArtefact, datasets: list[ImuData], targets: dict[str, str], max_iterations: int,
              progress: bool, smoothed: list[bool]):
     """Select, grow, add, rerun; returns (artefact, residuals, iterations, first ranking, plot data, notes)."""
-    from tqdm import tqdm
     r = residuals(artefact, datasets, targets, smoothed)
     current, iterations, first, plot_data, notes = artefact, [], None, None, []
     rate, info = _rate(datasets), _aux_info(datasets)
     units = {k: v["unit"] for k, v in info.items() if "unit" in v}
-    rejected: set[tuple[str, str]] = set()
+    rejected: dict[str, set[tuple[str, str]]] = {"": set(), **{s[1]: set() for s in NEURAL_STAGES.values()}}
     attempts = 0
     while len(iterations) < max_iterations and attempts < max_iterations + MAX_REJECTED:
         attempts += 1
-        candidates = [c for c in build_candidates(r.signals, list(targets)) if (c.target, c.name) not in rejected]
-        base = {t: offset_fit(t, r) for t in targets}
-        fits = [f for f in (fit_candidates((c,), r, base[c.target], base[c.target], len(candidates))
-                            for c in tqdm(candidates, desc=f"diagnose: candidates, iteration {attempts}",
-                                          unit="family", disable=not progress, leave=False)) if f is not None]
-        fits.sort(key=lambda f: -f.explained_fraction)
+        fits, why, proposals = _proposals(current, r, datasets, targets, smoothed, rejected, attempts, progress)
         first = fits if first is None else first
-        best, why = _select(fits, r, current)
         notes += why
-        if best is None:
+        if not proposals:
             break
-        effect = _grow(best, candidates, r, base[best.target], current)
-        new = refine_lag(add_effect(current, effect, r, effect.label, info), current, effect, datasets, smoothed)
-        r_new = residuals(new, datasets, targets, smoothed)
-        before, after = paired_metric(r, r_new, effect.target)
-        if not after < before:
-            notes.append(f"'{effect.label}' on {effect.target} explained {effect.explained_fraction:.1%} in the fit "
-                         f"but did not lower the held-out error through the runtime ({before:.4g} → {after:.4g}): "
-                         "not added")
-            rejected |= {(c.target, c.name) for c in effect.candidates}
+        kept = []
+        for art, rr, effect, stage in proposals:
+            new = refine_lag(add_effect(art, effect, rr, effect.label, info), art, effect, datasets, smoothed)
+            r_new = residuals(new, datasets, targets, smoothed)
+            before, after = paired_metric(r, r_new, effect.target)
+            if _accepted(before, after, stage):
+                kept.append((art, rr, effect, stage, new, r_new, before, after))
+                continue
+            notes.append(f"'{effect.label}' on {effect.target}{f' with {stage} = 0' if stage else ''} explained "
+                         f"{effect.explained_fraction:.1%} in the fit but did not lower the held-out error through "
+                         f"the runtime ({before:.4g} → {after:.4g}{', by the share a stage must yield' if stage else ''})"
+                         ": not added")
+            rejected[stage] |= {(c.target, c.name) for c in effect.candidates}
+        if not kept:
             continue
+        art, rr, effect, stage, new, r_new, before, after = max(kept, key=lambda k: 1.0 - k[7] / k[6])
         iterations.append({"selected": {**_candidate_json(effect), "families": [c.name for c in effect.candidates],
-                                        "terms": term_count(effect, r, current) - len(current.terms),
+                                        "terms": term_count(effect, rr, art) - len(art.terms),
                                         "offset": effect.offset.tolist(),
                                         "linear_refit": refit_summary(effect), "linear_refit_note": refit_note(effect),
-                                        "readings": readings(effect, rate, units, _lag_changes(current, new))},
+                                        "stage_off": stage or None, "stage_note": _stage_note(stage, before, after),
+                                        "readings": readings(effect, rate, units, _lag_changes(art, new))},
                            "target": effect.target, "metric": metric_name(effect.target),
                            "before": before, "after": after,
                            "candidates": [_candidate_json(f) for f in fits[:10]]})
-        plot_data = plot_data or (r, r_new, effect, predict(effect, r))
+        plot_data = plot_data or (rr, r_new, effect, predict(effect, rr))
         current, r = new, r_new
     return current, r, iterations, first or [], plot_data, notes
 

@@ -21,12 +21,13 @@ nonlinearity, a lag) or with the temperature rate is judged by its few largest b
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 from scipy import stats
 
-from training.diagnosis.candidates import Candidate, column_effects, linear_refit
+from training.diagnosis.candidates import LINEAR_REFIT, Candidate, column_effects, linear_refit
+from training.diagnosis.time_shift import WideShift
 from training.display import DISPLAY
 
 #: Relative singular-value cut of the column-scaled least squares: a combination of columns that
@@ -53,6 +54,7 @@ class Residuals:
     fitted: np.ndarray                     # (N,) bool, every row of the training blocks (term ranges)
     block: np.ndarray                      # (N,) held-out block id (−1 in the training blocks)
     excited: dict[str, bool]               # target -> its gain is refitted with every family (excitation)
+    wide_shifts: dict[str, WideShift] = field(default_factory=dict)  # triad -> its shift scanned beyond the linear range
 
 
 @dataclass
@@ -106,20 +108,30 @@ def metric(r: Residuals, target: str) -> float:
     return float(np.sqrt(np.mean(e * e))) if e.size else float("nan")
 
 
+def _signals_of(c: Candidate, cands, r: Residuals, instrument: bool) -> dict[str, np.ndarray]:
+    """The signals a candidate's columns are formed from: its instruments if asked and own; for the linear
+    refit beside a shift scanned beyond the linear range, the shifted triad (WideShift)."""
+    wide = r.wide_shifts.get(c.triad)
+    if wide is not None and c.name == LINEAR_REFIT and any(o.kind == "lag" and o.triad == c.triad for o in cands):
+        return wide.instruments if instrument else wide.signals
+    return r.instruments[c.triad] if instrument and c.own else r.signals
+
+
 def _effects(cands, r: Residuals, rows: np.ndarray, instrument: bool) -> np.ndarray:
     """(n, J, 3) column effects of the candidates at rows (instrument columns if asked and own)."""
-    parts = []
-    for c in cands:
-        signals = r.instruments[c.triad] if instrument and c.own else r.signals
-        parts.append(column_effects(c, signals, rows))
+    parts = [column_effects(c, _signals_of(c, cands, r, instrument), rows) for c in cands]
     return np.concatenate(parts, axis=1) if parts else np.zeros((int(rows.sum()), 0, 3))
 
 
 def excitation(signals: dict[str, np.ndarray], residual: dict[str, np.ndarray], train: np.ndarray) -> dict[str, bool]:
-    """Target -> its reference carries more than its residual on every axis (RMS over the training rows):
-    the triad's signal is then mostly the true quantity, which determines a gain. A static gyro against
-    ref_gyr = 0 is not: its signal is its drifting bias, and a "gain" on it would absorb the bias's
-    temperature drift (pan_thermal: the temperature family, 91 % explained, was no longer selected).
+    """Target -> its reference varies more, on every axis, than what an offset and a gain matrix on the
+    triad's signal leave of its residual (standard deviations over the training rows): the signal then
+    carries the true quantity's variation, which determines a gain. A static gyro against ref_gyr = 0 does
+    not: its signal is its drifting bias, and a "gain" on it would absorb the bias's temperature drift
+    (pan_thermal: the temperature family, 91 % explained, was no longer selected). Measured against what
+    the linear calibration leaves rather than the raw residual, because an effect in the calibration
+    recording can bend `train`'s calibration into a residual larger than the reference (a magnetometer
+    200 ms late: 32 µT of residual against 29 µT of reference on x, yet a gain refit is what it needs).
     Decided once per set of residuals (Residuals.excited), for every candidate fitted on them."""
     out = {}
     for target, res in residual.items():
@@ -129,9 +141,13 @@ def excitation(signals: dict[str, np.ndarray], residual: dict[str, np.ndarray], 
             continue
         signal = np.column_stack([signals[f"{triad}_{a}"] for a in "xyz"])[train]
         ok = _finite(signal, res[train])
+        if ok.sum() <= 4:
+            out[target] = False
+            continue
+        X = np.column_stack([np.ones(int(ok.sum())), signal[ok]])
+        left = res[train][ok] - X @ np.linalg.lstsq(X, res[train][ok], rcond=None)[0]
         reference = signal[ok] - res[train][ok]
-        out[target] = bool(ok.any()) and bool(np.all(np.sqrt(np.mean(reference ** 2, axis=0))
-                                                     > np.sqrt(np.mean(res[train][ok] ** 2, axis=0))))
+        out[target] = bool(np.all(np.std(reference, axis=0) > np.std(left, axis=0)))
     return out
 
 
@@ -140,8 +156,11 @@ def refit_for(cands, target: str, r: Residuals) -> Candidate | None:
     when its reference excites the gain (Residuals.excited, `excitation`), except beside a time shift, whose column is the
     shift's linearisation: the gain would absorb the linearisation error, which the runtime's exact
     shift does not make (a gyro 7 samples early: held-out error 99.6 % lower without the refit, 85.8 %
-    with it)."""
-    if any(c.kind == "lag" for c in cands):
+    with it). A shift scanned beyond the linear range (Residuals.wide_shifts) is not linearised: its
+    column is the difference over the shift itself, and the calibration `train` fitted to the shifted
+    signal is refitted with it (a magnetometer 200 ms late in the calibration too: the shift alone
+    explains nothing)."""
+    if any(c.kind == "lag" and c.triad not in r.wide_shifts for c in cands):
         return None
     refit = linear_refit(target, r.signals)
     return refit if refit is not None and r.excited.get(target, False) else None

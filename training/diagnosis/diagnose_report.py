@@ -91,8 +91,8 @@ def write_report(out_dir: Path, result: dict, plot_data=None) -> Path:
             lines.append(f"| {k} | {s['name']} | {s['target']} | {', '.join(s['regressors'])} | "
                          f"{s['explained_fraction']:.1%} | {s['p_value']:.2g} | {it['before']:.4g} | "
                          f"{it['after']:.4g} | {'; '.join(s['readings'])} |")
-        lines += [""] + [f"- iteration {k}: {it['selected']['linear_refit_note']}"
-                         for k, it in enumerate(result["iterations"], 1) if it["selected"].get("linear_refit_note")] + [""]
+        lines += [""] + [f"- iteration {k}: {it['selected'][key]}" for key in ("stage_note", "linear_refit_note")
+                         for k, it in enumerate(result["iterations"], 1) if it["selected"].get(key)] + [""]
     lines += ["## Error per target, the whole loop", "", "| target | metric | before | after | lower |", "|---|---|---|---|---|"]
     for t, before in result["metrics_before"].items():
         after = result["metrics_after"][t]

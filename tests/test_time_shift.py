@@ -1,0 +1,61 @@
+"""The time-shift scan of `imufmu diagnose` (training.diagnosis.time_shift): a clock offset far beyond the
+central difference's linear range, in a calibration that `train` fitted to the shifted signal."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from training.diagnosis.time_shift import LINEAR_SAMPLES, beyond_linear, scan_shift, shift_column, shifted
+
+RATE_HZ = 100.0
+ROWS = 6000
+
+
+def _motion(seed: int) -> np.ndarray:
+    """(ROWS, 3) a smooth handheld-like field [µT]: sums of sines of 0.1-1.5 Hz."""
+    rng = np.random.default_rng(seed)
+    t = np.arange(ROWS) / RATE_HZ
+    f, phase, amp = rng.uniform(0.1, 1.5, (4, 3)), rng.uniform(0, 2 * np.pi, (4, 3)), rng.uniform(5, 20, (4, 3))
+    return np.sum(amp[:, None, :] * np.sin(2 * np.pi * f[:, None, :] * t[None, :, None] + phase[:, None, :]), axis=0)
+
+
+def _case(samples: int, seed: int = 0):
+    """(t, compensated x, residual x − ref, training rows): the raw triad lags the reference by `samples`,
+    and the calibration was fitted by least squares to that lagged signal, as `train` does when the
+    calibration recording has the lag too: its gain shrinks, or turns, with the motion's correlation over
+    the lag."""
+    t = np.arange(ROWS) / RATE_HZ
+    ref = _motion(seed)
+    raw = np.full_like(ref, np.nan)
+    raw[samples:] = ref[:ROWS - samples]
+    raw += 0.1 * np.random.default_rng(seed + 1).standard_normal(raw.shape)
+    ok = np.all(np.isfinite(raw), axis=1)
+    design = np.column_stack([np.ones(ROWS), raw])
+    x = design @ np.linalg.lstsq(design[ok], ref[ok], rcond=None)[0]
+    rows = np.zeros(ROWS, bool)
+    rows[2 * samples + 10:ROWS - samples - 10:2] = True
+    return t, x, x - ref, rows
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_the_scan_finds_a_shift_of_30_samples_through_the_calibration_it_bent(seed):
+    # the scan refits the offset and the gain at every shift: with the offset alone it reads 4 of these 6
+    # motions wrong
+    t, x, r, rows = _case(30, seed)
+    assert abs(scan_shift([(x, r, rows, RATE_HZ)], RATE_HZ) - 0.30) < 0.5 / RATE_HZ
+
+
+def test_no_shift_scans_to_none_and_keeps_the_central_difference():
+    t, x, r, rows = _case(0)
+    shift = scan_shift([(x, r, rows, RATE_HZ)], RATE_HZ)
+    assert abs(shift * RATE_HZ) <= LINEAR_SAMPLES and not beyond_linear(shift, RATE_HZ)
+    k = 3   # central difference over ±SHIFT_HALF_WIDTH: finite inside, NaN only at the ends
+    assert np.all(np.isfinite(shift_column(x, t, shift)[k:-k]))
+
+
+def test_the_wide_column_is_the_difference_over_the_shift():
+    t, x, _, _ = _case(0)
+    column = shift_column(x, t, 0.2)
+    n = np.arange(100, 200)
+    assert np.allclose(column[n], (x[n + 20] - x[n]) / 0.2)
+    assert np.all(np.isnan(column[-20:]))
