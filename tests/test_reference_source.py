@@ -170,3 +170,13 @@ def test_a_reference_slice_outside_the_eval_mask_trains_without_an_elm(broad_tri
     part = data.slice(slice(0, int(np.searchsorted(data.t, 7.0))))
     artefact = train([part], seed=0, progress=False, allow_identity=True)
     assert not artefact.settings["enable_elm"] and any(n.startswith("elm: fewer than") for n in artefact.notes)
+
+
+def test_a_setting_the_data_push_outside_the_fmu_range_is_held_at_its_bound_with_a_warning():
+    # a gyro bias at rest that the calibration does not explain asked for a rest threshold of 7 rad/s;
+    # the runtime refuses anything above 1 rad/s, and train stopped with its refusal
+    from training.recommend import held_in_range
+    notes: list[str] = []
+    held = held_in_range({"rest_gyro_threshold": 7.0, "gyro_noise": 1e-4}, notes)
+    assert held == {"rest_gyro_threshold": 1.0, "gyro_noise": 1e-4}
+    assert len(notes) == 1 and notes[0].startswith("warning: rest_gyro_threshold = 7 from the calibration data is outside the range the FMU accepts, [0, 1] rad/s; held at 1"), notes

@@ -12,7 +12,8 @@ from __future__ import annotations
 import numpy as np
 
 from contract.errors import ModelError
-from contract.layout import settings_defaults
+from contract.layout import SETTING_RANGES, settings_defaults
+from contract.schema import number_text, range_text, setting_problem
 from training.data.dataset import ImuData
 from training.data.reference import true_runs
 from training.data.reference_source import TriadReference
@@ -203,4 +204,23 @@ def recommended_settings(datasets: list[ImuData], refs: dict[str, TriadReference
     settings.update(acc_norm_tolerance_setting(datasets, thermal["acc"], notes))
     settings.update(_pf_settings(datasets, thermal["mag"], settings["field_norm"], notes))
     settings.update(recommended_mounting(datasets, notes))
-    return settings
+    return held_in_range(settings, notes)
+
+
+def held_in_range(settings: dict[str, float], notes: list[str]) -> dict[str, float]:
+    """`settings` with every finite real value the data gave outside the range the FMU accepts held at the
+    nearest bound, and a warning for each: the data asked for something the runtime refuses (a gyro bias at
+    rest that the calibration does not explain, 0.8 °/s per volt of an unrecorded supply sag × 520: a rest
+    threshold of several rad/s, and `train` stopped with the runtime's refusal)."""
+    out = dict(settings)
+    for name, value in settings.items():
+        problem = setting_problem(name, value)
+        r = SETTING_RANGES.get(name)
+        if problem is None or r is None or r.type != "Real" or not np.isfinite(value):
+            continue
+        low = np.nextafter(r.min, r.max) if r.min_open else r.min
+        out[name] = float(min(max(value, low), np.nextafter(r.max, r.min) if r.max_open else r.max))
+        notes.append(f"warning: {name} = {number_text(value)} from the calibration data is outside the range the FMU "
+                     f"accepts, {range_text(name)}; held at {number_text(out[name])}: the data do not fit what the "
+                     "FMU can represent — check the recordings (rests, units, disturbances)")
+    return out
