@@ -14,6 +14,9 @@
    ones and the one that improves the held-out residual most is added while it is significant and
    explains at least MIN_EXPLAINED of what is left — so a lever arm with its centripetal part, or a
    g-sensitivity with a lag, is found as one effect.
+   The same sweep runs with each trained neural stage that is on switched off (the ELM after the
+   magnetometer, the PSO-BP network after the gyroscope: trained on calibration data that carried the
+   effect, they learned part of it); its effect competes through the runtime (_proposals).
 4. Carry the effect (training.diagnosis.diagnose_export), rerun the runtime, measure before/after on the
    held-out blocks, iterate.
 """
