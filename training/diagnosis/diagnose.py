@@ -453,8 +453,9 @@ def _accepted(before: float, after: float, stage: str) -> bool:
 
 
 def _stage_note(stage: str, before: float, after: float) -> str:
-    return (f"{stage} = 0: the trained stage learned part of this effect from the calibration data; with it off, "
-            f"the effect, the linear refit and the bias model leave {after:.4g} against {before:.4g} with it on"
+    """The report's line for an effect that switched a trained stage off ('' when none did)."""
+    return (f"{stage} = 0: the trained stage had learned part of this effect from the calibration data; with it "
+            f"off, the effect as fitted leaves {after:.4g} on the held-out rows against {before:.4g} with it on"
             if stage else "")
 
 
