@@ -59,3 +59,17 @@ def test_the_wide_column_is_the_difference_over_the_shift():
     n = np.arange(100, 200)
     assert np.allclose(column[n], (x[n + 20] - x[n]) / 0.2)
     assert np.all(np.isnan(column[-20:]))
+
+
+def test_at_a_high_rate_the_coarse_pass_and_its_refinement_find_the_shift_to_the_sample():
+    # at 300 Hz the first pass tries every 3rd sample; 61 samples is between two of them
+    rate, samples = 300.0, 61
+    t = np.arange(3 * ROWS) / rate
+    rng = np.random.default_rng(5)
+    f, phase, amp = rng.uniform(0.1, 1.5, (4, 3)), rng.uniform(0, 2 * np.pi, (4, 3)), rng.uniform(5, 20, (4, 3))
+    ref = np.sum(amp[:, None, :] * np.sin(2 * np.pi * f[:, None, :] * t[None, :, None] + phase[:, None, :]), axis=0)
+    x = np.full_like(ref, np.nan)
+    x[samples:] = ref[:-samples]
+    rows = np.zeros(len(t), bool)
+    rows[2 * samples:-2 * samples:6] = True
+    assert scan_shift([(x, x - ref, rows, rate)], rate) == pytest.approx(samples / rate)
