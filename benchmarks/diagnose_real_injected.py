@@ -147,6 +147,8 @@ def run_case(name: str, data_dir: Path, out: Path, scale: float = 1.0) -> dict:
             "effect_rms": scale * effect_rms,
             "found": bool(found), "readings": [x for it in found for x in it["selected"]["readings"]],
             "max_reading_error": max(abs(read[k] - v) / abs(v) for k, v in injected.items()),
+            "norm_reading_error": float(np.linalg.norm([read[k] - v for k, v in injected.items()])
+                                        / np.linalg.norm(list(injected.values()))),
             "before": result["metrics_before"][target], "after": result["metrics_after"][target],
             "metric": result["metric_names"][target], "selected": [it["selected"]["name"] + " -> " + it["target"]
                                                                    for it in result["iterations"]],
@@ -173,14 +175,16 @@ def _limit_text(limit: dict | None) -> str:
 
 def _table(rows: list[dict]) -> str:
     lines = ["| case | data | size | effect RMS | family on target | found | reading | largest reading error | "
+             "reading error of the whole (norm) | "
              "target's held-out error, before → after the loop | detection limit of the family after the loop | "
              "everything selected |",
-             "|---|---|---|---|---|---|---|---|---|---|---|"]
+             "|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for r in rows:
         size = "issue's" if r["scale"] == 1.0 else f"× {r['scale']:g}"
         lines.append(f"| {r['case']} | {r['data']} | {size} | {r['effect_rms']:.3g} | {r['family']} on {r['target']} | "
                      f"{'yes' if r['found'] else 'no'} | "
                      f"{'; '.join(r['readings']) or '–'} | {100 * r['max_reading_error']:.1f} % | "
+                     f"{100 * r['norm_reading_error']:.1f} % | "
                      f"{r['before']:.4g} → {r['after']:.4g} ({r['metric']}) | {_limit_text(r['limit'])} | "
                      f"{'; '.join(r['selected']) or 'nothing'} |")
     return "\n".join(lines)

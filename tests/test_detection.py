@@ -75,39 +75,3 @@ def test_a_family_the_residual_holds_already_is_reported_present(setting):
     c = next(c for c in candidates if c.target == "gyr" and c.name == "temperature")
     assert _selected_directly(r, c, np.zeros_like(r.residual["gyr"]), rule)
     assert detection.detection_limit(r, c, rule, rate)["status"] == detection.PRESENT
-
-
-@pytest.fixture(scope="module")
-def derived_rate(tmp_path_factory):
-    """The simulated diagnosis recording with its rate reference removed (derived again from ref_q by a
-    smoothed derivative when loaded), a model trained on the clean calibration, and the true rate."""
-    from training.data.io import write_imu_csv
-    from training.diagnosis.diagnose import load_recordings
-    from training.train import train
-    tmp = tmp_path_factory.mktemp("derived_rate")
-    data = simulate(load_scenario(SCENARIO_DIR / "variants" / "diag_effects.toml"))
-    model = train([simulate(load_scenario(SCENARIO_DIR / "variants" / "diag_calibration_clean.toml"))], seed=0,
-                  progress=False)
-    datasets, _, smoothed = load_recordings([write_imu_csv(replace(data, ref_gyr=None), tmp / "no_rate.csv.gz")])
-    return model, datasets[0], smoothed, data.ref_gyr
-
-
-def test_a_derived_rate_reference_is_met_by_the_rate_filtered_as_it_was(derived_rate):
-    """Issue 30 item 3: a rate reference differentiated from the attitude with smoothing (0.1 s
-    Savitzky-Golay) lacks the motion's fast part, which the compensated rate has; the diagnosis filters
-    the compensated rate the same way (training.data.reference.matched_raw). Its residual is then within
-    the gyro's own error against the TRUE rate (bound: 1.2× that RMS, the filter's averaging of noise
-    only lowers it); unmatched, the reference's smoothing of the handheld motion is several times
-    larger and no family explains it."""
-    model, data, smoothed, true_rate = derived_rate
-    assert smoothed == [True]
-    targets = {"gyr": "triad"}
-    matched = _rms(residuals(model, [data], targets, smoothed).residual["gyr"])
-    unmatched = _rms(residuals(model, [data], targets).residual["gyr"])
-    against_truth = _rms(residuals(model, [replace(data, ref_gyr=true_rate)], targets).residual["gyr"])
-    assert matched <= 1.2 * against_truth < unmatched / 2.0, (matched, against_truth, unmatched)
-
-
-def _rms(e: np.ndarray) -> float:
-    e = e[np.all(np.isfinite(e), axis=1)]
-    return float(np.sqrt(np.mean(e * e)))

@@ -72,21 +72,26 @@ def rate_from_attitude(t: np.ndarray, q: np.ndarray) -> np.ndarray:
 
 def matched_raw(data: ImuData, triad: str) -> np.ndarray:
     """The raw triad (N, 3) filtered as its derived reference is: the rate reference is the
-    Savitzky-Golay derivative of the attitude, a low-pass, so the raw rate is integrated and
-    differentiated by the same filter (a linear, unit-DC-gain filter: a gain/bias model fitted on the
-    filtered pair holds for the raw signal). Regressing the raw rate on the smoothed reference would
-    shrink the gains (BROAD: 0.95 instead of 1). The field reference is not filtered; neither is the
-    raw field. Specific force: returned unfiltered (its kinematic part is smoothed over
-    ACCEL_WINDOW_S, gravity is not). The gyro is integrated with the trapezoidal rule, which puts
-    the rate at the sample times (the rectangle rule Σ ω_k·Δt_k would advance it by ½ sample);
-    an interval touching a non-finite sample adds nothing, and the angle stays NaN at such samples."""
+    Savitzky-Golay derivative of the attitude, a low-pass, so the raw rate goes through the same filter
+    (rate_filter). Regressing the raw rate on the smoothed reference would shrink the gains (BROAD:
+    0.95 instead of 1). The field reference is not filtered; neither is the raw field. Specific force:
+    returned unfiltered (its kinematic part is smoothed over ACCEL_WINDOW_S, gravity is not)."""
     raw = np.asarray(getattr(data, triad), dtype=np.float64)
-    if triad != "gyr":
-        return raw
-    inc = 0.5 * (raw[1:] + raw[:-1]) * np.diff(data.t)[:, None]
-    angle = np.cumsum(np.concatenate([np.zeros_like(raw[:1]), np.where(np.isfinite(inc), inc, 0.0)]), axis=0)
-    angle[~np.all(np.isfinite(raw), axis=1)] = np.nan
-    return _derivative(angle, data.t, RATE_WINDOW_S, 1)
+    return rate_filter(raw, data.t) if triad == "gyr" else raw
+
+
+def rate_filter(x: np.ndarray, t: np.ndarray) -> np.ndarray:
+    """(N, k) columns of a rate-like signal filtered as the derived rate reference is: integrated and
+    differentiated by the reference's Savitzky-Golay filter (a linear, unit-DC-gain filter: a gain/bias
+    model fitted on the filtered pair holds for the raw signal, and an effect in the raw rate reaches the
+    residual against the reference filtered so). Trapezoidal rule, which puts the rate at the sample
+    times (the rectangle rule Σ x_k·Δt_k would advance it by ½ sample); an interval touching a non-finite
+    sample adds nothing, and the result stays NaN at such samples."""
+    x = np.asarray(x, dtype=np.float64)
+    inc = 0.5 * (x[1:] + x[:-1]) * np.diff(t)[:, None]
+    angle = np.cumsum(np.concatenate([np.zeros_like(x[:1]), np.where(np.isfinite(inc), inc, 0.0)]), axis=0)
+    angle[~np.all(np.isfinite(x), axis=1)] = np.nan
+    return _derivative(angle, t, RATE_WINDOW_S, 1)
 
 
 def derive_references(data: ImuData) -> tuple[ImuData, list[str]]:

@@ -19,8 +19,8 @@ from whatever signals are present:
   correction terms (sources/ImuTerms.h), exactly what the fit sees. They share the target's noise,
   so they are fitted with instruments (training.diagnosis.diagnose_fit);
 - the target's own time shift (a lag against the reference), when the target has a reference: its
-  column is the central difference, or the difference over the shift scanned up to ±0.5 s when that is
-  beyond the linear range (training.diagnosis.time_shift);
+  column is the difference over the whole-sample shift scanned up to ±0.5 s, or the central difference
+  when the scan finds none (training.diagnosis.time_shift);
 - a lever arm of the accelerometer, ω̇×r + ω×(ω×r);
 - every `aux_*` column alone (except the reference's `aux_pos_*`); several join one effect only by
   forward selection, each column on its own held-out merit (a family of all columns together took a

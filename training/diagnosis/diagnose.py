@@ -35,7 +35,7 @@ from training.artefact import NEURAL_STAGES, ModelArtefact, coefficients_array, 
 from training.data.dataset import ImuData
 from training.data.earth import local_gravity
 from training.data.io import read_imu_csv
-from training.data.reference import derive_references, matched_raw
+from training.data.reference import derive_references
 from training.diagnosis.candidates import (BIAS_MODEL, TRIAD_NAMES, build_candidates, central_differences,
                                            instrument_signals, triad_signals)
 from training.diagnosis.diagnose_export import add_effect, aux_slots_needed, refit_note, refit_summary, term_count
@@ -43,6 +43,7 @@ from training.diagnosis.detection import Rule, detection_limits
 from training.diagnosis.diagnose_fit import (Fit, Residuals, excitation, fit_candidates, metric, offset_fit,
                                              predict)
 from training.diagnosis.effect_readings import DISPLAY, readings
+from training.diagnosis.rate_means import MEAN_WINDOW_S, as_compared, compared_residual
 from training.diagnosis.time_shift import WideShift, beyond_linear, scan_shift, shift_column, shifted
 from training.main_job import recording_parameters
 from training.runtime import run_batch, term_signals
@@ -154,14 +155,15 @@ def _signals(d: ImuData, out0: np.ndarray) -> dict[str, np.ndarray]:
 def _residual(target: str, kind: str, d: ImuData, out: np.ndarray, fitted: np.ndarray, smoothed: bool):
     """(residual (N, m), unit vectors (N, 3) or None) of one target. smoothed: the recording's rate
     reference is the smoothed derivative of its attitude reference (training.data.reference), so the
-    compensated rate is filtered as it was (matched_raw): otherwise the reference's smoothing of the
-    motion is part of the residual (BROAD 02: 9.3, 3.0, 2.9 °/s RMS per axis unfiltered, 5.0, 1.4, 1.4
-    matched), which no family explains and which hides every smaller effect."""
+    compensated rate goes through the same filter and both are compared as window means
+    (training.diagnosis.rate_means): unfiltered, the reference's smoothing of the motion is part of the
+    residual (BROAD 02: 9.3, 3.0, 2.9 °/s RMS per axis unfiltered, 5.0, 1.4, 1.4 filtered), and sample
+    by sample, its differentiated attitude noise (ibid.)."""
     triad = target.split("_")[0]
     comp = out[:, _SLICES[triad]]
     if kind == "triad":
         if smoothed and triad == "gyr":
-            comp = matched_raw(replace(d, gyr=comp), "gyr")
+            return compared_residual(comp, d.ref_gyr, d.t), None
         return comp - getattr(d, f"ref_{triad}"), None
     norm = np.linalg.norm(comp, axis=1)
     r = norm - _reference_norm(target, d, comp, fitted)
@@ -191,8 +193,8 @@ def _scanned_shift_columns(parts: list[dict], triads: list[str]) -> dict[str, fl
     wide = {}
     for triad in triads:
         cols = _SLICES[triad]
-        shift = scan_shift([(p["out0"][:, cols], p["res"][triad][0], p["train"], rate) for p, rate in zip(parts, rates)],
-                           float(np.median(rates)))
+        shift = scan_shift([(_as_residual(triad, p, p["out0"][:, cols]), p["res"][triad][0], p["train"], rate)
+                            for p, rate in zip(parts, rates)], float(np.median(rates)))
         if beyond_linear(shift, float(np.median(rates))):
             wide[triad] = shift
         for p in parts:
@@ -200,6 +202,12 @@ def _scanned_shift_columns(parts: list[dict], triads: list[str]) -> dict[str, fl
             p["signals"].update({f"dc_{triad}_{a}": column[:, k] for k, a in enumerate("xyz")})
             p.setdefault("shifted", {})[triad] = shifted(p["out0"][:, cols], p["t"], shift)
     return wide
+
+
+def _as_residual(triad: str, part: dict, x: np.ndarray) -> np.ndarray:
+    """x (N, 3) of a triad as it reaches the recording's residual: as rate means when the rate reference is
+    the derived one (_residual), else as is."""
+    return as_compared(x, part["t"]) if triad == "gyr" and part["matched"][0] else x
 
 
 def _wide_shift(triad: str, shift_s: float, parts: list[dict], signals: dict[str, np.ndarray],
@@ -227,7 +235,7 @@ def residuals(artefact: ModelArtefact, datasets: list[ImuData], targets: dict[st
         mask = np.ones(len(d), bool) if d.eval_mask is None else d.eval_mask.astype(bool)
         res = {t: _residual(t, kind, d, out, ~held, smoothed[k]) for t, kind in targets.items()}
         parts.append(dict(t=d.t, signals=_signals(d, out0), res=res, train=sampled & ~held, test=sampled & held,
-                          holdout=held & mask, fitted=~held, out0=out0,
+                          holdout=held & mask, fitted=~held, out0=out0, matched=np.full(len(d), smoothed[k]),
                           block=np.where(held, k * HOLDOUT_EVERY * BLOCKS + block, -1)))
     wide_shifts = _scanned_shift_columns(parts, [t for t, kind in targets.items() if kind == "triad"])
     keys = set.intersection(*(set(p["signals"]) for p in parts))
@@ -235,13 +243,15 @@ def residuals(artefact: ModelArtefact, datasets: list[ImuData], targets: dict[st
     starts = np.cumsum([0] + [len(d) for d in datasets[:-1]])
     residual = {t: np.concatenate([p["res"][t][0] for p in parts]) for t in targets}
     rows = {k: np.concatenate([p[k] for p in parts]) for k in ("train", "test", "holdout", "fitted", "block")}
+    matched = np.concatenate([p["matched"] for p in parts])
     return Residuals(
         t=np.concatenate([p["t"] for p in parts]), starts=starts, signals=signals,
         instruments={triad: instrument_signals(signals, triad, starts) for triad in TRIAD_NAMES},
         residual=residual,
         direction={t: np.concatenate([p["res"][t][1] for p in parts]) for t in targets if targets[t] == "norm"},
         excited=excitation(signals, residual, rows["train"]),
-        wide_shifts={triad: _wide_shift(triad, s, parts, signals, starts) for triad, s in wide_shifts.items()}, **rows)
+        wide_shifts={triad: _wide_shift(triad, s, parts, signals, starts) for triad, s in wide_shifts.items()},
+        matched={t: matched for t, kind in targets.items() if kind == "triad" and t == "gyr" and matched.any()}, **rows)
 
 
 def paired_metric(before: Residuals, after: Residuals, target: str) -> tuple[float, float]:
@@ -254,10 +264,13 @@ def paired_metric(before: Residuals, after: Residuals, target: str) -> tuple[flo
     return tuple(metric(replace(r, holdout=r.holdout & both), target) for r in (before, after))
 
 
-def metric_name(target: str) -> str:
-    """'rate error RMS (held-out), °/s' style name of the target's metric."""
+def metric_name(target: str, r: Residuals) -> str:
+    """'rate error RMS (held-out), °/s' style name of the target's metric; 'rate error RMS of 1 s means'
+    where its residual compares rate means (Residuals.matched, training.diagnosis.rate_means)."""
     triad = target.split("_")[0]
-    return f"{'norm ' if target.endswith('_norm') else ''}{_METRIC_NAMES[triad]} (held-out), {DISPLAY[triad][0]}"
+    means = f" of {MEAN_WINDOW_S:g} s means" if target in r.matched else ""
+    return (f"{'norm ' if target.endswith('_norm') else ''}{_METRIC_NAMES[triad]}{means} (held-out), "
+            f"{DISPLAY[triad][0]}")
 
 
 def _uses_time(fit: Fit) -> bool:
@@ -497,7 +510,7 @@ def _iterate(artefact: ModelArtefact, datasets: list[ImuData], targets: dict[str
                                         "linear_refit": refit_summary(effect), "linear_refit_note": refit_note(effect),
                                         "stage_off": stage or None, "stage_note": _stage_note(stage, before, after),
                                         "readings": readings(effect, rate, units, _lag_changes(art, new))},
-                           "target": effect.target, "metric": metric_name(effect.target),
+                           "target": effect.target, "metric": metric_name(effect.target, rr),
                            "before": before, "after": after,
                            "candidates": [_candidate_json(f) for f in fits[:10]]})
         plot_data = plot_data or (rr, r_new, effect, predict(effect, rr))
@@ -549,7 +562,7 @@ def diagnose(paths: list[Path], model_path: Path, out_dir: Path, seed: int = 0,
                                     {k: v["unit"] for k, v in _aux_info(datasets).items() if "unit" in v}, progress)
     before, after = start[target], metric(r, target)
     result = {
-        "target": target, "metric": metric_name(target),
+        "target": target, "metric": metric_name(target, r0),
         "candidates": [_candidate_json(f) for f in first_fits],
         "selected": ({k: first["selected"][k] for k in ("name", "target", "regressors", "families", "readings")}
                      if first else None),
@@ -558,7 +571,7 @@ def diagnose(paths: list[Path], model_path: Path, out_dir: Path, seed: int = 0,
         "iterations": iterations,
         "metrics_before": {t: start[t] for t in targets},
         "metrics_after": {t: metric(r, t) for t in targets},
-        "metric_names": {t: metric_name(t) for t in targets},
+        "metric_names": {t: metric_name(t, r0) for t in targets},
         "detection_limits": found_limits,
         "recordings": [{"name": d.name, "samples": len(d)} for d in datasets],
         "holdout": f"every {HOLDOUT_EVERY}rd of {HOLDOUT_EVERY * BLOCKS} contiguous blocks of each recording",

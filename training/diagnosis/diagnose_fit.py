@@ -27,6 +27,7 @@ import numpy as np
 from scipy import stats
 
 from training.diagnosis.candidates import LINEAR_REFIT, Candidate, column_effects, linear_refit
+from training.diagnosis.rate_means import as_compared
 from training.diagnosis.time_shift import WideShift
 from training.display import DISPLAY
 
@@ -55,6 +56,8 @@ class Residuals:
     block: np.ndarray                      # (N,) held-out block id (−1 in the training blocks)
     excited: dict[str, bool]               # target -> its gain is refitted with every family (excitation)
     wide_shifts: dict[str, WideShift] = field(default_factory=dict)  # triad -> its shift scanned beyond the linear range
+    matched: dict[str, np.ndarray] = field(default_factory=dict)  # target -> (N,) bool, rows compared as rate means (rate_means)
+    compared: dict = field(default_factory=dict, repr=False, compare=False)  # memo of _compared_product
 
 
 @dataclass
@@ -119,8 +122,36 @@ def _signals_of(c: Candidate, cands, r: Residuals, instrument: bool) -> dict[str
 
 def _effects(cands, r: Residuals, rows: np.ndarray, instrument: bool) -> np.ndarray:
     """(n, J, 3) column effects of the candidates at rows (instrument columns if asked and own)."""
-    parts = [column_effects(c, _signals_of(c, cands, r, instrument), rows) for c in cands]
+    parts = [_column_effects(c, _signals_of(c, cands, r, instrument), r, rows) for c in cands]
     return np.concatenate(parts, axis=1) if parts else np.zeros((int(rows.sum()), 0, 3))
+
+
+def _column_effects(c: Candidate, signals: dict[str, np.ndarray], r: Residuals, rows: np.ndarray) -> np.ndarray:
+    """column_effects of c at rows; where the target's residual compares a rate with a rate reference
+    derived from the attitude (Residuals.matched), the columns as they reach that residual, over each
+    recording (training.diagnosis.rate_means.as_compared): an effect in the raw rate reaches it filtered,
+    and the unfiltered column differs from it by 12-20 % of its size on hand-held motion even before the
+    means (BROAD 02 through the 0.1 s derivative filter: ω|ω| 14-16 %, ω_x·ω_z 20 %)."""
+    if not r.matched.get(c.target, np.zeros(1, bool)).any():
+        return column_effects(c, signals, rows)
+    out = np.zeros((int(np.count_nonzero(rows)) if rows.dtype == bool else len(rows), len(c.columns), 3))
+    for j, column in enumerate(c.columns):
+        for k, a, b, w in column:
+            out[:, j, k] += w * _compared_product(r, c.target, signals, a, b)[rows]
+    return out
+
+
+def _compared_product(r: Residuals, target: str, signals: dict[str, np.ndarray], a: str, b: str | None) -> np.ndarray:
+    """(N,) the regressor s[a]·s[b] as it reaches the target's residual (rate_means.as_compared on the
+    recordings in Residuals.matched[target]), memoised per signal set in Residuals.compared (the entry keeps
+    its signal dict alive, so its id is not reused)."""
+    memo = r.compared.setdefault((target, id(signals)), (signals, {}))[1]
+    if (a, b) not in memo:
+        x = signals[a] * (1.0 if b is None else signals[b])
+        mask, bounds = r.matched[target], list(r.starts) + [len(r.t)]
+        memo[(a, b)] = np.concatenate([as_compared(x[lo:hi, None], r.t[lo:hi])[:, 0] if mask[lo] else x[lo:hi]
+                                       for lo, hi in zip(bounds[:-1], bounds[1:])])
+    return memo[(a, b)]
 
 
 def excitation(signals: dict[str, np.ndarray], residual: dict[str, np.ndarray], train: np.ndarray) -> dict[str, bool]:
@@ -153,13 +184,14 @@ def excitation(signals: dict[str, np.ndarray], residual: dict[str, np.ndarray], 
 
 def refit_for(cands, target: str, r: Residuals) -> Candidate | None:
     """The linear refit fitted with `cands`: the target's (training.diagnosis.candidates.linear_refit)
-    when its reference excites the gain (Residuals.excited, `excitation`), except beside a time shift, whose column is the
-    shift's linearisation: the gain would absorb the linearisation error, which the runtime's exact
-    shift does not make (a gyro 7 samples early: held-out error 99.6 % lower without the refit, 85.8 %
-    with it). A shift scanned beyond the linear range (Residuals.wide_shifts) is not linearised: its
-    column is the difference over the shift itself, and the calibration `train` fitted to the shifted
-    signal is refitted with it (a magnetometer 200 ms late in the calibration too: the shift alone
-    explains nothing)."""
+    when its reference excites the gain (Residuals.excited, `excitation`), except beside a time shift whose
+    column is the central difference, the shift's linearisation: the gain would absorb the linearisation
+    error, which the runtime's exact shift does not make (a gyro 7 samples early: held-out error 99.6 %
+    lower without the refit, 85.8 % with it). A whole-sample shift found by the scan (Residuals.wide_shifts,
+    time_shift.LINEAR_SAMPLES) is not linearised: its column is the difference over the shift itself, and
+    the calibration `train` fitted to the shifted signal is refitted with it (a magnetometer 200 ms late
+    in the calibration too: the shift alone explains nothing; BROAD's gyro 1.2 samples behind its optical
+    reference: never selected without the refit)."""
     if any(c.kind == "lag" and c.triad not in r.wide_shifts for c in cands):
         return None
     refit = linear_refit(target, r.signals)
