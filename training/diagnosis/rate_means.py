@@ -15,8 +15,8 @@ MEAN_WINDOW_S = 1 s keeps the motion of hand-held, vehicle and robot recordings 
 (the increments still vary from one second to the next) and averages the differentiated noise of a
 0.1 s derivative about 25-fold in power. Measured with it on BROAD (effects injected into the
 calibration and the diagnosed recordings, docs/diagnosis/README.md): a rate nonlinearity of
-0.5 %/(rad/s) is read within 20 %, a g-sensitivity and a supply-voltage bias within 16 % and 7 %; without
-it none of the three is selected. A rate reference that is measured (ref_gyr in the recording, a rate
+0.5 %/(rad/s) is read within 20 % per axis, a g-sensitivity matrix within 12 % (Frobenius norm) and a
+supply-voltage bias within 7 %; without it none of the three is selected. A rate reference that is measured (ref_gyr in the recording, a rate
 table, a simulation) is compared sample by sample.
 """
 from __future__ import annotations
