@@ -43,7 +43,7 @@ from training.diagnosis.detection import Rule, detection_limits
 from training.diagnosis.diagnose_fit import (Fit, Residuals, excitation, fit_candidates, metric, offset_fit,
                                              predict)
 from training.diagnosis.effect_readings import DISPLAY, readings
-from training.diagnosis.rate_means import MEAN_WINDOW_S, as_compared, compared_residual
+from training.diagnosis import rate_means
 from training.diagnosis.time_shift import WideShift, beyond_linear, scan_shift, shift_column, shifted
 from training.main_job import recording_parameters
 from training.runtime import run_batch, term_signals
@@ -162,8 +162,8 @@ def _residual(target: str, kind: str, d: ImuData, out: np.ndarray, fitted: np.nd
     triad = target.split("_")[0]
     comp = out[:, _SLICES[triad]]
     if kind == "triad":
-        if smoothed and triad == "gyr":
-            return compared_residual(comp, d.ref_gyr, d.t), None
+        if smoothed and triad == rate_means.TRIAD:
+            return rate_means.compared_residual(comp, getattr(d, f"ref_{triad}"), d.t), None
         return comp - getattr(d, f"ref_{triad}"), None
     norm = np.linalg.norm(comp, axis=1)
     r = norm - _reference_norm(target, d, comp, fitted)
@@ -207,7 +207,7 @@ def _scanned_shift_columns(parts: list[dict], triads: list[str]) -> dict[str, fl
 def _as_residual(triad: str, part: dict, x: np.ndarray) -> np.ndarray:
     """x (N, 3) of a triad as it reaches the recording's residual: as rate means when the rate reference is
     the derived one (_residual), else as is."""
-    return as_compared(x, part["t"]) if triad == "gyr" and part["matched"][0] else x
+    return rate_means.as_compared(x, part["t"]) if triad == rate_means.TRIAD and part["matched"][0] else x
 
 
 def _wide_shift(triad: str, shift_s: float, parts: list[dict], signals: dict[str, np.ndarray],
@@ -251,7 +251,8 @@ def residuals(artefact: ModelArtefact, datasets: list[ImuData], targets: dict[st
         direction={t: np.concatenate([p["res"][t][1] for p in parts]) for t in targets if targets[t] == "norm"},
         excited=excitation(signals, residual, rows["train"]),
         wide_shifts={triad: _wide_shift(triad, s, parts, signals, starts) for triad, s in wide_shifts.items()},
-        matched={t: matched for t, kind in targets.items() if kind == "triad" and t == "gyr" and matched.any()}, **rows)
+        matched={t: matched for t, kind in targets.items() if kind == "triad" and t == rate_means.TRIAD and matched.any()},
+        **rows)
 
 
 def paired_metric(before: Residuals, after: Residuals, target: str) -> tuple[float, float]:
@@ -268,7 +269,7 @@ def metric_name(target: str, r: Residuals) -> str:
     """'rate error RMS (held-out), °/s' style name of the target's metric; 'rate error RMS of 1 s means'
     where its residual compares rate means (Residuals.matched, training.diagnosis.rate_means)."""
     triad = target.split("_")[0]
-    means = f" of {MEAN_WINDOW_S:g} s means" if target in r.matched else ""
+    means = f" of {rate_means.MEAN_WINDOW_S:g} s means" if target in r.matched else ""
     return (f"{'norm ' if target.endswith('_norm') else ''}{_METRIC_NAMES[triad]}{means} (held-out), "
             f"{DISPLAY[triad][0]}")
 
@@ -393,7 +394,8 @@ def load_recordings(paths: list[Path]) -> tuple[list[ImuData], list[str], list[b
         data, derived = derive_references(raw)
         datasets.append(data)
         notes += [f"{data.name}: {n}" for n in derived]
-        smoothed.append(raw.ref_gyr is None and data.ref_gyr is not None)
+        name = f"ref_{rate_means.TRIAD}"
+        smoothed.append(getattr(raw, name) is None and getattr(data, name) is not None)
     return datasets, notes, smoothed
 
 

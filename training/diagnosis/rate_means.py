@@ -28,6 +28,8 @@ from training.data.reference import rate_filter
 
 #: Window [s] of the means a rate and its derived reference are compared over (see the module docstring).
 MEAN_WINDOW_S = 1.0
+#: The triad whose reference, when derived from the attitude, is a rate compared so.
+TRIAD = "gyr"
 
 
 def window_mean(x: np.ndarray, t: np.ndarray) -> np.ndarray:
