@@ -427,12 +427,17 @@ def _sweep(current: ModelArtefact, r: Residuals, targets: dict[str, str], reject
     return fits, (None if best is None else _grow(best, candidates, r, base[best.target], current)), why
 
 
-def _stage_off(artefact: ModelArtefact, triad: str) -> tuple[ModelArtefact, str] | None:
-    """(the artefact with the triad's neural stage switched off, the stage's setting) when it has one on."""
-    stage = NEURAL_STAGES.get(triad)
-    if stage is None or not artefact.settings.get(stage[1]):
-        return None
-    return replace(artefact, settings={**artefact.settings, stage[1]: 0.0}), stage[1]
+#: triad -> the settings of the stages after its calibration that carry an effect of the calibration data: the
+#: neural stages it trained (training.artefact.NEURAL_STAGES) and, for the field, the particle filter, which
+#: follows the hard and soft iron online: a switched current's field is a hard-iron change to it, and `train`
+#: switches it on when the calibration recordings show such changes (BROAD with a motor current injected).
+STAGES = {triad: (setting,) + (("enable_pf",) if triad == "mag" else ()) for triad, (_, setting) in NEURAL_STAGES.items()}
+
+
+def _stages_off(artefact: ModelArtefact, triad: str) -> list[tuple[ModelArtefact, str]]:
+    """(the artefact with one of the triad's STAGES switched off, its setting) for each that is on."""
+    return [(replace(artefact, settings={**artefact.settings, setting: 0.0}), setting)
+            for setting in STAGES.get(triad, ()) if artefact.settings.get(setting)]
 
 
 def _proposals(current: ModelArtefact, r: Residuals, datasets: list[ImuData], targets: dict[str, str],
@@ -447,16 +452,14 @@ def _proposals(current: ModelArtefact, r: Residuals, datasets: list[ImuData], ta
     fits, effect, notes = _sweep(current, r, targets, rejected[""], f"diagnose: candidates, iteration {attempt}",
                                  progress)
     out = [] if effect is None else [(current, r, effect, "")]
-    for triad in NEURAL_STAGES:
-        own = {t: kind for t, kind in targets.items() if t.split("_")[0] == triad and kind == "triad"}
-        off = _stage_off(current, triad)
-        if off is None or not own:
-            continue
-        r_off = residuals(off[0], datasets, own, smoothed)
-        _, found, _ = _sweep(off[0], r_off, own, rejected[off[1]],
-                             f"diagnose: candidates with {off[1]} = 0, iteration {attempt}", progress)
-        if found is not None:
-            out.append((off[0], r_off, found, off[1]))
+    for triad in STAGES:
+        own = {t: kind for t, kind in targets.items() if t.split("_")[0] == triad}
+        for off, setting in (_stages_off(current, triad) if own else []):
+            r_off = residuals(off, datasets, own, smoothed)
+            _, found, _ = _sweep(off, r_off, own, rejected[setting],
+                                 f"diagnose: candidates with {setting} = 0, iteration {attempt}", progress)
+            if found is not None:
+                out.append((off, r_off, found, setting))
     return fits, notes, out
 
 
@@ -469,7 +472,9 @@ def _accepted(before: float, after: float, stage: str) -> bool:
 
 def _stage_note(stage: str, before: float, after: float) -> str:
     """The report's line for an effect that switched a trained stage off ('' when none did)."""
-    return (f"{stage} = 0: the trained stage had learned part of this effect from the calibration data; with it "
+    what = ("the online filter followed part of this effect as a hard- or soft-iron change" if stage == "enable_pf"
+            else "the trained stage had learned part of this effect from the calibration data")
+    return (f"{stage} = 0: {what}; with it "
             f"off, the effect as fitted leaves {after:.4g} on the held-out rows against {before:.4g} with it on"
             if stage else "")
 
@@ -481,7 +486,7 @@ def _iterate(artefact: ModelArtefact, datasets: list[ImuData], targets: dict[str
     current, iterations, first, plot_data, notes = artefact, [], None, None, []
     rate, info = _rate(datasets), _aux_info(datasets)
     units = {k: v["unit"] for k, v in info.items() if "unit" in v}
-    rejected: dict[str, set[tuple[str, str]]] = {"": set(), **{s[1]: set() for s in NEURAL_STAGES.values()}}
+    rejected: dict[str, set[tuple[str, str]]] = {"": set(), **{s: set() for ss in STAGES.values() for s in ss}}
     attempts = 0
     while len(iterations) < max_iterations and attempts < max_iterations + MAX_REJECTED:
         attempts += 1
