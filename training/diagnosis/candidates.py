@@ -167,17 +167,27 @@ LINEAR_REFIT = "linear calibration"
 
 
 def linear_refit(target: str, signals: dict[str, np.ndarray]) -> Candidate | None:
-    """The linear calibration refitted with every family of a target with a reference: a column
-    per (component, own component), the gain matrix's change. None for a norm target (a norm does
-    not determine a gain matrix) or when the triad's signals are missing. The bias's temperature
-    terms are not in it: they are the families "temperature" and "temperature squared", selected
-    or grown like any other, so that a bias(T) the calibration lacks is reported as an effect. (In
-    the refit they also read an effect linear in the temperature rate against a temperature ramp:
-    a gyro bias of 0.05 (°/s)/(°C/min) in the calibration and the test recording read 0.012.)"""
+    """The linear calibration refitted with every family of a target: a column per (component, own
+    component), the gain matrix's change; for a norm target the symmetric part only, a column per pair of
+    components (a norm is blind to a rotation: |(I + W)·x| = |x| to first order for W skew), which the
+    directions must determine (training.diagnosis.diagnose_fit.excitation). None when the triad's signals are
+    missing. The bias's temperature terms are not in it: they are the families "temperature" and
+    "temperature squared", selected or grown like any other, so that a bias(T) the calibration lacks is
+    reported as an effect. (In the refit they also read an effect linear in the temperature rate against a
+    temperature ramp: a gyro bias of 0.05 (°/s)/(°C/min) in the calibration and the test recording read 0.012.)"""
     triad = target.split("_")[0]
-    if target.endswith("_norm") or not all(_present(signals, s) for s in triad_signals(triad)):
+    names = triad_signals(triad)
+    if not all(_present(signals, s) for s in names):
         return None
-    return Candidate(LINEAR_REFIT, target, _free([(s, None) for s in triad_signals(triad)]), own=True)
+    if target.endswith("_norm"):
+        return Candidate(LINEAR_REFIT, target, _symmetric(names), own=True)
+    return Candidate(LINEAR_REFIT, target, _free([(s, None) for s in names]), own=True)
+
+
+def _symmetric(names: list[str]) -> tuple[Column, ...]:
+    """One column per pair i <= j of a symmetric matrix change: component i from signal j and j from i."""
+    return tuple(((i, names[j], None, 1.0),) if i == j else ((i, names[j], None, 1.0), (j, names[i], None, 1.0))
+                 for i in range(3) for j in range(i, 3))
 
 
 def _present(signals: dict[str, np.ndarray], name: str) -> bool:

@@ -242,14 +242,15 @@ def residuals(artefact: ModelArtefact, datasets: list[ImuData], targets: dict[st
     signals = {k: np.concatenate([p["signals"][k] for p in parts]) for k in sorted(keys)}
     starts = np.cumsum([0] + [len(d) for d in datasets[:-1]])
     residual = {t: np.concatenate([p["res"][t][0] for p in parts]) for t in targets}
+    direction = {t: np.concatenate([p["res"][t][1] for p in parts]) for t in targets if targets[t] == "norm"}
     rows = {k: np.concatenate([p[k] for p in parts]) for k in ("train", "test", "holdout", "fitted", "block")}
     matched = np.concatenate([p["matched"] for p in parts])
     return Residuals(
         t=np.concatenate([p["t"] for p in parts]), starts=starts, signals=signals,
         instruments={triad: instrument_signals(signals, triad, starts) for triad in TRIAD_NAMES},
         residual=residual,
-        direction={t: np.concatenate([p["res"][t][1] for p in parts]) for t in targets if targets[t] == "norm"},
-        excited=excitation(signals, residual, rows["train"]),
+        direction=direction,
+        excited=excitation(signals, residual, rows["train"], direction),
         wide_shifts={triad: _wide_shift(triad, s, parts, signals, starts) for triad, s in wide_shifts.items()},
         matched={t: matched for t, kind in targets.items() if kind == "triad" and t == rate_means.TRIAD and matched.any()},
         **rows)

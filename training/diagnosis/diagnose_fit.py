@@ -37,6 +37,11 @@ from training.display import DISPLAY
 #: dropped (truncated SVD) instead of fitted.
 RCOND = 0.01
 OFFSETS = 3
+#: Smallest `spread` of a norm target's directions at which its symmetric gain is refitted with every family
+#: (a third of the whole sphere's 1/3): on a patch of the sphere an ellipsoid's gains and offset trade against
+#: each other and against the effect (x-io's hand-held part, spread 0.03: refits reading 70-85 % gain changes
+#: fit the held-out norm alike, benchmarks/norm_identifiability.py).
+NORM_SPREAD = 1.0 / 9.0
 
 
 @dataclass
@@ -154,7 +159,8 @@ def _compared_product(r: Residuals, target: str, signals: dict[str, np.ndarray],
     return memo[(a, b)]
 
 
-def excitation(signals: dict[str, np.ndarray], residual: dict[str, np.ndarray], train: np.ndarray) -> dict[str, bool]:
+def excitation(signals: dict[str, np.ndarray], residual: dict[str, np.ndarray], train: np.ndarray,
+               direction: dict[str, np.ndarray] | None = None) -> dict[str, bool]:
     """Target -> its reference varies more, on every axis, than what an offset and a gain matrix on the
     triad's signal leave of its residual (standard deviations over the training rows): the signal then
     carries the true quantity's variation, which determines a gain. A static gyro against ref_gyr = 0 does
@@ -163,10 +169,14 @@ def excitation(signals: dict[str, np.ndarray], residual: dict[str, np.ndarray], 
     the linear calibration leaves rather than the raw residual, because an effect in the calibration
     recording can bend `train`'s calibration into a residual larger than the reference (a magnetometer
     200 ms late: 32 µT of residual against 29 µT of reference on x, yet a gain refit is what it needs).
-    Decided once per set of residuals (Residuals.excited), for every candidate fitted on them."""
+    Decided once per set of residuals (Residuals.excited), for every candidate fitted on them. A norm target
+    (its unit vectors in `direction`): where its directions spread over the sphere (`spread`)."""
     out = {}
     for target, res in residual.items():
         triad = target.split("_")[0]
+        if res.shape[1] == 1 and direction is not None and target in direction:
+            out[target] = spread(direction[target][train & np.isfinite(res[:, 0])]) >= NORM_SPREAD
+            continue
         if res.shape[1] != 3 or not all(f"{triad}_{a}" in signals for a in "xyz"):
             out[target] = False
             continue
@@ -180,6 +190,13 @@ def excitation(signals: dict[str, np.ndarray], residual: dict[str, np.ndarray], 
         reference = signal[ok] - res[train][ok]
         out[target] = bool(np.all(np.std(reference, axis=0) > np.std(left, axis=0)))
     return out
+
+
+def spread(u: np.ndarray) -> float:
+    """Smallest eigenvalue of the mean of u·uᵀ over unit vectors u (N, 3): 1/3 when they cover the sphere
+    evenly (six-position rests), 0 when they lie on a great circle or at one point."""
+    u = u[np.all(np.isfinite(u), axis=1)]
+    return float(np.linalg.eigvalsh(u.T @ u / len(u))[0]) if len(u) > 3 else 0.0
 
 
 def refit_for(cands, target: str, r: Residuals) -> Candidate | None:
