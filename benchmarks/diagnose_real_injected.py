@@ -76,7 +76,7 @@ CASES = {
                             for j, g in enumerate(row)}),
     "accelerometer cross-axis products": ("broad", "acc_cross_nonlinearity", {}, "specific force pairwise products",
                                           {("acc_x", "acc_x", "acc_y"): 3e-3, ("acc_y", "acc_y", "acc_z"): -3e-3,
-                                           ("acc_z", "acc_z", "acc_x"): 3e-3}),
+                                           ("acc_z", "acc_x", "acc_z"): 3e-3}),
     "field of a motor current (no reference)": ("xio", "aux_field", {"c_ut_per_a": (1.5, -1.0, 2.0)},
                                                 "aux_motor_current", {(f"mag_{a}", "aux_1", None): v
                                                                       for a, v in zip("xyz", (1.5, -1.0, 2.0))}),
