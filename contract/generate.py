@@ -4,8 +4,10 @@ that are otherwise written by hand:
 - sources/ImuLayout.h: the enums of the runtime's input, output and settings arrays, and the
   declared range of every setting (the C runtime's one range check, ImuPipelineSettingsCheck);
 - sources/config.h: the value references, which parameters are Boolean or Integer, VR_COUNT and
-  the slot of every value reference in those arrays (model.c's variable lookup);
-- README.md: the variable table; docs/fmu.md: the parameters' types, ranges and defaults.
+  the slot of every value reference in those arrays (model.c's variable lookup); the value references
+  of the coefficient parameters, whose blocks go to sources/ImuLayout.h (contract/coefficient_parameters.py);
+- README.md: the variable table; docs/fmu.md: the parameters' types, ranges and defaults, and the
+  coefficient parameters.
 
 A region runs from a line holding `generated:begin NAME` to one holding `generated:end NAME`
 (C comments or HTML comments). `python -m contract.generate` rewrites every region and names the
@@ -18,6 +20,7 @@ import sys
 from collections.abc import Callable
 from pathlib import Path
 
+from contract import coefficient_parameters as cp
 from contract.schema import range_text
 from contract.variables import VARIABLES, Variable
 
@@ -81,6 +84,28 @@ def c_value_references() -> str:
     return "\n".join(lines)
 
 
+def c_coefficient_vrs() -> str:
+    """config.h: the value references of the coefficient parameters (contract/coefficient_parameters.py)."""
+    return "\n".join([
+        "/** FMI 2: value reference of the scalar parameter of coefficient 0; coefficient i has VR_COEFFICIENTS + i. */",
+        f"#define VR_COEFFICIENTS {cp.FMI2_COEFFICIENT_VR}u",
+        "/** FMI 3: value reference of the array parameter of block 0; block b has VR_COEFFICIENT_BLOCKS + b. */",
+        f"#define VR_COEFFICIENT_BLOCKS {cp.FMI3_BLOCK_VR}u"])
+
+
+def c_coefficient_blocks() -> str:
+    """ImuLayout.h: {first index, length, parameter name, problem} of every coefficient block, in array order:
+    how the FMU maps its coefficient parameters and how the runtime names a block that does not fit."""
+    lines = [f"#define IMU_COEFFICIENT_BLOCK_COUNT {len(cp.BLOCKS)}",
+             "/** {first index, length, parameter name, the runtime's message when the block is invalid} of every",
+             " *  coefficient block, in array order (ImuCoefficientBlock). */",
+             "#define IMU_COEFFICIENT_BLOCKS { \\"]
+    lines += [f'    {{{b.offset}, {b.size}, "{b.parameter}", "{cp.problem_text(b)}"}}{"," if k + 1 < len(cp.BLOCKS) else ""} \\'
+              for k, b in enumerate(cp.BLOCKS)]
+    lines += ["}"]
+    return "\n".join(lines)
+
+
 #: ImuSettingRange flags (sources/ImuLayout.h).
 _RANGE_FLAGS = {"min_open": 1, "max_open": 2, "whole": 4, "nonzero": 8}
 
@@ -127,13 +152,25 @@ def ranges_markdown() -> str:
     return "\n".join(lines)
 
 
+def coefficient_parameters_markdown() -> str:
+    """The coefficient parameters (contract/coefficient_parameters.py) as Markdown (docs/fmu.md)."""
+    lines = ["| block | FMI 3: Float64 array (value reference) | FMI 2: Real per coefficient (value references) | values |",
+             "|---|---|---|---|"]
+    for k, b in enumerate(cp.BLOCKS):
+        first = cp.FMI2_COEFFICIENT_VR + b.offset
+        lines.append(f"| {b.description} | `{b.parameter}` ({cp.FMI3_BLOCK_VR + k}) | `{cp.scalar_name(b, 0)}` … "
+                     f"`{cp.scalar_name(b, b.size - 1)}` ({first}–{first + b.size - 1}) | {b.size} |")
+    return "\n".join(lines)
+
+
 #: File (relative to the repository) -> {region name: its text}.
 REGIONS: dict[str, dict[str, Callable[[], str]]] = {
     "sources/ImuLayout.h": {"inputs": lambda: c_array_enum("input"), "outputs": lambda: c_array_enum("output"),
-                            "settings": lambda: c_array_enum("parameter"), "setting-ranges": c_setting_ranges},
-    "sources/config.h": {"value-references": c_value_references},
+                            "settings": lambda: c_array_enum("parameter"), "setting-ranges": c_setting_ranges,
+                            "coefficient-blocks": c_coefficient_blocks},
+    "sources/config.h": {"value-references": c_value_references, "coefficient-parameters": c_coefficient_vrs},
     "README.md": {"variables": markdown_table},
-    "docs/fmu.md": {"parameter-ranges": ranges_markdown},
+    "docs/fmu.md": {"parameter-ranges": ranges_markdown, "coefficient-parameters": coefficient_parameters_markdown},
 }
 
 

@@ -16,6 +16,7 @@ from tqdm import tqdm
 
 from fmu.archive import extract_archive, extracted_binary, read_description
 from fmu.fmi2_logger import callbacks_for, release
+from contract import coefficient_parameters
 from contract.variables import by_name
 from contract.errors import ImuFusionError, one_line
 from contract.layout import INPUTS, OUTPUTS
@@ -180,6 +181,23 @@ def _set_parameters(fmu: FMU2Slave | FMU3Slave, parameters: dict) -> None:
             (fmu.setFloat64 if fmi3 else fmu.setReal)(vr, [float(value)])
 
 
+def _set_coefficients(fmu: FMU2Slave | FMU3Slave, coefficients) -> None:
+    """Set the coefficient parameters (contract/coefficient_parameters.py: FMI 3 one array per block, FMI 2
+    one scalar per coefficient) from a whole coefficient array, at the value references of the FMU's model
+    description; FmuError for an array of another length or an FMU without them."""
+    fmi3 = isinstance(fmu, FMU3Slave)
+    try:
+        values = coefficient_parameters.parameter_values(coefficients, 3 if fmi3 else 2)
+    except ValueError as e:
+        raise FmuError(f"calibration: {e}") from None
+    missing = [name for name in values if name not in fmu.value_references]
+    if missing:
+        raise FmuError(f"the FMU has no coefficient parameters ({missing[0]}, ...): it was built before they "
+                       "existed; rebuild it with imufmu build-fmu")
+    flat = [x for v in values.values() for x in (v if isinstance(v, list) else [v])]
+    (fmu.setFloat64 if fmi3 else fmu.setReal)([fmu.value_references[name] for name in values], flat)
+
+
 def step_samples(fmu: FMU2Slave | FMU3Slave, t: np.ndarray, inputs: np.ndarray, h: np.ndarray,
                  progress: bool = False, statuses: list[int] | None = None) -> np.ndarray:
     """Per sample k: set inputs[k], doStep(t[k], h[k]), get the outputs; returns (N, len(OUTPUTS)).
@@ -222,14 +240,17 @@ def _instantiate(fmu_path: str | Path, unzipdir: str, log: _Log, instance_name: 
     return fmu
 
 
-def _initialise(fmu: FMU2Slave | FMU3Slave, start_time: float, parameters: dict) -> None:
-    """Start the experiment at start_time [s], set the parameters by name and initialise."""
+def _initialise(fmu: FMU2Slave | FMU3Slave, start_time: float, parameters: dict, coefficients=None) -> None:
+    """Start the experiment at start_time [s], set the parameters by name (and, when given, the coefficient
+    parameters from a whole coefficient array) and initialise."""
+    if not isinstance(fmu, FMU3Slave):
+        fmu.setupExperiment(startTime=float(start_time))
+    _set_parameters(fmu, parameters)
+    if coefficients is not None:
+        _set_coefficients(fmu, coefficients)
     if isinstance(fmu, FMU3Slave):
-        _set_parameters(fmu, parameters)
         fmu.enterInitializationMode(startTime=float(start_time))
     else:
-        fmu.setupExperiment(startTime=float(start_time))
-        _set_parameters(fmu, parameters)
         fmu.enterInitializationMode()
     fmu.exitInitializationMode()
 
@@ -270,9 +291,10 @@ def fmu_runner(fmu_path: str | Path, instance_name: str = "ImuFusion") -> Iterat
 
 @contextmanager
 def initialised_fmu(fmu_path: str | Path, start_time: float = 0.0, parameters: dict | None = None,
-                    instance_name: str = "ImuFusion") -> Iterator[FMU2Slave | FMU3Slave]:
+                    instance_name: str = "ImuFusion", coefficients=None) -> Iterator[FMU2Slave | FMU3Slave]:
     """Extract and instantiate the FMU (FMI 2 or 3), start the experiment at start_time [s], set
-    the parameters by name, initialise, and yield the FMU2Slave / FMU3Slave ready for doStep;
+    the parameters by name (and the coefficient parameters from `coefficients`, a whole coefficient array,
+    when given), initialise, and yield the FMU2Slave / FMU3Slave ready for doStep;
     its `log_messages` list collects the FMU's log ('[STATUS] category: message') and its
     `value_references` maps the names of its model description to their value references. Terminate,
     free and clean up afterwards. Every failing FMI call inside the block becomes an FmuError
@@ -286,7 +308,7 @@ def initialised_fmu(fmu_path: str | Path, start_time: float = 0.0, parameters: d
         fmu = _instantiate(fmu_path, unzipdir, log, instance_name)
         fmu.log_messages = log.messages
         try:
-            _initialise(fmu, start_time, parameters or {})
+            _initialise(fmu, start_time, parameters or {}, coefficients)
             yield fmu
             fmu.terminate()
         except FMICallException as e:
@@ -299,7 +321,7 @@ def initialised_fmu(fmu_path: str | Path, start_time: float = 0.0, parameters: d
 
 
 def run_fmu(fmu_path: str | Path, t: np.ndarray, inputs: np.ndarray, parameters: dict | None = None,
-            progress: bool = False, log: list[str] | None = None) -> np.ndarray:
+            progress: bool = False, log: list[str] | None = None, coefficients=None) -> np.ndarray:
     """Run the FMU (FMI 2 or 3) over a recording and return its outputs.
 
     t: (N,) sample times [s], strictly increasing (steps may vary); inputs: (N, len(INPUTS)) raw
@@ -308,11 +330,13 @@ def run_fmu(fmu_path: str | Path, t: np.ndarray, inputs: np.ndarray, parameters:
     name. Each sample is set, then doStep(t_k, t_{k+1} - t_k) consumes it (the last step repeats
     the previous step size). Returns (N, len(OUTPUTS)) outputs in contract.layout.OUTPUTS order; row k is the
     estimate for sample k. Raises FmuError carrying the FMU's log when an FMI call fails. When `log`
-    is a list, the FMU's log messages ('[STATUS] category: message') are appended to it.
+    is a list, the FMU's log messages ('[STATUS] category: message') are appended to it. `coefficients`: a
+    whole coefficient array (contract/layout.py) set as the coefficient parameters before initialisation (a
+    calibration for the FMU's own compiled-in one).
     """
     t, inputs = _check_arrays(t, inputs)
     h = description_step_sizes(read_description(fmu_path), t)
-    with initialised_fmu(fmu_path, float(t[0]), parameters) as fmu:
+    with initialised_fmu(fmu_path, float(t[0]), parameters, coefficients=coefficients) as fmu:
         out = step_samples(fmu, t, inputs, h, progress)
         if log is not None:
             log.extend(fmu.log_messages)

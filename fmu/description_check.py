@@ -11,7 +11,9 @@ says, from two sides: the variable table the build generated the description fro
 (contract/variables.py, from contract/layout.py) and the archive's own sources — the `ValueReference`
 enum, `VR_IS_BOOLEAN` / `VR_IS_INTEGER` and `VR_TIME` of sources/config.h, and the parameter start
 values compiled into the binary (`IMU_SETTING_DEFAULTS` of sources/ImuCoefficientsData.h, in
-contract.layout.SETTINGS order). config.h is hand-written and pinned to the table by
+contract.layout.SETTINGS order); the coefficient parameters (contract/coefficient_parameters.py: FMI 3 one
+array per block, FMI 2 one scalar per coefficient) against config.h's `VR_COEFFICIENTS` /
+`VR_COEFFICIENT_BLOCKS` and, as start values, the coefficients compiled in (`IMU_COEFFICIENT_DATA`). config.h is hand-written and pinned to the table by
 tests/test_fmu.py; model.c maps a value reference to an array index from its groups, which
 compile-time checks tie to ImuLayout.h.
 
@@ -47,6 +49,7 @@ from fmu.archive import read_description
 from fmu.cosim import Stepper, initialised_fmu
 from fmu.header import HEADER_NAME, read_header_arrays
 from fmu.model_description import FMI3_TYPES, TIME_VALUE_REFERENCE
+from contract import coefficient_parameters as cp
 from contract.variables import VARIABLES
 from contract.errors import ImuFusionError, ModelError, one_line
 from contract.layout import INPUTS, OUTPUTS, SETTINGS, TRIAD_ORDER
@@ -101,16 +104,35 @@ def _typed(value: float | None, type_name: str) -> float | int | None:
     return int(value) if type_name == "Integer" else float(value)
 
 
+def _array_start(text: str | None) -> list[float] | str | None:
+    """The start of an FMI 3 array variable as its list of values (the text itself when it is not one)."""
+    if text is None:
+        return None
+    try:
+        return [float(v) for v in text.split()]
+    except ValueError:
+        return text
+
+
 def described_variables(description) -> dict[str, dict]:
     """name -> ATTRIBUTES of every variable of an fmpy ModelDescription (FMI 3 types in the
-    table's spelling: Float64 -> Real, Int32 -> Integer)."""
+    table's spelling: Float64 -> Real, Int32 -> Integer; an array's start as a list)."""
     variables = {}
     for v in description.modelVariables:
         type_name = _TABLE_TYPES.get(v.type, v.type)
+        bounds = {key: _value(getattr(v, key), type_name) for key in ("start", "min", "max")}
+        if getattr(v, "dimensions", None):
+            bounds["start"] = _array_start(v.start)
         variables[v.name] = {"valueReference": v.valueReference, "causality": v.causality,
-                             "variability": v.variability, "type": type_name, "unit": v.unit,
-                             **{key: _value(getattr(v, key), type_name) for key in ("start", "min", "max")}}
+                             "variability": v.variability, "type": type_name, "unit": v.unit, **bounds}
     return variables
+
+
+def _coefficient_references(fmi_version: int, scalar_base: int, block_base: int) -> dict[str, int]:
+    """Coefficient parameter name -> value reference (contract/coefficient_parameters.py) from the two bases."""
+    if fmi_version == 3:
+        return {b.parameter: block_base + k for k, b in enumerate(cp.BLOCKS)}
+    return {cp.scalar_name(b, j): scalar_base + b.offset + j for b in cp.BLOCKS for j in range(b.size)}
 
 
 def table_variables(fmi_version: int) -> dict[str, dict]:
@@ -124,6 +146,9 @@ def table_variables(fmi_version: int) -> dict[str, dict]:
         if v.causality != "parameter":
             attributes["start"] = v.start
         expected[v.name] = attributes
+    for name, vr in _coefficient_references(fmi_version, cp.FMI2_COEFFICIENT_VR, cp.FMI3_BLOCK_VR).items():
+        expected[name] = {"valueReference": vr, "causality": "parameter", "variability": "fixed", "type": "Real",
+                          "unit": None, "min": None, "max": None}
     return expected
 
 
@@ -140,14 +165,19 @@ def config_variables(text: str, fmi_version: int) -> dict[str, dict]:
     time = re.search(r"#define VR_TIME (\d+)u?\b", text)
     if fmi_version == 3 and time:
         variables["time"] = {"valueReference": int(time.group(1)), "type": "Real"}
+    bases = [re.search(rf"#define {macro} (\d+)u?\b", text) for macro in ("VR_COEFFICIENTS", "VR_COEFFICIENT_BLOCKS")]
+    if all(bases):
+        references = _coefficient_references(fmi_version, *(int(b.group(1)) for b in bases))
+        variables.update({name: {"valueReference": vr, "type": "Real"} for name, vr in references.items()})
     return variables
 
 
-def header_variables(text: str) -> dict[str, dict]:
+def header_variables(text: str, fmi_version: int) -> dict[str, dict]:
     """name -> start of every parameter, from the IMU_SETTING_DEFAULTS array compiled into the
     binary (text of sources/ImuCoefficientsData.h; contract.layout.SETTINGS order), typed by the
-    table (Integer and Boolean parameters are stored as whole numbers)."""
-    _, settings, _ = read_header_arrays(text)
+    table (Integer and Boolean parameters are stored as whole numbers), and of every coefficient
+    parameter, from the IMU_COEFFICIENT_DATA array."""
+    coefficients, settings, _ = read_header_arrays(text)
     if len(settings) != len(SETTINGS):
         raise ModelError(f"{HEADER_NAME}: {len(settings)} parameter start values, expected {len(SETTINGS)}")
     types = {v.name: v.type for v in VARIABLES}
@@ -155,6 +185,10 @@ def header_variables(text: str) -> dict[str, dict]:
     for (name, _), value in zip(SETTINGS, settings):
         start = bool(value) if types[name] == "Boolean" else int(value) if types[name] == "Integer" else float(value)
         starts[name] = {"start": start}
+    try:
+        starts.update({name: {"start": value} for name, value in cp.parameter_values(coefficients, fmi_version).items()})
+    except ValueError as e:
+        raise ModelError(f"{HEADER_NAME}: {e}") from e
     return starts
 
 
@@ -202,10 +236,10 @@ def description_problems(path: str | Path) -> list[str]:
                         "checked against its sources"]
             config = zf.read(CONFIG_MEMBER).decode()
             header = zf.read(HEADER_MEMBER).decode()
-        settings = header_variables(header)
+        fmi_version = 3 if description.fmiVersion.startswith("3") else 2
+        settings = header_variables(header, fmi_version)
     except (ImuFusionError, UnicodeDecodeError, zipfile.BadZipFile) as e:
         return [f"{path}: cannot read the FMU's sources to check its model description ({one_line(str(e))})"]
-    fmi_version = 3 if description.fmiVersion.startswith("3") else 2
     sides = {TABLE: table_variables(fmi_version), CONFIG_MEMBER: config_variables(config, fmi_version),
              HEADER_MEMBER: settings}
     return compare(described_variables(description), sides)
@@ -213,8 +247,10 @@ def description_problems(path: str | Path) -> list[str]:
 
 def _read(fmu, name: str, declared: dict):
     """The binary's value of variable `name` at the description's value reference, read with the
-    description's type; FMICallException when the binary refuses."""
+    description's type (an array as the list of its values); FMICallException when the binary refuses."""
     vr = [declared["valueReference"]]
+    if isinstance(declared["start"], list):
+        return list(fmu.getFloat64(vr, nValues=len(declared["start"])))
     if declared["type"] == "Boolean":
         return bool(fmu.getBoolean(vr)[0])
     if declared["type"] == "Integer":

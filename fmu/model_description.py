@@ -7,8 +7,9 @@ from xml.sax.saxutils import quoteattr
 
 from fmu.compiler import check_fmi_version, fmu_source_files
 from fmu.provenance import generation_tool
+from contract import coefficient_parameters as cp
 from contract.variables import Variable, variable_table
-from contract.layout import settings_defaults
+from contract.layout import identity_coefficients, settings_defaults
 
 MODEL_NAME = "ImuFusion"
 
@@ -110,6 +111,24 @@ def _variable_xml(variable: Variable, settings: dict) -> str:
             f'    </ScalarVariable>')
 
 
+def _coefficient_xml(coefficients, fmi_version: int) -> list[str]:
+    """The coefficient parameters (contract/coefficient_parameters.py) with the built coefficients as start
+    values: FMI 3 one Float64 array per block, FMI 2 one Real per coefficient. Their units differ within a
+    block (contract/layout.py), so they declare none."""
+    values = [float(v) for v in coefficients]
+    head = 'causality="parameter" variability="fixed" initial="exact"'
+    if fmi_version == 3:
+        return [f'    <Float64 name={quoteattr(b.parameter)} valueReference="{cp.FMI3_BLOCK_VR + k}" '
+                f'description={quoteattr(b.description)} {head} '
+                f'start="{" ".join(repr(v) for v in values[b.offset:b.offset + b.size])}">\n'
+                f'      <Dimension start="{b.size}"/>\n    </Float64>'
+                for k, b in enumerate(cp.BLOCKS)]
+    return [f'    <ScalarVariable name={quoteattr(cp.scalar_name(b, j))} valueReference="{cp.FMI2_COEFFICIENT_VR + b.offset + j}" '
+            f'description={quoteattr(f"{b.description}: element {j + 1} of {b.size}")} {head}>\n'
+            f'      <Real start="{values[b.offset + j]!r}"/>\n    </ScalarVariable>'
+            for b in cp.BLOCKS for j in range(b.size)]
+
+
 def _initial_dependencies(variable: Variable, variables: tuple[Variable, ...]) -> list[Variable]:
     """What an output depends on before the first sample: heading = declination, the rest constant."""
     return [v for v in variables if v.name == "declination"] if variable.name == "heading" else []
@@ -173,9 +192,10 @@ def _generation_attributes(built: str | None) -> str:
     return "\n".join(lines)
 
 
-def _fmi3_xml(values: dict, guid: str, description: str, table: tuple[Variable, ...], built: str | None) -> str:
+def _fmi3_xml(values: dict, guid: str, description: str, table: tuple[Variable, ...], built: str | None,
+              coefficients) -> str:
     """Text of an FMI 3.0 modelDescription.xml (sources are listed in buildDescription.xml)."""
-    variables = "\n".join([_TIME_XML] + [_variable_xml3(v, values) for v in table])
+    variables = "\n".join([_TIME_XML] + [_variable_xml3(v, values) for v in table] + _coefficient_xml(coefficients, 3))
     return f"""<?xml version="1.0" encoding="UTF-8"?>
 <fmiModelDescription
   fmiVersion="3.0"
@@ -204,7 +224,7 @@ def _fmi3_xml(values: dict, guid: str, description: str, table: tuple[Variable, 
 
 def model_description_xml(settings: dict, guid: str, description: str,
                           source_files: list[str] | None = None, fmi_version: int = 2,
-                          aux_inputs: Sequence[dict] = (), built: str | None = None) -> str:
+                          aux_inputs: Sequence[dict] = (), built: str | None = None, coefficients=None) -> str:
     """Text of modelDescription.xml for FMI `fmi_version` (2 or 3).
 
     settings: parameter start values by name (missing names take contract.layout defaults);
@@ -212,17 +232,20 @@ def model_description_xml(settings: dict, guid: str, description: str,
     model's one-line description; source_files: the .c files to list under SourceFiles (FMI 2
     only; default: those of fmu.compiler; FMI 3 lists them in buildDescription.xml); aux_inputs:
     the model's ModelArtefact.aux_inputs, which describe the auxiliary inputs; built: the build
-    time for generationDateAndTime (fmu.provenance.build_time; None: the attribute is left out).
+    time for generationDateAndTime (fmu.provenance.build_time; None: the attribute is left out);
+    coefficients: the coefficient array compiled in, the coefficient parameters' start values (None: the
+    untrained model's, contract.layout.identity_coefficients).
     Raises KeyError for an unknown setting name, BuildError for another FMI version.
     """
     values = _settings_values(settings)
     table = variable_table(aux_inputs)
+    coefficients = identity_coefficients() if coefficients is None else coefficients
     if check_fmi_version(fmi_version) == 3:
-        return _fmi3_xml(values, guid, description, table, built)
+        return _fmi3_xml(values, guid, description, table, built, coefficients)
     if source_files is None:
         source_files = [p.name for p in fmu_source_files(fmi_version=2) if p.suffix == ".c"]
     files = "\n".join(f"      <File name={quoteattr(name)}/>" for name in source_files)
-    variables = "\n".join(_variable_xml(v, values) for v in table)
+    variables = "\n".join([_variable_xml(v, values) for v in table] + _coefficient_xml(coefficients, 2))
     return f"""<?xml version="1.0" encoding="UTF-8"?>
 <fmiModelDescription
   fmiVersion="2.0"

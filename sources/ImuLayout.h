@@ -201,4 +201,27 @@ typedef struct {
 #define IMU_OFFSET_PSOBP (IMU_OFFSET_ELM + IMU_ELM_BLOCK)
 #define IMU_COEFFICIENT_COUNT (IMU_OFFSET_PSOBP + IMU_PSOBP_BLOCK)
 
+/** One block of the coefficient array, as the FMU exposes it (contract/coefficient_parameters.py). */
+typedef struct {
+    int offset;          /* first index in the coefficient array */
+    int size;            /* number of coefficients */
+    const char *name;    /* the FMU parameter that carries it */
+    const char *problem; /* the runtime's message when it does not fit the layout */
+} ImuCoefficientBlock;
+
+/* generated:begin coefficient-blocks (python -m contract.generate, from contract/coefficient_parameters.py; do not edit) */
+#define IMU_COEFFICIENT_BLOCK_COUNT 7
+/** {first index, length, parameter name, the runtime's message when the block is invalid} of every
+ *  coefficient block, in array order (ImuCoefficientBlock). */
+#define IMU_COEFFICIENT_BLOCKS { \
+    {0, 1, "calibration.layout_version", "calibration.layout_version is not this FMU's coefficient layout version"}, \
+    {1, 37, "calibration.thermal_gyr", "calibration.thermal_gyr does not fit the coefficient layout (a flag, degree, count, index or range outside what the block allows)"}, \
+    {38, 37, "calibration.thermal_acc", "calibration.thermal_acc does not fit the coefficient layout (a flag, degree, count, index or range outside what the block allows)"}, \
+    {75, 37, "calibration.thermal_mag", "calibration.thermal_mag does not fit the coefficient layout (a flag, degree, count, index or range outside what the block allows)"}, \
+    {112, 385, "calibration.terms", "calibration.terms does not fit the coefficient layout (a flag, degree, count, index or range outside what the block allows)"}, \
+    {497, 463, "calibration.elm", "calibration.elm does not fit the coefficient layout (a flag, degree, count, index or range outside what the block allows)"}, \
+    {960, 202, "calibration.psobp", "calibration.psobp does not fit the coefficient layout (a flag, degree, count, index or range outside what the block allows)"} \
+}
+/* generated:end coefficient-blocks */
+
 #endif

@@ -9,7 +9,8 @@
 #include "ImuPipeline.h"
 #include "ImuMath.h"
 
-/** @brief Unpack a flat coefficient array; 0, -1 on bad size/version, -2 on an invalid block. */
+/** @brief Unpack a flat coefficient array; 0, -1 on bad size/version, or -(2 + b) when block b (in
+ *         IMU_COEFFICIENT_BLOCKS order: 1..3 the thermal blocks, 4 terms, 5 elm, 6 psobp) is invalid. */
 int ImuCoefficientsFromArray(ImuCoefficients *c, const double *a, size_t n)
 {
     int i;
@@ -19,13 +20,17 @@ int ImuCoefficientsFromArray(ImuCoefficients *c, const double *a, size_t n)
     memset(c, 0, sizeof *c); /* padding too: the struct is part of the FMU state, whose bytes are checksummed */
     for (i = 0; i < 3; i++) {
         if (ImuThermalFromBlock(&c->thermal[i], a + IMU_OFFSET_THERMAL + i * IMU_THERMAL_BLOCK) != 0) {
-            return -2;
+            return -(2 + 1 + i);
         }
     }
-    if (ImuTermsFromBlock(&c->terms, a + IMU_OFFSET_TERMS) != 0
-        || ImuElmFromBlock(&c->elm, a + IMU_OFFSET_ELM) != 0
-        || ImuPsoBpFromBlock(&c->psobp, a + IMU_OFFSET_PSOBP, IMU_PSOBP_BLOCK) != 0) {
-        return -2;
+    if (ImuTermsFromBlock(&c->terms, a + IMU_OFFSET_TERMS) != 0) {
+        return -(2 + 4);
+    }
+    if (ImuElmFromBlock(&c->elm, a + IMU_OFFSET_ELM) != 0) {
+        return -(2 + 5);
+    }
+    if (ImuPsoBpFromBlock(&c->psobp, a + IMU_OFFSET_PSOBP, IMU_PSOBP_BLOCK) != 0) {
+        return -(2 + 6);
     }
     return 0;
 }

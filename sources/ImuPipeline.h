@@ -85,7 +85,8 @@ typedef struct {
     int rangeIssues;   /* ImuRangeIssue bits of the last sample */
 } ImuPipeline;
 
-/** @brief Unpack a flat coefficient array (layout: ImuLayout.h). @return 0, -1 on bad size/version, -2 on an invalid triad block (ImuThermalFromBlock). */
+/** @brief Unpack a flat coefficient array (layout: ImuLayout.h). @return 0, -1 on bad size/version, -(2 + b) when
+ *  block b of IMU_COEFFICIENT_BLOCKS is invalid. */
 IMU_HIDDEN int ImuCoefficientsFromArray(ImuCoefficients *c, const double *a, size_t n);
 /** @brief Unpack a flat settings array (enable_thermal other than 0/1 is stored as -1 for the check). @return 0, or -1 on bad size. */
 IMU_HIDDEN int ImuPipelineSettingsFromArray(ImuPipelineSettings *s, const double *a, size_t n);

@@ -18,9 +18,12 @@ int ImuRuntimeSettings(ImuPipelineSettings *s, const double *settings, size_t nS
     return ImuPipelineSettingsCheck(s, message) == 0 ? ImuRuntimeOk : ImuRuntimeBadSettings;
 }
 
+static const ImuCoefficientBlock coefficientBlocks[IMU_COEFFICIENT_BLOCK_COUNT] = IMU_COEFFICIENT_BLOCKS;
+
 int ImuRuntimeCoefficients(ImuCoefficients *c, const double *coefficients, size_t nCoefficients,
                            const char **message)
 {
+    int block;
     *message = NULL;
     if (coefficients == NULL) {
         *message = "the coefficient array is NULL";
@@ -31,11 +34,12 @@ int ImuRuntimeCoefficients(ImuCoefficients *c, const double *coefficients, size_
         return ImuRuntimeBadCoefficientCount;
     }
     if (coefficients[0] != IMU_LAYOUT_VERSION) {
-        *message = "the coefficient array has another layout version";
+        *message = coefficientBlocks[0].problem;
         return ImuRuntimeBadLayoutVersion;
     }
-    if (ImuCoefficientsFromArray(c, coefficients, nCoefficients) != 0) {
-        *message = "a coefficient block is invalid";
+    block = -2 - ImuCoefficientsFromArray(c, coefficients, nCoefficients);
+    if (block >= 0) {
+        *message = coefficientBlocks[block < IMU_COEFFICIENT_BLOCK_COUNT ? block : 0].problem;
         return ImuRuntimeBadCoefficients;
     }
     return ImuRuntimeOk;

@@ -204,6 +204,13 @@ typedef enum {
 #define IMU_OUTPUT_VRS {vr_rate_x, vr_rate_y, vr_rate_z, vr_accel_x, vr_accel_y, vr_accel_z, vr_field_x, vr_field_y, vr_field_z, vr_roll, vr_pitch, vr_yaw, vr_heading, vr_q_w, vr_q_x, vr_q_y, vr_q_z, vr_gain_roll, vr_gain_pitch, vr_gain_yaw, vr_hard_iron_x, vr_hard_iron_y, vr_hard_iron_z, vr_soft_iron_xx, vr_soft_iron_yy, vr_soft_iron_zz, vr_pf_neff, vr_calibration_valid, vr_mag_disturbed}
 /* generated:end value-references */
 
+/* generated:begin coefficient-parameters (python -m contract.generate, from contract/coefficient_parameters.py; do not edit) */
+/** FMI 2: value reference of the scalar parameter of coefficient 0; coefficient i has VR_COEFFICIENTS + i. */
+#define VR_COEFFICIENTS 100000u
+/** FMI 3: value reference of the array parameter of block 0; block b has VR_COEFFICIENT_BLOCKS + b. */
+#define VR_COEFFICIENT_BLOCKS 200000u
+/* generated:end coefficient-parameters */
+
 /** FMI 3 only: the independent variable "time" [s], outside the variable table's range. */
 #define VR_TIME 1000000u
 

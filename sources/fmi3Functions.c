@@ -54,7 +54,7 @@ static fmi3Status noVariables(fmi3Instance instance, const char *function, const
 }
 
 /** @brief Check the phase, that both arrays are given and that one value per value reference is
- *  passed (all variables are scalars). */
+ *  passed (every variable of these types is a scalar). */
 static int accessAllowed(fmi3Instance instance, const char *function, int phases, size_t nvr, const void *vr,
                          const void *values, size_t nValues) {
     if (!ModelAllowed(core(instance), function, phases) || !ModelArraysGiven(core(instance), function, nvr, vr, values)) {
@@ -62,7 +62,7 @@ static int accessAllowed(fmi3Instance instance, const char *function, int phases
     }
     if (nValues != nvr) {
         ModelLog(core(instance), ModelError, LogStatusError,
-                 "%s: nValues = %lu differs from nValueReferences = %lu (all variables are scalars)",
+                 "%s: nValues = %lu differs from nValueReferences = %lu (every variable of this type is a scalar)",
                  function, (unsigned long)nValues, (unsigned long)nvr);
         return 0;
     }
@@ -221,13 +221,37 @@ IMU_NO_SET(fmi3SetInt64, fmi3Int64)
 IMU_NO_SET(fmi3SetUInt64, fmi3UInt64)
 IMU_NO_SET(fmi3SetString, fmi3String)
 
+/** @brief Check that nValues is the number of Float64 values the nvr value references carry (a
+ *  coefficient block's array parameter carries its length, a scalar one; ModelFloat64Count). */
+static int float64ValuesMatch(fmi3Instance instance, const char *function, const fmi3ValueReference vr[], size_t nvr,
+                              size_t nValues) {
+    size_t i, expected = 0;
+    for (i = 0; i < nvr; i++) {
+        const size_t count = ModelFloat64Count(vr[i]);
+        if (count == 0) {
+            ModelLog(core(instance), ModelError, LogStatusError, "%s: unknown value reference %u", function, vr[i]);
+            return 0;
+        }
+        expected += count;
+    }
+    if (nValues != expected) {
+        ModelLog(core(instance), ModelError, LogStatusError,
+                 "%s: nValues = %lu differs from the %lu values the value references carry",
+                 function, (unsigned long)nValues, (unsigned long)expected);
+        return 0;
+    }
+    return 1;
+}
+
 fmi3Status fmi3GetFloat64(fmi3Instance instance, const fmi3ValueReference vr[], size_t nvr, fmi3Float64 values[], size_t nValues) {
-    size_t i;
-    if (!accessAllowed(instance, "fmi3GetFloat64", MODEL_ANY_PHASE, nvr, vr, values, nValues)) {
+    size_t i, k = 0;
+    if (!ModelAllowed(core(instance), "fmi3GetFloat64", MODEL_ANY_PHASE)
+        || !ModelArraysGiven(core(instance), "fmi3GetFloat64", nvr, vr, values)
+        || !float64ValuesMatch(instance, "fmi3GetFloat64", vr, nvr, nValues)) {
         return fmi3Error;
     }
-    for (i = 0; i < nvr; i++) {
-        if (ModelGetReal(core(instance), "fmi3GetFloat64", vr[i], &values[i]) != ModelOk) {
+    for (i = 0; i < nvr; k += ModelFloat64Count(vr[i]), i++) {
+        if (ModelGetFloat64s(core(instance), "fmi3GetFloat64", vr[i], &values[k]) != ModelOk) {
             return fmi3Error;
         }
     }
@@ -235,12 +259,14 @@ fmi3Status fmi3GetFloat64(fmi3Instance instance, const fmi3ValueReference vr[], 
 }
 
 fmi3Status fmi3SetFloat64(fmi3Instance instance, const fmi3ValueReference vr[], size_t nvr, const fmi3Float64 values[], size_t nValues) {
-    size_t i;
-    if (!accessAllowed(instance, "fmi3SetFloat64", MODEL_SET_PHASES, nvr, vr, values, nValues)) {
+    size_t i, k = 0;
+    if (!ModelAllowed(core(instance), "fmi3SetFloat64", MODEL_SET_PHASES)
+        || !ModelArraysGiven(core(instance), "fmi3SetFloat64", nvr, vr, values)
+        || !float64ValuesMatch(instance, "fmi3SetFloat64", vr, nvr, nValues)) {
         return fmi3Error;
     }
-    for (i = 0; i < nvr; i++) {
-        if (ModelSetReal(core(instance), "fmi3SetFloat64", vr[i], values[i]) != ModelOk) {
+    for (i = 0; i < nvr; k += ModelFloat64Count(vr[i]), i++) {
+        if (ModelSetFloat64s(core(instance), "fmi3SetFloat64", vr[i], &values[k]) != ModelOk) {
             return fmi3Error;
         }
     }

@@ -21,6 +21,9 @@ typedef struct {
 /** The slot of every value reference 0..VR_COUNT - 1, generated from the variable table. */
 static const VariableSlot variableSlots[VR_COUNT] = IMU_VR_SLOTS;
 
+/** The coefficient blocks (FMI 3 array parameters VR_COEFFICIENT_BLOCKS + b), in array order. */
+static const ImuCoefficientBlock coefficientBlocks[IMU_COEFFICIENT_BLOCK_COUNT] = IMU_COEFFICIENT_BLOCKS;
+
 #define MODEL_STATE_MAGIC 0x494D5546u /* "IMUF" */
 #define MODEL_LOG_BUFFER_SIZE 640
 
@@ -60,12 +63,22 @@ static void setStartValues(ModelData *m) {
     memset(m, 0, sizeof *m);
     memcpy(m->inputs, startInputs, sizeof startInputs);
     memcpy(m->settings, IMU_SETTING_DEFAULTS, sizeof m->settings);
+    memcpy(m->coefficients, IMU_COEFFICIENT_DATA, sizeof m->coefficients);
     ImuGuardReset(&m->runtime.guard, m->settings[ImuSetDeclination]);
     setInitialOutputs(m);
 }
 
-/** @brief Array of vr ('i' inputs, 'o' outputs, 's' settings; 0 for an unknown vr) and its index there. */
+/** @brief 1 if vr is an FMI 2 coefficient parameter (VR_COEFFICIENTS + its index in the coefficient array). */
+static int isCoefficient(unsigned int vr) {
+    return vr >= VR_COEFFICIENTS && vr - VR_COEFFICIENTS < (unsigned int)IMU_COEFFICIENT_COUNT;
+}
+
+/** @brief Array of vr ('i' inputs, 'o' outputs, 's' settings, 'c' coefficients; 0 for an unknown vr) and its index there. */
 static char locate(unsigned int vr, int *index) {
+    if (isCoefficient(vr)) {
+        *index = (int)(vr - VR_COEFFICIENTS);
+        return 'c';
+    }
     if (vr >= VR_COUNT) {
         *index = -1;
         return 0;
@@ -83,6 +96,9 @@ static int settingIndex(unsigned int vr) {
 
 /** @brief Kind of variable vr: 'R' Real, 'B' Boolean, 'I' Integer, 0 unknown. */
 static char variableType(unsigned int vr) {
+    if (isCoefficient(vr)) {
+        return 'R';
+    }
     if (vr >= VR_COUNT) {
         return 0;
     }
@@ -106,13 +122,18 @@ static ModelStatus badReference(const ModelInstance *mi, const char *function, u
 static ModelStatus setParameter(ModelInstance *mi, const char *function, unsigned int vr, double value) {
     ModelData *m = &mi->state.model;
     int index;
-    if (locate(vr, &index) != 's') {
+    const char causality = locate(vr, &index);
+    if (causality != 's' && causality != 'c') {
         return ModelFail(mi, function, "outputs cannot be set");
     }
     if (m->initialised) {
         ModelLog(mi, ModelError, LogStatusError,
                  "%s: parameters are fixed after initialisation (value reference %u)", function, vr);
         return ModelError;
+    }
+    if (causality == 'c') {
+        m->coefficients[index] = value;
+        return ModelOk;
     }
     m->settings[index] = value;
     setInitialOutputs(m);
@@ -135,6 +156,8 @@ ModelStatus ModelGetReal(const ModelInstance *mi, const char *function, unsigned
         *value = m->inputs[index];
     } else if (causality == 'o') {
         *value = m->outputs[index];
+    } else if (causality == 'c') {
+        *value = m->coefficients[index];
     } else {
         *value = m->settings[index];
     }
@@ -154,6 +177,54 @@ ModelStatus ModelSetReal(ModelInstance *mi, const char *function, unsigned int v
         return ModelOk;
     }
     return setParameter(mi, function, vr, value);
+}
+
+/** @brief The coefficient block of an FMI 3 array parameter vr, or NULL. */
+static const ImuCoefficientBlock *coefficientBlock(unsigned int vr) {
+    return vr >= VR_COEFFICIENT_BLOCKS && vr - VR_COEFFICIENT_BLOCKS < (unsigned int)IMU_COEFFICIENT_BLOCK_COUNT
+        ? &coefficientBlocks[vr - VR_COEFFICIENT_BLOCKS] : NULL;
+}
+
+size_t ModelFloat64Count(unsigned int vr) {
+    const ImuCoefficientBlock *block = coefficientBlock(vr);
+    if (block != NULL) {
+        return (size_t)block->size;
+    }
+    if (vr == VR_TIME) {
+        return 1;
+    }
+    return !isCoefficient(vr) && variableType(vr) != 0 ? 1 : 0;
+}
+
+ModelStatus ModelGetFloat64s(const ModelInstance *mi, const char *function, unsigned int vr, double *values) {
+    const ImuCoefficientBlock *block = coefficientBlock(vr);
+    if (block != NULL) {
+        memcpy(values, mi->state.model.coefficients + block->offset, (size_t)block->size * sizeof *values);
+        return ModelOk;
+    }
+    if (isCoefficient(vr)) { /* FMI 2's scalar coefficient parameters are not FMI 3 variables */
+        ModelLog(mi, ModelError, LogStatusError, "%s: unknown value reference %u", function, vr);
+        return ModelError;
+    }
+    return ModelGetReal(mi, function, vr, values);
+}
+
+ModelStatus ModelSetFloat64s(ModelInstance *mi, const char *function, unsigned int vr, const double *values) {
+    const ImuCoefficientBlock *block = coefficientBlock(vr);
+    if (block != NULL) {
+        if (mi->state.model.initialised) {
+            ModelLog(mi, ModelError, LogStatusError,
+                     "%s: parameters are fixed after initialisation (%s, value reference %u)", function, block->name, vr);
+            return ModelError;
+        }
+        memcpy(mi->state.model.coefficients + block->offset, values, (size_t)block->size * sizeof *values);
+        return ModelOk;
+    }
+    if (isCoefficient(vr)) {
+        ModelLog(mi, ModelError, LogStatusError, "%s: unknown value reference %u", function, vr);
+        return ModelError;
+    }
+    return ModelSetReal(mi, function, vr, *values);
 }
 
 ModelStatus ModelGetBoolean(const ModelInstance *mi, const char *function, unsigned int vr, int *value) {
@@ -295,7 +366,7 @@ ModelStatus ModelExitInitialization(ModelInstance *mi, const char *function) {
         return ModelError;
     }
     m = &mi->state.model;
-    if (ImuRuntimeInitialise(&m->runtime, IMU_COEFFICIENT_DATA, IMU_COEFFICIENT_COUNT, m->settings,
+    if (ImuRuntimeInitialise(&m->runtime, m->coefficients, IMU_COEFFICIENT_COUNT, m->settings,
                              IMU_SETTING_COUNT, &message) == ImuRuntimeOk) {
         m->initialised = 1;
         setInitialOutputs(m);
@@ -517,11 +588,11 @@ static int allFinite(const double *x, int n) {
 
 /** @brief Replace what the pipeline of an initialised state derives from its parameters (settings,
  *         coefficients of every stage, the derived values of the attitude, particle filter and
- *         PSO-BP) by values built from m->settings and the compiled-in coefficient data, so no
+ *         PSO-BP) by values built from m->settings and m->coefficients, so no
  *         restored count, size or index of them is used; NULL, or what is wrong. */
 static const char *rederivePipeline(ModelData *m) {
     const char *problem = NULL;
-    (void)ImuRuntimeConfigure(&m->runtime, IMU_COEFFICIENT_DATA, IMU_COEFFICIENT_COUNT, m->settings,
+    (void)ImuRuntimeConfigure(&m->runtime, m->coefficients, IMU_COEFFICIENT_COUNT, m->settings,
                               IMU_SETTING_COUNT, &problem);
     return problem;
 }

@@ -71,6 +71,8 @@ typedef struct {
     double outputs[IMU_OUTPUT_COUNT];   /* estimate for the last consumed sample: finite, except the
                                          * corrected outputs of an absent sensor (NaN, ImuGuard.h) */
     double settings[IMU_SETTING_COUNT]; /* parameters in user units (ImuLayout.h order) */
+    double coefficients[IMU_COEFFICIENT_COUNT]; /* the coefficient parameters (contract/coefficient_parameters.py):
+                                         * start = the compiled-in ImuCoefficientsData.h */
     int issues;                         /* ModelIssue bits of the last step */
     double stepSize;                    /* s, communicationStepSize of the last doStep: the time from
                                          * the last consumed sample to the next (ImuGuardStep) */
@@ -142,6 +144,13 @@ IMU_HIDDEN ModelStatus ModelTerminate(ModelInstance *mi, const char *function);
 IMU_HIDDEN ModelStatus ModelGetReal(const ModelInstance *mi, const char *function, unsigned int vr, double *value);
 /** @brief Write the Real variable vr: inputs in any phase before termination, parameters before initialisation. */
 IMU_HIDDEN ModelStatus ModelSetReal(ModelInstance *mi, const char *function, unsigned int vr, double value);
+/** @brief FMI 3: how many Float64 values variable vr carries: its length for a coefficient block's array
+ *         parameter (VR_COEFFICIENT_BLOCKS + b), 1 for a scalar variable, 0 for an unknown one. */
+IMU_HIDDEN size_t ModelFloat64Count(unsigned int vr);
+/** @brief FMI 3: read the ModelFloat64Count(vr) values of vr into values (a block, or a scalar Real). */
+IMU_HIDDEN ModelStatus ModelGetFloat64s(const ModelInstance *mi, const char *function, unsigned int vr, double *values);
+/** @brief FMI 3: write the ModelFloat64Count(vr) values of vr (a block before initialisation, or a scalar Real). */
+IMU_HIDDEN ModelStatus ModelSetFloat64s(ModelInstance *mi, const char *function, unsigned int vr, const double *values);
 /** @brief Read the Boolean variable vr into *value (0 or 1). */
 IMU_HIDDEN ModelStatus ModelGetBoolean(const ModelInstance *mi, const char *function, unsigned int vr, int *value);
 /** @brief Write the Boolean parameter vr (before initialisation). */
@@ -165,7 +174,7 @@ IMU_HIDDEN unsigned long long ModelStateChecksum(const void *bytes, size_t size)
 IMU_HIDDEN void ModelSerialize(const ModelState *state, void *bytes);
 /** @brief Replace mi's state by *state after checking that it is a state of this binary and
  *         that every field that indexes or sizes anything is valid: settings and coefficients are
- *         re-derived from the state's parameters and the compiled-in coefficient data, the
+ *         re-derived from the state's parameters (settings and coefficient parameters), the
  *         evolving counters and indices are checked (Error naming the first bad field; mi's state
  *         is unchanged then). */
 IMU_HIDDEN ModelStatus ModelSetState(ModelInstance *mi, const char *function, const ModelState *state);

@@ -14,6 +14,7 @@ from fmpy.fmi2 import FMU2Slave, fmi2CallbackFunctions, fmi2CallbackLoggerTYPE
 from fmpy.logging import addLoggerProxy
 from fmpy.validation import validate_fmu as fmpy_validate_fmu
 
+from contract import coefficient_parameters
 from contract.errors import BuildError, ModelError
 from contract.layout import (INPUTS, N_COEFFICIENTS, OUTPUTS, SETTINGS,
                              identity_coefficients, settings_array)
@@ -51,11 +52,21 @@ def test_model_description_follows_table_and_settings(trained_fmu2):
     md = read_model_description(str(trained_fmu2))
     assert md.coSimulation.canHandleVariableCommunicationStepSize
     assert md.coSimulation.canGetAndSetFMUstate and md.coSimulation.canSerializeFMUstate
-    got = {v.name: (v.valueReference, v.causality, v.type, v.unit) for v in md.modelVariables}
+    got = {v.name: (v.valueReference, v.causality, v.type, v.unit) for v in md.modelVariables
+           if not v.name.startswith(coefficient_parameters.PREFIX)}
     # A Real without a unit in the table is declared dimensionless ("1"); Booleans and Integers have none.
     assert got == {v.name: (v.value_reference, v.causality, v.type,
                             (v.unit or "1") if v.type == "Real" else None) for v in VARIABLES}
-    starts = {v.name: v.start for v in md.modelVariables if v.causality == "parameter"}
+    # the coefficient parameters: one Real per coefficient, its start the coefficient compiled in
+    coefficients = {v.name: (v.valueReference, float(v.start)) for v in md.modelVariables
+                    if v.name.startswith(coefficient_parameters.PREFIX)}
+    trained = coefficient_parameters.scalar_values(trained_coefficients())
+    assert list(coefficients) == list(trained)
+    assert [start for _, start in coefficients.values()] == list(trained.values())
+    assert [vr for vr, _ in coefficients.values()] == list(range(coefficient_parameters.FMI2_COEFFICIENT_VR,
+                                                                 coefficient_parameters.FMI2_COEFFICIENT_VR + len(trained)))
+    starts = {v.name: v.start for v in md.modelVariables if v.causality == "parameter"
+              and not v.name.startswith(coefficient_parameters.PREFIX)}
     booleans = {v.name for v in VARIABLES if v.type == "Boolean"}
     assert {k: float(v == "true") if k in booleans else float(v) for k, v in starts.items()} \
         == {**dict(SETTINGS), **TRAINED_SETTINGS}
@@ -315,7 +326,8 @@ def test_every_variable_has_a_description_and_reals_a_unit(trained_fmu2):
     units = {u.name: u for u in md.unitDefinitions}
     for v in md.modelVariables:
         assert v.description, v.name
-        if v.type == "Real":  # FMI 2 allows a unit on Real variables only
+        # FMI 2 allows a unit on Real variables only; a coefficient block mixes units (contract/layout.py)
+        if v.type == "Real" and not v.name.startswith(coefficient_parameters.PREFIX):
             assert v.unit in units, v.name
     assert {d.name for d in units["rad"].displayUnits} == {"deg"}
     assert {d.name for d in units["rad/s"].displayUnits} == {"deg/s"}

@@ -11,6 +11,7 @@ import pytest
 from fmpy import read_model_description
 from fmpy.model_description import read_build_description
 
+from contract import coefficient_parameters
 from contract.variables import VARIABLES
 from fmu.build_description import BUILD_DESCRIPTION
 from fmu.compiler import fmu_source_files
@@ -43,9 +44,16 @@ def test_model_description_follows_the_table(trained_fmu3):
     assert md.fmiVersion == "3.0"
     cs = md.coSimulation
     assert cs.canHandleVariableCommunicationStepSize and cs.canGetAndSetFMUstate and cs.canSerializeFMUstate
-    got = {v.name: (v.valueReference, v.causality, v.type) for v in md.modelVariables}
+    got = {v.name: (v.valueReference, v.causality, v.type) for v in md.modelVariables
+           if not v.name.startswith(coefficient_parameters.PREFIX)}
     expected = {v.name: (v.value_reference, v.causality, FMI3_TYPES[v.type]) for v in VARIABLES}
     assert got == {**expected, "time": (TIME_VALUE_REFERENCE, "independent", "Float64")}
+    # the coefficient parameters: one Float64 array per block, its start the block compiled in
+    arrays = {v.name: (v.valueReference, [d.start for d in v.dimensions], [float(x) for x in v.start.split()])
+              for v in md.modelVariables if v.name.startswith(coefficient_parameters.PREFIX)}
+    blocks = coefficient_parameters.block_values(trained_coefficients())
+    assert arrays == {name: (coefficient_parameters.FMI3_BLOCK_VR + k, [len(values)], values)
+                      for k, (name, values) in enumerate(blocks.items())}
     assert [c.name for c in md.logCategories] == [name for name, _ in LOG_CATEGORIES]
     assert all(v.description for v in md.modelVariables)
 

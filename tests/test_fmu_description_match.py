@@ -13,9 +13,10 @@ from collections.abc import Callable
 from pathlib import Path
 
 
+from contract import coefficient_parameters
 from fmu.description_check import CONFIG_MEMBER, behaviour_problems, description_problems
 from fmu.validator import reference_problems, validate_fmu
-from fmu_cases import TRAINED_SETTINGS
+from fmu_cases import TRAINED_SETTINGS, trained_coefficients
 from training.cli import main
 
 MD = "modelDescription.xml"
@@ -110,6 +111,24 @@ def test_a_changed_parameter_start_is_named(trained_fmu, tmp_path):
         f"field_norm: {MD} says start 49.0; sources/ImuCoefficientsData.h says {compiled!r}"]
     assert behaviour_problems(changed) == [
         f"field_norm (valueReference 38, Real): {MD} says start 49.0; the binary holds {compiled!r}"]
+
+
+def test_a_changed_coefficient_start_is_named(trained_fmu, fmi_version, tmp_path):
+    # the coefficient parameters' start values are the coefficients compiled in (t0 of the gyro's thermal block)
+    block = coefficient_parameters.BLOCKS[1]
+    values = coefficient_parameters.block_values(trained_coefficients())[block.parameter]
+    values[1] += 1.0
+    name, text = ((block.parameter, " ".join(repr(v) for v in values)) if fmi_version == 3
+                  else (coefficient_parameters.scalar_name(block, 1), repr(values[1])))
+    def edit(xml: str) -> str:  # the element's own start, not its <Dimension start=...> (FMI 3)
+        at = xml.index(f'name="{name}"')
+        return xml[:at] + re.sub(r'\bstart="[^"]*"', f'start="{text}"', xml[at:], count=1)
+    changed = _rewritten(trained_fmu, tmp_path / "coefficient.fmu", edit)
+    problems = validate_fmu(changed)
+    assert len(problems) == 1 and problems[0].startswith(f"{name}: {MD} says start "), problems
+    assert "sources/ImuCoefficientsData.h says" in problems[0]
+    behaviour = behaviour_problems(changed)
+    assert len(behaviour) == 1 and behaviour[0].startswith(f"{name} (valueReference"), behaviour
 
 
 def test_a_changed_causality_is_named(trained_fmu, tmp_path):
