@@ -141,7 +141,8 @@ def cmd_train(args) -> int:
         print(f"note: {note}")
     print()
     print(done.summary)
-    print(f"wrote {out.final(done.model)} and {out.final(done.report)}")
+    print(f"wrote {out.final(done.model)}, {out.final(done.calibration)} (the FMU parameter values: "
+          f"imufmu run FMU DATA --calibration) and {out.final(done.report)}")
     if done.gaps and not (args.allow_partial or args.allow_identity):
         print(f"imufmu train: {len(done.gaps)} recorded triad(s) not fully calibrated (INCOMPLETE CALIBRATION above); "
               f"the model was written; exit status {EXIT_INCOMPLETE} — pass --allow-partial to accept it", file=sys.stderr)
@@ -164,13 +165,14 @@ def cmd_import(args) -> None:
 
 
 def cmd_build_fmu(args) -> None:
-    """imufmu build-fmu --model DIR/model.json --out FILE.fmu."""
+    """imufmu build-fmu [--model DIR/model.json] --out FILE.fmu (without a model: the generic FMU)."""
     from training.fmu_build import build_fmu_from_model
     from training.data.outputs import FILE, staged_output
-    with staged_output("build-fmu", args.out, args.force, FILE, inputs=[args.model]) as out:
-        path = out.final(build_fmu_from_model(_existing_file(args.model, "model artefact"), out.path,
-                                              fmi_version=args.fmi))
-    print(f"wrote {path} (FMI {args.fmi}.0 co-simulation)")
+    model = _existing_file(args.model, "model artefact") if args.model else None
+    with staged_output("build-fmu", args.out, args.force, FILE, inputs=[args.model] if args.model else []) as out:
+        path = out.final(build_fmu_from_model(model, out.path, fmi_version=args.fmi))
+    print(f"wrote {path} (FMI {args.fmi}.0 co-simulation" + (")" if model else
+          "; generic: no calibration compiled in, run it with --calibration UNIT.ssv)"))
 
 
 def cmd_validate(args) -> None:
@@ -192,12 +194,16 @@ def cmd_validate(args) -> None:
 
 
 def cmd_run(args) -> None:
-    """imufmu run FILE.fmu DATA --out OUT.csv [--param NAME=VALUE ...]."""
+    """imufmu run FILE.fmu DATA --out OUT.csv [--param NAME=VALUE ...] [--calibration UNIT.ssv]."""
     from training.main_job import run_recording
     from training.data.outputs import FILE, staged_output
-    with staged_output("run", args.out, args.force, FILE, inputs=[args.fmu, args.data]) as out:
+    calibration = _existing_file(args.calibration, "calibration file") if args.calibration else None
+    with staged_output("run", args.out, args.force, FILE,
+                       inputs=[args.fmu, args.data, *([args.calibration] if args.calibration else [])]) as out:
         done = run_recording(_existing_file(args.fmu, "FMU"), _existing_file(args.data, "data file"), out.path,
-                             dict(args.param or []))
+                             dict(args.param or []), calibration)
+    if calibration is not None:
+        print(f"calibration: {calibration} (coefficients, settings and auxiliary inputs in place of the FMU's own)")
     for message in done.log:
         print(f"FMU: {message}")
     for note in done.notes:
@@ -365,7 +371,7 @@ def build_parser() -> argparse.ArgumentParser:
     s = _add_verb(sub, "train", "train the models on calibration recordings")
     s.add_argument("data", nargs="+", help="imu-csv/1 files (.csv or .csv.gz); reference columns, an "
                    "attitude reference or a static sidecar are used when present, else self-calibration")
-    _add_out(s, "output folder for model.json and calibration.md")
+    _add_out(s, "output folder for model.json, calibration.ssv and calibration.md")
     s.add_argument("--seed", type=int, default=0)
     s.add_argument("--degree", type=_degree, default="auto", metavar="{auto,0,1,2,3}",
                    help="temperature polynomial degree of G(T) and B(T). auto (default): chosen per triad from "
@@ -405,7 +411,8 @@ def build_parser() -> argparse.ArgumentParser:
     _add_dask_options(s)
     s.set_defaults(func=cmd_campaign)
     s = _add_verb(sub, "build-fmu", "write the trained model into the FMU sources and build it")
-    s.add_argument("--model", required=True, help="model.json from 'imufmu train'")
+    s.add_argument("--model", help="model.json from 'imufmu train' (without it: the generic FMU, no calibration "
+                                   "compiled in, for units' calibration.ssv files)")
     _add_out(s, "FMU file to write")
     s.add_argument("--fmi", type=int, choices=(2, 3), default=2, help="FMI version (default 2)")
     s.set_defaults(func=cmd_build_fmu)
@@ -418,6 +425,9 @@ def build_parser() -> argparse.ArgumentParser:
     _add_out(s, "CSV file for the FMU outputs")
     s.add_argument("--param", type=_param, action="append", metavar="NAME=VALUE",
                    help="FMU parameter (repeatable); declination and field_norm default to the sidecar")
+    s.add_argument("--calibration", metavar="UNIT.ssv",
+                   help="a unit's calibration.ssv (imufmu train writes it): its coefficients and settings are set "
+                        "in the FMU before initialisation, so one FMU runs every unit")
     s.set_defaults(func=cmd_run)
     s = _add_verb(sub, "compare-thermal", "compare gyro temperature models on static recordings")
     s.add_argument("data", nargs="+", help="imu-csv/1 recordings of a static sensor")
@@ -430,7 +440,8 @@ def build_parser() -> argparse.ArgumentParser:
     s.set_defaults(func=cmd_compare_thermal)
     s = _add_verb(sub, "diagnose", "find the effect the model lacks, add it, report before/after")
     s.add_argument("data", nargs="+", help="imu-csv/1 recordings with a reference")
-    s.add_argument("--model", required=True, help="model.json from 'imufmu train'")
+    s.add_argument("--model", help="model.json from 'imufmu train' (without it: the generic FMU, no calibration "
+                                   "compiled in, for units' calibration.ssv files)")
     _add_out(s, "report folder (diagnosis.json, report.md, model.json)")
     s.add_argument("--seed", type=int, default=0)
     s.set_defaults(func=cmd_diagnose)

@@ -692,6 +692,7 @@ class TrainedFolder:
     """What `train_to_folder` wrote and what `imufmu train` prints, with what it was made from."""
 
     model: Path            # OUT/model.json
+    calibration: Path      # OUT/calibration.ssv: the FMU parameter values (fmu.calibration_file)
     report: Path           # OUT/calibration.md
     notes: list[str]       # the artefact's notes
     summary: str           # the calibration summary (plain text)
@@ -704,8 +705,9 @@ def train_to_folder(paths: list[Path], out_dir: str | Path, seed: int = 0, degre
                     allow_identity: bool = False, progress: bool = True,
                     prior_path: str | Path | None = None) -> TrainedFolder:
     """`imufmu train`: read the recordings at `paths`, `train` on them (under the fleet prior of
-    `prior_path`, a fleet.json, if given), write OUT/model.json and the calibration report
-    OUT/calibration.md; progress: the stages' progress bars."""
+    `prior_path`, a fleet.json, if given), write OUT/model.json, the FMU parameter values OUT/calibration.ssv
+    and the calibration report OUT/calibration.md; progress: the stages' progress bars."""
+    from fmu.calibration_file import FILE_NAME as CALIBRATION_FILE, write_calibration
     from training.data.io import read_imu_csv
     from training.reports.calibration_report import summary_text, write_calibration_report
     datasets = [read_imu_csv(p) for p in paths]
@@ -716,6 +718,9 @@ def train_to_folder(paths: list[Path], out_dir: str | Path, seed: int = 0, degre
                      prior=prior, fleet_elm=fleet_elm)
     model = Path(out_dir) / "model.json"
     artefact.save(model)
+    calibration = write_calibration(Path(out_dir) / CALIBRATION_FILE, coefficients_array(artefact),
+                                    settings_dict(artefact), artefact.aux_inputs, name=model.parent.name or "calibration",
+                                    description=f"ImuFusion calibration trained on {', '.join(Path(p).name for p in paths)}")
     report = write_calibration_report(artefact, datasets, out_dir)
-    return TrainedFolder(model, report, list(artefact.notes), summary_text(artefact, datasets),
+    return TrainedFolder(model, calibration, report, list(artefact.notes), summary_text(artefact, datasets),
                          [n for n in artefact.notes if is_gap(n)], artefact, datasets)
