@@ -18,7 +18,7 @@ from contract import coefficient_parameters as cp
 from contract.errors import DataError
 from contract.layout import SETTINGS
 from contract.variables import by_name
-from fmu.ssv import UNITS, SsvParameter, read_annotation, read_ssv, write_ssv
+from fmu.ssv import UNITS, SsvParameter, read_annotation, read_ssv, ssv_document, write_ssv
 
 #: File name `train` writes beside model.json.
 FILE_NAME = "calibration.ssv"
@@ -47,14 +47,26 @@ def _aux_element(aux_inputs) -> etree._Element:
     return root
 
 
+def _parameters(coefficients, settings: dict[str, float]) -> list[SsvParameter]:
+    """Every setting (by name; a missing one at its default) and every coefficient block as SSV parameters."""
+    parameters = [_setting_parameter(key, settings.get(key, default)) for key, default in SETTINGS]
+    blocks = cp.block_values(coefficients)
+    return parameters + [SsvParameter(b.parameter, blocks[b.parameter], description=b.description) for b in cp.BLOCKS]
+
+
+def calibration_document(coefficients, settings: dict[str, float], aux_inputs=(), name: str = "calibration",
+                         description: str | None = None) -> bytes:
+    """The SSV file's bytes: the whole coefficient array, the settings and the auxiliary-input map."""
+    return ssv_document(_parameters(coefficients, settings), name, description,
+                        annotations={AUX_ANNOTATION: _aux_element(aux_inputs)})
+
+
 def write_calibration(path, coefficients, settings: dict[str, float], aux_inputs=(), name: str = "calibration",
                       description: str | None = None) -> Path:
     """Write the whole coefficient array, the settings (every one, by name) and the auxiliary-input map as
-    the SSV file `path`; returns the path."""
-    parameters = [_setting_parameter(key, settings.get(key, default)) for key, default in SETTINGS]
-    blocks = cp.block_values(coefficients)
-    parameters += [SsvParameter(b.parameter, blocks[b.parameter], description=b.description) for b in cp.BLOCKS]
-    return write_ssv(path, parameters, name, description, annotations={AUX_ANNOTATION: _aux_element(aux_inputs)})
+    the SSV file `path` (checked against the standard's XSD first); returns the path."""
+    return write_ssv(path, _parameters(coefficients, settings), name, description,
+                     annotations={AUX_ANNOTATION: _aux_element(aux_inputs)})
 
 
 def read_calibration(path) -> tuple[np.ndarray, dict[str, float], list[dict]]:

@@ -24,11 +24,13 @@ from pathlib import Path
 import numpy as np
 
 from fmu.build_description import BUILD_DESCRIPTION, build_description_xml
+from fmu.calibration_file import calibration_document
 from fmu.compiler import (WIN64_COMPILER, WIN64_PACKAGE, check_fmi_version, compile_binary, compile_win64_binary,
                           fmu_source_files, win64_compiler)
 from fmu.header import HEADER_NAME, coefficient_header
 from fmu.model_description import MODEL_NAME, model_description_xml
 from fmu.provenance import PROVENANCE_FILE, build_time, provenance_record, provenance_summary
+from fmu.references import BASELINE, members as reference_members
 from contract.variables import Variable, variable_table
 from contract.errors import ModelError
 from contract.layout import AUX_INPUTS, INPUTS, OUTPUTS, SETTINGS, settings_array
@@ -193,7 +195,7 @@ def pack_fmu(coefficients: np.ndarray, settings: dict, out_path: str | Path, ref
               description: str = DEFAULT_DESCRIPTION,
               provenance: str = "untrained identity coefficients", fmi_version: int = 2,
               aux_inputs: Sequence[dict] = (), training_data: Sequence[dict] = (),
-              notes: Sequence[str] = ()) -> Path:
+              notes: Sequence[str] = (), variants: dict[str, bytes] | None = None) -> Path:
     """Build ImuFusion.fmu for FMI `fmi_version` (2 or 3) at out_path and return its path.
 
     coefficients: (N_COEFFICIENTS,) flat array (contract/layout.py); settings: parameter start
@@ -207,7 +209,9 @@ def pack_fmu(coefficients: np.ndarray, settings: dict, out_path: str | Path, ref
     wrapper + the generated ImuCoefficientsData.h; FMI 3 also buildDescription.xml),
     documentation/index.html, the reference pair, aux_inputs.json and provenance.json in
     extra/imufusion/ and the compiled binaries (`compile_binaries`). modelDescription.xml's
-    description is `description` followed by the provenance summary.
+    description is `description` followed by the provenance summary. extra/org.fmi-standard.fmi-ls-ref/
+    (fmu.references) holds the parameter set the FMU is built with (label `baseline`), the `variants`
+    given (label -> SSV bytes, fmu.calibration_file) and the reference pair as its smoke-test experiment.
     Raises ModelError for bad coefficients, settings or aux_inputs, BuildError when compilation
     fails or the FMI version is not 2 or 3.
     """
@@ -231,6 +235,9 @@ def pack_fmu(coefficients: np.ndarray, settings: dict, out_path: str | Path, ref
              AUX_INPUTS_FILE: json.dumps([dict(a) for a in aux_inputs], indent=2, ensure_ascii=False) + "\n",
              PROVENANCE_FILE: json.dumps(record, indent=2, ensure_ascii=False) + "\n",
              **reference_files(reference_outputs)}
+    baseline = calibration_document(coefficients, values, aux_inputs, name=BASELINE, description=description)
+    files.update(reference_members({BASELINE: baseline, **(variants or {})}, files[REFERENCE_INPUT],
+                                   files[REFERENCE_OUTPUT]))
     if fmi_version == 3:
         files[BUILD_DESCRIPTION] = build_description_xml(c_files)
     with tempfile.TemporaryDirectory(prefix="imufusion-fmu-") as tmp:
@@ -238,9 +245,12 @@ def pack_fmu(coefficients: np.ndarray, settings: dict, out_path: str | Path, ref
         (stage / "sources").mkdir()
         for path in sources:
             shutil.copyfile(path, stage / "sources" / path.name)
-        for name, text in files.items():
+        for name, content in files.items():
             (stage / name).parent.mkdir(parents=True, exist_ok=True)
-            (stage / name).write_text(text)
+            if isinstance(content, bytes):
+                (stage / name).write_bytes(content)
+            else:
+                (stage / name).write_text(content)
         compile_binaries(stage, out_path)
         out_path.parent.mkdir(parents=True, exist_ok=True)
         partial = out_path.with_name(out_path.name + ".partial")

@@ -21,6 +21,7 @@ from fmu.description_check import behaviour_problems, description_problems
 from fmu.model_description import MODEL_NAME
 from fmu.packer import REFERENCE_INPUT, REFERENCE_OUTPUT, read_reference_csv
 from fmu.pe import MACHINE_AMD64, PeImage, read_pe
+from fmu.references import embedded_problems
 from contract.errors import ImuFusionError, one_line
 from contract.layout import INPUTS, OUTPUTS
 
@@ -253,7 +254,7 @@ def _smoke_problems(path: Path) -> list[str]:
 
 
 #: The checks of `validate_fmu` in the order they run (a failed check skips those after it).
-VALIDATION_CHECKS = ("archive", "fmpy model description", "description matches sources", "binaries",
+VALIDATION_CHECKS = ("archive", "fmpy model description", "description matches sources", "parameter sets", "binaries",
                      "fmutool -check", "smoke co-simulation", "description matches binary", "reference result")
 
 
@@ -269,7 +270,8 @@ def validate_fmu(path: str | Path, checks: list[tuple[str, int]] | None = None) 
     fmutool's static check (fmu-manipulation-toolbox), a
     1 s smoke co-simulation, and that the FMU reproduces its shipped reference result.
     fmu.description_check compares the model description with the variable table and the
-    archive's sources right after fmpy's validation, and with the binary (the start values it
+    archive's sources right after fmpy's validation (then every embedded parameter set is checked against
+    the model description and the layout, fmu.references), and with the binary (the start values it
     holds, corrected triad outputs that follow their inputs) after the smoke co-simulation.
     """
     path = Path(path)
@@ -287,6 +289,7 @@ def validate_fmu(path: str | Path, checks: list[tuple[str, int]] | None = None) 
     if problems:
         return problems
     problems += counted("description matches sources", description_problems(path))
+    problems += counted("parameter sets", embedded_problems(path, read_description(path)))
     problems += counted("binaries", _symbol_problems(path, fmi_version_of(path)))
     problems += counted("fmutool -check", fmutool_problems(path))
     if not problems:

@@ -12,6 +12,7 @@ from contract import coefficient_parameters as cp
 from contract.errors import DataError
 from contract.layout import identity_coefficients
 from fmu.ssv import validate_ssv
+from fmu.validator import validate_fmu
 from training.artefact import coefficients_array, load_artefact, settings_dict
 from fmu.calibration_file import read_calibration, write_calibration
 from training.cli import main
@@ -50,17 +51,20 @@ def test_a_generic_fmu_runs_the_unit_from_its_calibration_file(trained, fmi):
     tmp, run = trained
     artefact = load_artefact(tmp / "unit" / "model.json")
     compiled = build_fmu(coefficients_array(artefact), settings_dict(artefact), tmp / f"unit{fmi}.fmu", fmi_version=fmi)
-    generic = tmp / f"generic{fmi}.fmu"  # build-fmu without a model: no calibration compiled in
-    assert main(["build-fmu", "--out", str(generic), "--fmi", str(fmi)]) == 0
+    generic = tmp / f"generic{fmi}.fmu"  # build-fmu without a model: no calibration compiled in, the unit embedded
+    ssv = tmp / "unit" / "calibration.ssv"
+    assert main(["build-fmu", "--out", str(generic), "--fmi", str(fmi), "--variant", f"unit-A={ssv}"]) == 0
+    assert validate_fmu(generic) == []  # every embedded set checked against the model description
     outputs = {}
-    for name, fmu, extra in (("compiled", compiled, []),
-                             ("generic", generic, ["--calibration", str(tmp / "unit" / "calibration.ssv")])):
+    for name, fmu, extra in (("compiled", compiled, []), ("generic", generic, ["--calibration", str(ssv)]),
+                             ("embedded", generic, ["--variant", "unit-A"])):
         out = tmp / f"{name}{fmi}.csv"
         assert main(["run", str(fmu), str(run), "--out", str(out), *extra]) == 0
         outputs[name] = np.genfromtxt(out, delimiter=",", names=True)
-    assert outputs["generic"].dtype.names == outputs["compiled"].dtype.names
-    for column in outputs["compiled"].dtype.names:
-        np.testing.assert_array_equal(outputs["generic"][column], outputs["compiled"][column], err_msg=column)
+    for name in ("generic", "embedded"):
+        assert outputs[name].dtype.names == outputs["compiled"].dtype.names
+        for column in outputs["compiled"].dtype.names:
+            np.testing.assert_array_equal(outputs[name][column], outputs["compiled"][column], err_msg=f"{name} {column}")
 
 
 def test_a_calibration_of_another_layout_is_refused_naming_the_block(tmp_path):

@@ -26,6 +26,21 @@ def _existing_file(path: str, what: str) -> Path:
     return p
 
 
+def _variant(text: str) -> tuple[str, Path]:
+    """Parse LABEL=FILE.ssv for --variant: a label that can name a file, and an existing file."""
+    from fmu.references import check_label
+    label, sep, path = text.partition("=")
+    if not sep or not path:
+        raise argparse.ArgumentTypeError(f"'{text}': expected LABEL=UNIT.ssv")
+    try:
+        check_label(label)
+    except ValueError as e:
+        raise argparse.ArgumentTypeError(str(e)) from None
+    if not Path(path).is_file():
+        raise argparse.ArgumentTypeError(f"calibration file '{path}' not found")
+    return label, Path(path)
+
+
 def _param(text: str) -> tuple[str, float]:
     """Parse NAME=VALUE for --param: a known setting with a value of its declared type and range
     (contract.schema); a value that looks like the wrong unit is taken, with a warning on stderr."""
@@ -169,8 +184,12 @@ def cmd_build_fmu(args) -> None:
     from training.fmu_build import build_fmu_from_model
     from training.data.outputs import FILE, staged_output
     model = _existing_file(args.model, "model artefact") if args.model else None
-    with staged_output("build-fmu", args.out, args.force, FILE, inputs=[args.model] if args.model else []) as out:
-        path = out.final(build_fmu_from_model(model, out.path, fmi_version=args.fmi))
+    variants = dict(args.variant or [])
+    with staged_output("build-fmu", args.out, args.force, FILE,
+                       inputs=([args.model] if args.model else []) + [str(p) for p in variants.values()]) as out:
+        path = out.final(build_fmu_from_model(model, out.path, fmi_version=args.fmi, variants=variants))
+    for label in variants:
+        print(f"embedded parameter set '{label}' (imufmu run {path} DATA --variant {label})")
     print(f"wrote {path} (FMI {args.fmi}.0 co-simulation" + (")" if model else
           "; generic: no calibration compiled in, run it with --calibration UNIT.ssv)"))
 
@@ -194,16 +213,19 @@ def cmd_validate(args) -> None:
 
 
 def cmd_run(args) -> None:
-    """imufmu run FILE.fmu DATA --out OUT.csv [--param NAME=VALUE ...] [--calibration UNIT.ssv]."""
+    """imufmu run FILE.fmu DATA --out OUT.csv [--param NAME=VALUE ...] [--calibration UNIT.ssv | --variant LABEL]."""
     from training.main_job import run_recording
     from training.data.outputs import FILE, staged_output
+    if args.calibration and args.variant:
+        raise ImuFusionError("give --calibration or --variant, not both")
     calibration = _existing_file(args.calibration, "calibration file") if args.calibration else None
     with staged_output("run", args.out, args.force, FILE,
                        inputs=[args.fmu, args.data, *([args.calibration] if args.calibration else [])]) as out:
         done = run_recording(_existing_file(args.fmu, "FMU"), _existing_file(args.data, "data file"), out.path,
-                             dict(args.param or []), calibration)
-    if calibration is not None:
-        print(f"calibration: {calibration} (coefficients, settings and auxiliary inputs in place of the FMU's own)")
+                             dict(args.param or []), calibration, args.variant)
+    if calibration is not None or args.variant:
+        print(f"calibration: {calibration or f'the FMU parameter set {args.variant!r}'} (coefficients, settings and "
+              "auxiliary inputs in place of the FMU's own)")
     for message in done.log:
         print(f"FMU: {message}")
     for note in done.notes:
@@ -415,6 +437,9 @@ def build_parser() -> argparse.ArgumentParser:
                                    "compiled in, for units' calibration.ssv files)")
     _add_out(s, "FMU file to write")
     s.add_argument("--fmi", type=int, choices=(2, 3), default=2, help="FMI version (default 2)")
+    s.add_argument("--variant", type=_variant, action="append", metavar="LABEL=UNIT.ssv",
+                   help="embed a unit's calibration.ssv as parameter set LABEL (repeatable; FMI-LS-REF layout, "
+                        "extra/org.fmi-standard.fmi-ls-ref/)")
     s.set_defaults(func=cmd_build_fmu)
     s = _add_verb(sub, "validate", "validate an FMU (model description, exports, smoke run)")
     s.add_argument("fmu")
@@ -428,6 +453,8 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--calibration", metavar="UNIT.ssv",
                    help="a unit's calibration.ssv (imufmu train writes it): its coefficients and settings are set "
                         "in the FMU before initialisation, so one FMU runs every unit")
+    s.add_argument("--variant", metavar="LABEL", help="a parameter set embedded in the FMU (build-fmu --variant), "
+                                                      "applied like --calibration")
     s.set_defaults(func=cmd_run)
     s = _add_verb(sub, "compare-thermal", "compare gyro temperature models on static recordings")
     s.add_argument("data", nargs="+", help="imu-csv/1 recordings of a static sensor")

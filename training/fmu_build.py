@@ -9,6 +9,7 @@ import numpy as np
 
 from contract.errors import ModelError
 from contract.layout import identity_coefficients, settings_array
+from fmu.calibration_file import read_calibration
 from fmu.packer import pack_fmu, reference_recording
 from training.artefact import coefficients_array, load_artefact, settings_dict
 from training.runtime import run_batch
@@ -36,17 +37,24 @@ def build_fmu(coefficients: np.ndarray, settings: dict, out_path: str | Path, **
     return pack_fmu(coefficients, settings, out_path, reference_outputs(coefficients, settings), **packing)
 
 
-def build_fmu_from_model(model_path: str | Path | None, out_path: str | Path, fmi_version: int = 2) -> Path:
+def build_fmu_from_model(model_path: str | Path | None, out_path: str | Path, fmi_version: int = 2,
+                         variants: dict[str, Path] | None = None) -> Path:
     """`imufmu build-fmu`: the FMU of the trained artefact at `model_path` (its coefficients,
     settings, auxiliary inputs, training data and notes) at `out_path`; returns its path. Without a
     model, the generic FMU: no calibration compiled in (identity coefficients, default settings), a unit's
-    set at run time from its calibration.ssv (docs/fmu.md, "The calibration as parameters")."""
+    set at run time from its calibration.ssv (docs/fmu.md, "The calibration as parameters"). `variants`:
+    label -> a unit's calibration.ssv, each checked to fit the layout (fmu.calibration_file.read_calibration)
+    and embedded as a parameter set (fmu.references)."""
+    sets = {}
+    for label, path in (variants or {}).items():
+        read_calibration(path)
+        sets[label] = Path(path).read_bytes()
     if model_path is None:
-        return build_fmu(np.array(identity_coefficients()), {}, out_path, fmi_version=fmi_version,
+        return build_fmu(np.array(identity_coefficients()), {}, out_path, fmi_version=fmi_version, variants=sets,
                          provenance="generic: no calibration compiled in; set a unit's calibration.ssv as its "
                                     "parameters (imufmu run --calibration)")
     artefact = load_artefact(model_path)
     return build_fmu(coefficients_array(artefact), settings_dict(artefact), out_path,
                      provenance=f"model {model_path}", fmi_version=fmi_version,
                      aux_inputs=artefact.aux_inputs, training_data=artefact.training_data,
-                     notes=artefact.notes)
+                     notes=artefact.notes, variants=sets)

@@ -129,21 +129,25 @@ class RecordingRun:
 
 
 def run_recording(fmu_path: Path, data_path: Path, out_csv: str | Path,
-                  overrides: dict[str, float] | None = None, calibration: Path | None = None) -> RecordingRun:
+                  overrides: dict[str, float] | None = None, calibration: Path | None = None,
+                  variant: str | None = None) -> RecordingRun:
     """`imufmu run`: co-simulate the recording at `data_path` through the FMU with fmpy, its aux_*
     columns into the auxiliary inputs the FMU's model maps them to, the parameters its sidecar
     fixes (`recording_parameters`) updated by `overrides`; write the outputs to `out_csv`. `calibration`:
     a calibration.ssv (fmu.calibration_file) whose coefficients, settings and auxiliary-input map
-    replace the FMU's own (the sidecar's parameters and `overrides` still apply over its settings)."""
+    replace the FMU's own (the sidecar's parameters and `overrides` still apply over its settings); `variant`:
+    the same from the parameter set of that label embedded in the FMU (fmu.references)."""
     from fmu.archive import read_description
     from fmu.cosim import run_fmu
     from fmu.packer import fmu_aux_columns
     from fmu.calibration_file import read_calibration
+    from fmu.references import read_embedded
     from training.data.io import read_imu_csv
     from training.reports.run_summary import run_notes
     data = read_imu_csv(data_path)
     read_description(fmu_path)  # the archive checks (fmu.archive) before any member is read
-    coefficients, settings, aux = read_calibration(calibration) if calibration is not None else (None, {}, [])
+    coefficients, settings, aux = (read_calibration(calibration) if calibration is not None
+                                   else read_embedded(fmu_path, variant) if variant is not None else (None, {}, []))
     params = settings | recording_parameters(data) | dict(overrides or {})
     inputs = data.inputs(aux_columns=[a["column"] for a in aux] if aux else fmu_aux_columns(fmu_path))
     log: list[str] = []
