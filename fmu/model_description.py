@@ -3,6 +3,8 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+
+import numpy as np
 from xml.sax.saxutils import quoteattr
 
 from fmu.compiler import check_fmi_version, fmu_source_files
@@ -13,8 +15,17 @@ from contract.layout import identity_coefficients, settings_defaults
 
 MODEL_NAME = "ImuFusion"
 
-#: Default experiment: 10 s at 100 Hz.
+#: Default experiment: 10 s at 100 Hz; the step follows the sensor's rate where the calibration data give it
+#: (`default_experiment`).
 DEFAULT_EXPERIMENT = {"startTime": 0.0, "stopTime": 10.0, "stepSize": 0.01}
+
+
+def default_experiment(training_data: Sequence[dict] = ()) -> dict:
+    """DEFAULT_EXPERIMENT with the step of the sensor's rate: 1 / the median `rate_hz` [Hz] of the calibration
+    recordings (ModelArtefact.training_data; the FMU consumes one sample per step), when any gives one."""
+    rates = [float(d["rate_hz"]) for d in training_data if isinstance(d.get("rate_hz"), (int, float))
+             and math.isfinite(d["rate_hz"]) and d["rate_hz"] > 0]
+    return {**DEFAULT_EXPERIMENT, "stepSize": 1.0 / float(np.median(rates))} if rates else dict(DEFAULT_EXPERIMENT)
 
 #: Log categories, in the order of the ModelLogCategory enum of sources/model.h.
 LOG_CATEGORIES = (
@@ -168,12 +179,12 @@ def _settings_values(settings: dict) -> dict:
     return values
 
 
-def _shared_sections(values: dict) -> str:
+def _shared_sections(values: dict, experiment: dict) -> str:
     """UnitDefinitions, LogCategories and DefaultExperiment (the same in FMI 2 and FMI 3)."""
     units = "\n".join(f"    <Unit name={quoteattr(name)}>{inner}</Unit>" if inner else f"    <Unit name={quoteattr(name)}/>"
                       for name, inner in UNITS.items())
     categories = "\n".join(f"    <Category name={quoteattr(n)} description={quoteattr(d)}/>" for n, d in LOG_CATEGORIES)
-    experiment = " ".join(f'{k}="{v!r}"' for k, v in DEFAULT_EXPERIMENT.items())
+    experiment = " ".join(f'{k}="{v!r}"' for k, v in experiment.items())
     return f"""  <UnitDefinitions>
 {units}
   </UnitDefinitions>
@@ -193,7 +204,7 @@ def _generation_attributes(built: str | None) -> str:
 
 
 def _fmi3_xml(values: dict, guid: str, description: str, table: tuple[Variable, ...], built: str | None,
-              coefficients) -> str:
+              coefficients, experiment: dict) -> str:
     """Text of an FMI 3.0 modelDescription.xml (sources are listed in buildDescription.xml)."""
     variables = "\n".join([_TIME_XML] + [_variable_xml3(v, values) for v in table] + _coefficient_xml(coefficients, 3))
     return f"""<?xml version="1.0" encoding="UTF-8"?>
@@ -213,7 +224,7 @@ def _fmi3_xml(values: dict, guid: str, description: str, table: tuple[Variable, 
     providesDirectionalDerivatives="false"
     providesAdjointDerivatives="false"
     hasEventMode="false"/>
-{_shared_sections(values)}
+{_shared_sections(values, experiment)}
   <ModelVariables>
 {variables}
   </ModelVariables>
@@ -224,7 +235,8 @@ def _fmi3_xml(values: dict, guid: str, description: str, table: tuple[Variable, 
 
 def model_description_xml(settings: dict, guid: str, description: str,
                           source_files: list[str] | None = None, fmi_version: int = 2,
-                          aux_inputs: Sequence[dict] = (), built: str | None = None, coefficients=None) -> str:
+                          aux_inputs: Sequence[dict] = (), built: str | None = None, coefficients=None,
+                          training_data: Sequence[dict] = ()) -> str:
     """Text of modelDescription.xml for FMI `fmi_version` (2 or 3).
 
     settings: parameter start values by name (missing names take contract.layout defaults);
@@ -234,14 +246,16 @@ def model_description_xml(settings: dict, guid: str, description: str,
     the model's ModelArtefact.aux_inputs, which describe the auxiliary inputs; built: the build
     time for generationDateAndTime (fmu.provenance.build_time; None: the attribute is left out);
     coefficients: the coefficient array compiled in, the coefficient parameters' start values (None: the
-    untrained model's, contract.layout.identity_coefficients).
+    untrained model's, contract.layout.identity_coefficients); training_data: the model's
+    ModelArtefact.training_data, whose sample rates set the default experiment's step (`default_experiment`).
     Raises KeyError for an unknown setting name, BuildError for another FMI version.
     """
     values = _settings_values(settings)
     table = variable_table(aux_inputs)
     coefficients = identity_coefficients() if coefficients is None else coefficients
+    experiment = default_experiment(training_data)
     if check_fmi_version(fmi_version) == 3:
-        return _fmi3_xml(values, guid, description, table, built, coefficients)
+        return _fmi3_xml(values, guid, description, table, built, coefficients, experiment)
     if source_files is None:
         source_files = [p.name for p in fmu_source_files(fmi_version=2) if p.suffix == ".c"]
     files = "\n".join(f"      <File name={quoteattr(name)}/>" for name in source_files)
@@ -267,7 +281,7 @@ def model_description_xml(settings: dict, guid: str, description: str,
 {files}
     </SourceFiles>
   </CoSimulation>
-{_shared_sections(values)}
+{_shared_sections(values, experiment)}
   <ModelVariables>
 {variables}
   </ModelVariables>

@@ -229,7 +229,8 @@ def pack_fmu(coefficients: np.ndarray, settings: dict, out_path: str | Path, ref
     built = build_time()
     record = provenance_record(coefficients, values, built, training_data, notes)
     files = {"modelDescription.xml": model_description_xml(values, guid, f"{description}. {provenance_summary(record)}",
-                                                           c_files, fmi_version, aux_inputs, built, coefficients),
+                                                           c_files, fmi_version, aux_inputs, built, coefficients,
+                                                           training_data),
              f"sources/{HEADER_NAME}": header,
              "documentation/index.html": documentation_html(values, description, fmi_version, variables),
              AUX_INPUTS_FILE: json.dumps([dict(a) for a in aux_inputs], indent=2, ensure_ascii=False) + "\n",

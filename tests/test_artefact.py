@@ -97,8 +97,9 @@ def test_train_recovers_acc_and_records_data(artefact):
     assert np.abs(acc.A - TRUTH["acc"].A).max() < RECOVERY_TOL
     assert np.abs(acc.g - TRUTH["acc"].g).max() < RECOVERY_TOL
     assert np.abs(acc.b - TRUTH["acc"].b).max() / 0.2 < RECOVERY_TOL
-    assert artefact.training_data == [{"name": "warm-up", "samples": N_PER_SET},
-                                      {"name": "cool-down", "samples": N_PER_SET}]
+    assert [{**d, "rate_hz": round(d["rate_hz"], 6)} for d in artefact.training_data] == [
+        {"name": "warm-up", "samples": N_PER_SET, "rate_hz": RATE_HZ},
+        {"name": "cool-down", "samples": N_PER_SET, "rate_hz": RATE_HZ}]
     assert artefact.seed == 3 and artefact.fit_stats["acc"]["rows_dropped"] == 0
 
 

@@ -84,3 +84,15 @@ def test_the_auxiliary_input_map_travels_with_the_calibration(tmp_path):
     path = write_calibration(tmp_path / "unit.ssv", np.array(identity_coefficients()), {}, aux)
     assert validate_ssv(path) == []
     assert read_calibration(path)[2] == aux
+
+
+def test_the_default_experiment_steps_at_the_sensors_rate(trained):
+    # the calibration session is simulated at 50 Hz: the FMU consumes one sample per step
+    from fmpy import read_model_description
+    from fmu.model_description import default_experiment
+    tmp, _ = trained
+    assert load_artefact(tmp / "unit" / "model.json").training_data[0]["rate_hz"] == pytest.approx(50.0, rel=1e-9)
+    fmu = tmp / "from_model.fmu"
+    assert main(["build-fmu", "--model", str(tmp / "unit" / "model.json"), "--out", str(fmu)]) == 0
+    assert float(read_model_description(str(fmu)).defaultExperiment.stepSize) == pytest.approx(0.02, rel=1e-9)
+    assert default_experiment(())["stepSize"] == 0.01  # no calibration data (the generic FMU): 100 Hz

@@ -679,12 +679,21 @@ def _fit(datasets: list[ImuData], seed: int, degree: int | str, progress: bool, 
     settings["enable_psobp"] = float(psobp_on)
     notes += range_notes(thermal, elm_model, psobp_model, settings)
     artefact = ModelArtefact(seed=seed, thermal=thermal, settings=settings, fit_stats=stats,
-                             training_data=[{"name": d.name, "samples": len(d)} for d in datasets],
+                             training_data=[_training_record(d) for d in datasets],
                              notes=notes, elm=elm_model, psobp=psobp_model)
     chosen = choose_by_replay(coefficients_array(artefact), settings_dict(artefact), datasets, artefact.notes)
     artefact.settings.update({name: chosen[name] for name in REPLAYED_SETTINGS})
     artefact.settings.update(pf_switch(coefficients_array(artefact), settings_dict(artefact), datasets, artefact.notes))
     return artefact
+
+
+def _training_record(data: ImuData) -> dict:
+    """A calibration recording as the artefact lists it: name, samples and (with two samples or more) its
+    nominal rate [Hz], 1 / the median sample step, which sets the FMU's default experiment step."""
+    record = {"name": data.name, "samples": len(data)}
+    if len(data) > 1 and np.median(np.diff(data.t)) > 0:
+        record["rate_hz"] = float(1.0 / np.median(np.diff(data.t)))
+    return record
 
 
 @dataclass

@@ -3,7 +3,7 @@
 Every unit folder of FLEET_DIR (a folder with a `calibration/` sub-folder of recordings, as
 `simulate-fleet` writes, or with recordings of its own) is trained by the function behind
 `imufmu train` (training.train.train_to_folder) in one Dask task, into OUT/<unit>/: the same
-model.json and calibration.md as `imufmu train <its recordings> --out OUT/<unit>` gives. A unit that
+model.json, calibration.ssv and calibration.md as `imufmu train <its recordings> --out OUT/<unit>` gives. A unit that
 fails is recorded with its reason and the fleet goes on. Then OUT/fleet.json and OUT/fleet.md
 describe the population (training.fleet.population).
 """
