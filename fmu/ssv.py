@@ -271,27 +271,29 @@ def _problems(root) -> list[str]:
     return problems + _rule_problems(root)
 
 
+def _repeated(names: list[str], what: str) -> list[str]:
+    """One problem per name that occurs again after its first occurrence."""
+    seen: set[str] = set()
+    problems = []
+    for name in names:
+        if name in seen:
+            problems.append(f"{what} '{name}' occurs twice")
+        seen.add(name)
+    return problems
+
+
 def _rule_problems(root) -> list[str]:
     """The problems of validate_ssv's (3)."""
     ns = {"ssv": SSV_NAMESPACE, "ssc": SSC_NAMESPACE}
-    problems = []
-    declared: set[str] = set()
-    for unit in root.iterfind("ssv:Units/ssc:Unit", ns):
-        unit_name = unit.get("name")
-        if unit_name in declared:
-            problems.append(f"unit '{unit_name}' is declared twice")
-        declared.add(unit_name)
-    names: set[str] = set()
-    for parameter in root.iterfind("ssv:Parameters/ssv:Parameter", ns):
-        name = parameter.get("name")
-        if name in names:
-            problems.append(f"parameter '{name}' occurs twice")
-        names.add(name)
+    units = [unit.get("name") for unit in root.iterfind("ssv:Units/ssc:Unit", ns)]
+    parameters = list(root.iterfind("ssv:Parameters/ssv:Parameter", ns))
+    problems = _repeated(units, "unit") + _repeated([p.get("name") for p in parameters], "parameter")
+    for parameter in parameters:
         real = parameter.find("ssv:Real", ns)
         if real is None:
             continue
-        unit = real.get("unit")
-        if unit is not None and unit not in declared:
+        name, unit = parameter.get("name"), real.get("unit")
+        if unit is not None and unit not in units:
             problems.append(f"parameter '{name}': unit '{unit}' is not declared in ssv:Units")
         problems += _finite_problems(name, real.get("value"))
     return problems
