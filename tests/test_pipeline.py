@@ -104,3 +104,31 @@ def test_main_job_reproduces_the_golden_record(summary):
     2π): moving code changes no number."""
     import golden
     assert golden.differences(summary) == {}
+
+
+def test_the_generic_fmu_with_the_trained_calibration_file_is_the_trained_fmu(summary, tmp_path):
+    """Issue 32 on the golden records' ground: the FMU built without a calibration (build-fmu without a
+    model), with the main job's trained set applied from its calibration.ssv, gives the compiled FMU's outputs
+    bit for bit on every evaluation scenario and on the first 20 s of BROAD trial 01."""
+    import golden
+    from fmu.calibration_file import read_calibration, write_calibration
+    from fmu.cosim import run_fmu
+    from training.artefact import coefficients_array, load_artefact, settings_dict
+    from training.data.io import read_imu_csv
+    from training.fmu_build import build_fmu_from_model
+    from training.main_job import recording_parameters
+    artefact = load_artefact(summary.model_path)
+    ssv = write_calibration(tmp_path / "calibration.ssv", coefficients_array(artefact), settings_dict(artefact),
+                            artefact.aux_inputs)
+    coefficients, settings, aux = read_calibration(ssv)
+    generic = build_fmu_from_model(None, tmp_path / "generic.fmu")
+    for s in summary.scenarios:
+        out = run_fmu(generic, s.data.t, s.data.inputs([a["column"] for a in aux]),
+                      parameters=settings | recording_parameters(s.data), coefficients=coefficients)
+        np.testing.assert_array_equal(out, s.out, err_msg=s.name)
+    compiled = golden.broad_outputs(Path(summary.fmu_path))
+    if compiled is not None:
+        data = read_imu_csv(golden.BROAD_TRIAL).slice(slice(0, golden.BROAD_SAMPLES))
+        out = run_fmu(generic, data.t, data.inputs(), parameters=settings | recording_parameters(data),
+                      coefficients=coefficients)
+        np.testing.assert_array_equal(out, compiled)
