@@ -91,6 +91,17 @@ def read_calibration(path) -> tuple[np.ndarray, dict[str, float], list[dict]]:
     return coefficients, settings, _aux_inputs(path)
 
 
+def start_values(coefficients, settings: dict[str, float], fmi_version: int) -> dict[str, float | int | bool | list]:
+    """The start values an importer sets for a unit (`fmpy.simulate_fmu(..., start_values=...)`): every
+    setting as its declared type and the coefficient parameters of FMI `fmi_version` (2: a scalar per
+    coefficient, 3: a list per block)."""
+    typed = {}
+    for name, value in settings.items():
+        kind = by_name(name).type
+        typed[name] = bool(value) if kind == "Boolean" else int(value) if kind == "Integer" else float(value)
+    return typed | cp.parameter_values(coefficients, fmi_version)
+
+
 def _shortfall(block: cp.CoefficientBlock, values: dict) -> str:
     """What a block lacks in the values read: its elements that are missing, or how many values it has."""
     value = values.get(block.parameter)

@@ -62,3 +62,25 @@ def test_a_missing_set_is_named_with_the_labels_the_fmu_has(identity_fmu2):
 def test_a_label_must_be_able_to_name_a_file(label):
     with pytest.raises(ValueError, match="variant label"):
         check_label(label)
+
+
+def test_fmpy_applies_an_embedded_variant(identity_fmu, trained_fmu, fmi_version, tmp_path):
+    # fmpy's own simulate_fmu with the start values of a parameter set embedded in the FMU built without a
+    # calibration gives the outputs of the FMU the set was compiled into
+    from fmpy import simulate_fmu
+    from contract.layout import INPUTS, OUTPUTS
+    from fmu.calibration_file import start_values
+    from fmu.packer import reference_recording
+    unit = calibration_document(trained_coefficients(), TRAINED_SETTINGS)
+    fmu = _with_sets(identity_fmu, tmp_path / "sets.fmu", {"unit-A": unit})
+    coefficients, settings, _ = read_embedded(fmu, "unit-A")
+    t, raw = reference_recording()
+    signals = np.zeros(len(t), dtype=[("time", float)] + [(name, float) for name in INPUTS])
+    signals["time"] = t
+    for j, name in enumerate(INPUTS):
+        signals[name] = raw[:, j]
+    run = dict(input=signals, output=list(OUTPUTS), step_size=float(t[1] - t[0]), stop_time=float(t[-1]))
+    applied = simulate_fmu(str(fmu), start_values=start_values(coefficients, settings, fmi_version), **run)
+    compiled = simulate_fmu(str(trained_fmu), **run)
+    for name in OUTPUTS:
+        np.testing.assert_array_equal(applied[name], compiled[name], err_msg=name)
