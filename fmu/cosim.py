@@ -257,8 +257,9 @@ def _initialise(fmu: FMU2Slave | FMU3Slave, start_time: float, parameters: dict,
 
 @contextmanager
 def fmu_runner(fmu_path: str | Path, instance_name: str = "ImuFusion") -> Iterator[Callable]:
-    """Extract and instantiate the FMU once and yield run(t, inputs, parameters) -> outputs, which
-    co-simulates one recording as `run_fmu` does; every run after the first resets the instance
+    """Extract and instantiate the FMU once and yield run(t, inputs, parameters, coefficients) -> outputs, which
+    co-simulates one recording as `run_fmu` does (coefficients: a unit's whole coefficient array, set as the
+    coefficient parameters, or None for the FMU's own); every run after the first resets the instance
     (fmi2Reset / fmi3Reset: every variable back to its start value) instead of instantiating
     again, as fmpy's parameter-variation example does. FmuError with the FMU's log on failure."""
     unzipdir = tempfile.mkdtemp(prefix="imufusion-fmu-")
@@ -270,14 +271,14 @@ def fmu_runner(fmu_path: str | Path, instance_name: str = "ImuFusion") -> Iterat
         fmu = _instantiate(fmu_path, unzipdir, log, instance_name)
         runs = 0
 
-        def run(t: np.ndarray, inputs: np.ndarray, parameters: dict | None = None) -> np.ndarray:
+        def run(t: np.ndarray, inputs: np.ndarray, parameters: dict | None = None, coefficients=None) -> np.ndarray:
             nonlocal runs
             t, inputs = _check_arrays(t, inputs)
             try:
                 if runs:
                     fmu.reset()
                 runs += 1
-                _initialise(fmu, float(t[0]), parameters or {})
+                _initialise(fmu, float(t[0]), parameters or {}, coefficients)
                 return step_samples(fmu, t, inputs, description_step_sizes(description, t))
             except FMICallException as e:
                 raise log.error(f"{fmu_path}: {e}") from e

@@ -156,3 +156,36 @@ def test_a_recording_without_any_reference_is_refused(identity_fmu2, recording, 
                  "--workers", "1"]) == 1
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "bare.csv.gz: no reference" in err[0]
+
+
+def test_the_unit_is_varied_like_any_parameter(identity_fmu2, recording, tmp_path):
+    """Issue 32: `--vary unit=FLEET_DIR` draws one of a fleet's units per run and sets its calibration.ssv in
+    the FMU (built without a calibration): each run equals a fresh run with that unit's coefficients and
+    settings, and units that differ give different errors."""
+    from contract.layout import OFFSET_THERMAL, identity_coefficients
+    from fmu.calibration_file import write_calibration
+    from training.evaluate import compute_metrics
+    from training.fleet.campaign import _mounting
+    from training.mounting import body_references
+    units = []
+    for k, gain in enumerate((1.0, 1.03, 0.97)):  # three units: their gyro gain differs by ±3 %
+        coefficients = np.array(identity_coefficients())
+        coefficients[OFFSET_THERMAL + 4] = coefficients[OFFSET_THERMAL + 8] = coefficients[OFFSET_THERMAL + 12] = gain
+        (tmp_path / "fleet" / f"unit{k}").mkdir(parents=True)
+        write_calibration(tmp_path / "fleet" / f"unit{k}" / "calibration.ssv", coefficients, {"declination": 0.01 * k})
+        units.append(coefficients)
+    (tmp_path / "fleet" / "fleet.md").write_text("not a unit")
+    variation = parse_variation(f"unit={tmp_path / 'fleet'}")
+    assert len(variation.units) == 3 and "3 units" in variation.text()
+    rows = run_partition(range(8), str(identity_fmu2), str(recording), (variation,), 4)
+    assert {row["unit"] for row in rows} == {0.0, 1.0, 2.0}
+    data = read_imu_csv(recording)
+    for row in rows[:4]:
+        k = int(row["unit"])
+        parameters = {"declination": 0.01 * k, **recording_parameters(data)}
+        out = run_fmu(identity_fmu2, data.t, data.inputs(), parameters, coefficients=units[k])
+        fresh = compute_metrics(out, body_references(data, _mounting(str(identity_fmu2), parameters))).as_dict()
+        assert {m: row[m] for m in CAMPAIGN_METRICS} == {m: fresh[m] for m in CAMPAIGN_METRICS}
+    assert len({row["rate_err_dps"] for row in rows}) == 3  # one error per unit
+    with pytest.raises(CampaignError, match="no unit of"):
+        parse_variation(f"unit={tmp_path}")

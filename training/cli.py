@@ -427,7 +427,9 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--runs", type=int, required=True)
     s.add_argument("--vary", action="append", metavar="NAME=DIST",
                    help="NAME=normal(MEAN,SIGMA) | uniform(LOW,HIGH) | choice(A,B,...); NAME an FMU parameter or "
-                        "noise_gyr [rad/s], noise_acc [m/s²], noise_mag [µT] (σ of white noise added to that input). Repeatable")
+                        "noise_gyr [rad/s], noise_acc [m/s²], noise_mag [µT] (σ of white noise added to that input); or "
+                        "unit=FLEET_DIR: each run draws a unit of a fleet train folder and sets its calibration.ssv. "
+                        "Repeatable")
     _add_out(s, "output folder: campaign.md, campaign.json, runs.csv, campaign.png")
     s.add_argument("--seed", type=int, default=0)
     _add_dask_options(s)

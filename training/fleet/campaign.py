@@ -4,11 +4,14 @@ Run r co-simulates the recording DATA through the FMU with its own draw of every
 numpy's SeedSequence(seed, spawn_key=(r,)), so run r is the same whatever N, the partitioning or
 the worker that runs it. A variation is
 
-    NAME=normal(MEAN,SIGMA) | uniform(LOW,HIGH) | choice(A,B,…)
+    NAME=normal(MEAN,SIGMA) | uniform(LOW,HIGH) | choice(A,B,…) | unit=FLEET_DIR
 
 where NAME is an FMU parameter (set before initialisation) or an input perturbation
 `noise_gyr` [rad/s], `noise_acc` [m/s²], `noise_mag` [µT]: the σ of white noise added to that raw
 input triad in this run (its samples drawn after the variations, from the same stream).
+`unit=FLEET_DIR` varies the unit (issue 32): each run draws one of the units `imufmu fleet train` wrote to
+FLEET_DIR (every sub-folder with a calibration.ssv, in name order) and sets its coefficients and settings in
+the FMU before initialisation; the run's `unit` column is the drawn unit's index in that order.
 
 The runs are split into partitions, one Dask task each; a task instantiates the FMU once and
 resets it between its runs (fmu.cosim.fmu_runner). Each run's errors against the recording's truth
@@ -45,6 +48,8 @@ NOISE_INPUTS = {f"noise_{triad}": [INPUTS.index(f"{triad}_{axis}") for axis in "
 #: beyond it every perturbed sample is bad input, and nothing is measured.
 NOISE_MAX = {"noise_gyr": GYR_LIMIT_RAD_S, "noise_acc": ACC_LIMIT_M_S2,
              "noise_mag": MAG_SATURATION * FIELD_NORM_MAX_UT}
+#: The variation of the unit itself (--vary unit=FLEET_DIR).
+UNIT = "unit"
 #: Distributions of a variation and their argument counts (None: any number ≥ 1).
 DISTRIBUTIONS = {"normal": 2, "uniform": 2, "choice": None}
 #: Metrics of each run (training.evaluate.Metrics.as_dict names, units in the name).
@@ -64,11 +69,12 @@ class CampaignError(ImuFusionError):
 
 @dataclass(frozen=True)
 class Variation:
-    """One --vary NAME=DIST."""
+    """One --vary NAME=DIST, or the unit (UNIT: `units` are the units' calibration files, drawn by index)."""
 
     name: str
     distribution: str
     args: tuple[float, ...]
+    units: tuple[str, ...] = ()
 
     def draw(self, rng: np.random.Generator) -> float:
         """One value of this variation."""
@@ -80,11 +86,29 @@ class Variation:
 
     def text(self) -> str:
         """The variation as the user wrote it (normalised)."""
+        if self.name == UNIT:
+            return f"unit={Path(self.units[0]).parent.parent} ({len(self.units)} units, drawn uniformly)"
         return f"{self.name}={self.distribution}({', '.join(f'{a:g}' for a in self.args)})"
 
 
+def _unit_variation(folder: str, text: str) -> Variation:
+    """The unit variation over the units of a `fleet train` folder: its sub-folders with a calibration.ssv."""
+    from fmu.calibration_file import FILE_NAME
+    root = Path(folder)
+    if not root.is_dir():
+        raise CampaignError(f"--vary {text!r}: '{folder}' is not a folder (the output of imufmu fleet train)")
+    units = tuple(str(p / FILE_NAME) for p in sorted(root.iterdir()) if (p / FILE_NAME).is_file())
+    if not units:
+        raise CampaignError(f"--vary {text!r}: no unit of '{folder}' has a {FILE_NAME} (imufmu fleet train writes one "
+                            "per unit)")
+    return Variation(UNIT, "choice", tuple(float(k) for k in range(len(units))), units)
+
+
 def parse_variation(text: str) -> Variation:
-    """A Variation from NAME=DIST; CampaignError naming the problem."""
+    """A Variation from NAME=DIST or unit=FLEET_DIR; CampaignError naming the problem."""
+    name, sep, folder = text.partition("=")
+    if sep and name.strip() == UNIT:
+        return _unit_variation(folder.strip(), text)
     match = _SPEC.match(text)
     if not match:
         raise CampaignError(f"--vary {text!r}: expected NAME=normal(MEAN,SIGMA), NAME=uniform(LOW,HIGH) or "
@@ -181,10 +205,29 @@ def _mounting(fmu_path: str, parameters: dict[str, float]) -> tuple[int, int, in
     return settings_codes({**dict(zip(MOUNT_SETTINGS, _declared_mounting(fmu_path))), **parameters})
 
 
+@functools.lru_cache(maxsize=256)
+def _unit(path: str) -> tuple[np.ndarray, dict[str, float]]:
+    """A unit's coefficients and settings from its calibration.ssv (read once per worker process)."""
+    from fmu.calibration_file import read_calibration
+    coefficients, settings, _ = read_calibration(path)
+    return coefficients, settings
+
+
+def _unit_of(variations: tuple[Variation, ...], parameters: dict[str, float]) -> tuple[np.ndarray | None, dict]:
+    """(the drawn unit's coefficients or None, its settings) of a run whose draws are `parameters` (the unit's
+    index removed from them)."""
+    unit = next((v for v in variations if v.name == UNIT), None)
+    if unit is None:
+        return None, {}
+    coefficients, settings = _unit(unit.units[int(parameters.pop(UNIT))])
+    return coefficients, settings
+
+
 def run_partition(runs: Iterable[int], fmu_path: str, data_path: str, variations: tuple[Variation, ...],
                   seed: int) -> list[dict]:
     """Co-simulate `runs` with one FMU instance (reset between runs); one dict per run: run, the
-    drawn values and CAMPAIGN_METRICS."""
+    drawn values and CAMPAIGN_METRICS. A unit variation sets the drawn unit's coefficients and settings
+    first; the recording's parameters and the other variations apply over its settings."""
     from fmu.cosim import fmu_runner
     from fmu.packer import fmu_aux_columns
     data = _recording(data_path)
@@ -194,15 +237,17 @@ def run_partition(runs: Iterable[int], fmu_path: str, data_path: str, variations
     with fmu_runner(fmu_path) as simulate:
         for r in runs:
             parameters, noise_sigma, noise = run_draws(variations, seed, r, len(data))
-            run_parameters = {**fixed, **parameters}
+            drawn = dict(parameters)
             metrics, failed = dict.fromkeys(CAMPAIGN_METRICS, float("nan")), ""
             try:
-                outputs = simulate(data.t, inputs + noise, run_parameters)
+                coefficients, unit_settings = _unit_of(variations, parameters)
+                run_parameters = {**unit_settings, **fixed, **parameters}
+                outputs = simulate(data.t, inputs + noise, run_parameters, coefficients)
                 body = body_references(data, _mounting(fmu_path, run_parameters))
                 metrics = compute_metrics(outputs, body).as_dict()
             except Exception as e:  # noqa: BLE001 - a run that fails is reported with its reason, the others go on
                 failed = one_line(f"{type(e).__name__}: {e}")
-            out.append({"run": r, **parameters, **noise_sigma, **{m: metrics[m] for m in CAMPAIGN_METRICS},
+            out.append({"run": r, **drawn, **noise_sigma, **{m: metrics[m] for m in CAMPAIGN_METRICS},
                         "failed": failed})
     return out
 
