@@ -68,6 +68,11 @@ _FLEET_PRIOR_SMALL = ("benchmarks/fleet_prior.py", "--fleet-units", "5", "--unit
 
 GENERATORS = (
     TableGenerator(
+        "python benchmarks/unit_switch.py --units 200 --compiled 3 --repeats 3",
+        ("| FMI | units | switches | median per switch, ms | 95th percentile, ms | largest, ms | "
+         "units bit-equal to their compiled FMU |",),
+        small=("benchmarks/unit_switch.py", "--units", "2", "--compiled", "0", "--repeats", "1"), trains=True),
+    TableGenerator(
         "imufmu bench broad-trained --out bench/broad-trained",
         (_BROAD_GROUPS,
          "| trial | VQF 9D (defaults) | ImuFusion FMU, no reference | ImuFusion FMU, no reference, enable_pf = 1 "
