@@ -70,7 +70,7 @@ def problem_text(block: CoefficientBlock) -> str:
     if block.name == "layout_version":
         return f"{block.parameter} is not this FMU's coefficient layout version"
     return (f"{block.parameter} does not fit the coefficient layout (a flag, degree, count, index or range "
-            "outside what the block allows)")
+            "outside what the block allows, or a value it uses not finite)")
 
 
 def scalar_name(block: CoefficientBlock, k: int) -> str:

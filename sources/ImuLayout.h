@@ -215,12 +215,12 @@ typedef struct {
  *  coefficient block, in array order (ImuCoefficientBlock). */
 #define IMU_COEFFICIENT_BLOCKS { \
     {0, 1, "calibration.layout_version", "calibration.layout_version is not this FMU's coefficient layout version"}, \
-    {1, 37, "calibration.thermal_gyr", "calibration.thermal_gyr does not fit the coefficient layout (a flag, degree, count, index or range outside what the block allows)"}, \
-    {38, 37, "calibration.thermal_acc", "calibration.thermal_acc does not fit the coefficient layout (a flag, degree, count, index or range outside what the block allows)"}, \
-    {75, 37, "calibration.thermal_mag", "calibration.thermal_mag does not fit the coefficient layout (a flag, degree, count, index or range outside what the block allows)"}, \
-    {112, 385, "calibration.terms", "calibration.terms does not fit the coefficient layout (a flag, degree, count, index or range outside what the block allows)"}, \
-    {497, 463, "calibration.elm", "calibration.elm does not fit the coefficient layout (a flag, degree, count, index or range outside what the block allows)"}, \
-    {960, 202, "calibration.psobp", "calibration.psobp does not fit the coefficient layout (a flag, degree, count, index or range outside what the block allows)"} \
+    {1, 37, "calibration.thermal_gyr", "calibration.thermal_gyr does not fit the coefficient layout (a flag, degree, count, index or range outside what the block allows, or a value it uses not finite)"}, \
+    {38, 37, "calibration.thermal_acc", "calibration.thermal_acc does not fit the coefficient layout (a flag, degree, count, index or range outside what the block allows, or a value it uses not finite)"}, \
+    {75, 37, "calibration.thermal_mag", "calibration.thermal_mag does not fit the coefficient layout (a flag, degree, count, index or range outside what the block allows, or a value it uses not finite)"}, \
+    {112, 385, "calibration.terms", "calibration.terms does not fit the coefficient layout (a flag, degree, count, index or range outside what the block allows, or a value it uses not finite)"}, \
+    {497, 463, "calibration.elm", "calibration.elm does not fit the coefficient layout (a flag, degree, count, index or range outside what the block allows, or a value it uses not finite)"}, \
+    {960, 202, "calibration.psobp", "calibration.psobp does not fit the coefficient layout (a flag, degree, count, index or range outside what the block allows, or a value it uses not finite)"} \
 }
 /* generated:end coefficient-blocks */
 
