@@ -64,8 +64,7 @@ def _prepared(fmu, coefficients: np.ndarray, references: list[int]):
     """A unit's coefficient parameters as the ctypes arrays the FMI call takes (what an importer holds per unit):
     (value references, their number, values, their number)."""
     fmi3 = isinstance(fmu, FMU3Slave)
-    values = cp.parameter_values(coefficients, 3 if fmi3 else 2)
-    flat = [x for v in values.values() for x in (v if isinstance(v, list) else [v])]
+    flat = np.asarray(coefficients, dtype=float).tolist()  # the parameters carry the array in its order
     real = fmi3Float64 if fmi3 else fmi2Real
     reference = fmi3ValueReference if fmi3 else fmi2ValueReference
     return (reference * len(references))(*references), len(references), (real * len(flat))(*flat), len(flat)

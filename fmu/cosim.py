@@ -194,8 +194,9 @@ def _set_coefficients(fmu: FMU2Slave | FMU3Slave, coefficients) -> None:
     if missing:
         raise FmuError(f"the FMU has no coefficient parameters ({missing[0]}, ...): it was built before they "
                        "existed; rebuild it with imufmu build-fmu")
-    flat = [x for v in values.values() for x in (v if isinstance(v, list) else [v])]
-    (fmu.setFloat64 if fmi3 else fmu.setReal)([fmu.value_references[name] for name in values], flat)
+    # either version's parameters, in order, carry the whole array in its own order (contract/coefficient_parameters.py)
+    (fmu.setFloat64 if fmi3 else fmu.setReal)([fmu.value_references[name] for name in values],
+                                              np.asarray(coefficients, dtype=float).tolist())
 
 
 def step_samples(fmu: FMU2Slave | FMU3Slave, t: np.ndarray, inputs: np.ndarray, h: np.ndarray,
