@@ -61,6 +61,27 @@ def members(parameter_sets: dict[str, bytes], reference_input: str, reference_ou
     return out
 
 
+def with_parameter_sets(fmu_path: str | Path, sets: dict[str, bytes], out_path: str | Path) -> Path:
+    """Copy the FMU at fmu_path to out_path with `sets` (label -> SSV bytes) embedded beside the sets
+    it has (its folder rewritten by `members`, every other member copied as it is): a variant needs no new
+    binary. ValueError when a label is taken already."""
+    existing = parameter_sets(fmu_path)
+    taken = sorted(set(existing) & set(sets))
+    if taken:
+        raise ValueError(f"{fmu_path} has a parameter set '{taken[0]}' already")
+    with zipfile.ZipFile(fmu_path) as source:
+        folder = members({**existing, **sets}, *(source.read(f"{FOLDER}/experiments/smoke-test/{name}.csv")
+                                                            .decode() for name in ("input", "output")))
+        with zipfile.ZipFile(out_path, "w") as out:
+            for info in source.infolist():
+                if not info.filename.startswith(FOLDER + "/"):
+                    out.writestr(info, source.read(info))
+            for name, data in folder.items():
+                out.writestr(zipfile.ZipInfo(name, date_time=source.getinfo(MANIFEST).date_time), data,
+                             compress_type=zipfile.ZIP_DEFLATED)
+    return Path(out_path)
+
+
 def _manifest(files: dict[str, tuple[str, str, str]]) -> bytes:
     """The manifest's bytes: file -> (role, label, description)."""
     attribute = f"{{{_LS_NAMESPACE}}}"

@@ -12,6 +12,8 @@ from pathlib import Path
 
 import fmpy
 import numpy as np
+from elftools.common.exceptions import ELFError
+from elftools.elf.elffile import ELFFile
 from fmpy.validation import validate_fmu as fmpy_validate_fmu
 
 from fmu.archive import FmuArchiveError, read_description
@@ -124,14 +126,18 @@ def _read_windows_image(library: Path) -> PeImage:
 
 
 def _library_exports(library: Path) -> set[str]:
-    """What the library exports: a .dll's export name table (fmu.pe), else `nm -D --defined-only`."""
+    """What the library exports: a .dll's export name table (fmu.pe), else the defined symbols of the ELF
+    image's dynamic symbol table (pyelftools; what `nm -D --defined-only` lists, without binutils)."""
     if library.suffix == ".dll":
         return set(_read_windows_image(library).exports)
-    result = subprocess.run(["nm", "-D", "--defined-only", str(library)],
-                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
-    if result.returncode != 0:
-        raise ImuFusionError(f"nm failed on {library.name}: {one_line(result.stdout)}")
-    return {line.split()[-1] for line in result.stdout.splitlines() if line.strip()}
+    try:
+        with library.open("rb") as f:
+            table = ELFFile(f).get_section_by_name(".dynsym")
+            if table is None:
+                raise ELFError("no dynamic symbol table")
+            return {s.name for s in table.iter_symbols() if s.name and s["st_shndx"] != "SHN_UNDEF"}
+    except ELFError as e:
+        raise ImuFusionError(f"{library.name} is not a readable ELF shared library: {one_line(str(e))}") from e
 
 
 def exported_symbols(path: str | Path, platform: str | None = None) -> set[str]:

@@ -44,6 +44,7 @@ def test_train_writes_a_valid_calibration_file_fmpy_reads(trained):
     names = {p.name for p in fmpy_read_ssv(str(ssv)).parameters}
     assert {cp.scalar_name(b, k) for b in cp.BLOCKS for k in range(b.size)} <= names
     assert "field_norm" in names and 'unit="uT"' in ssv.read_text()
+    assert 'name="unit"' in ssv.read_text()  # the unit folder's name, not the staging folder's
 
 
 @pytest.mark.parametrize("fmi", [2, 3])

@@ -6,11 +6,14 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from fmu.calibration_file import read_calibration
+from fmu.references import parameter_sets, read_embedded
 from training.cli import main
 from training.completeness import EXIT_PARTIAL
 from training.fleet import engine
 from training.fleet.population import MIN_UNITS_FOR_OUTLIERS, OUTLIER_SIGMAS, outliers, population
 from training.fleet.simulate import simulate_fleet
+from training.fleet.train import FLEET_FMU
 from training.train import train_to_folder
 
 from fake_peers import REPLIES, FakeScheduler
@@ -52,6 +55,13 @@ def test_fleet_train_equals_serial_train_and_names_a_corrupt_unit(tmp_path, caps
     fleet_model = json.loads((tmp_path / "out" / "unit_0000" / "model.json").read_text())
     assert _without_clock(fleet_model) == _without_clock(json.loads(serial.model.read_text()))
     assert (tmp_path / "out" / "fleet.md").read_text().startswith("# Fleet calibration: 3 units, 1 trained, 2 failed")
+    # one FMU for the fleet: every trained unit's calibration.ssv inside it, labelled by the unit
+    assert parameter_sets(tmp_path / "out" / FLEET_FMU).keys() == {"baseline", "unit_0000"}
+    embedded, settings, _ = read_embedded(tmp_path / "out" / FLEET_FMU, "unit_0000")
+    own, own_settings, _ = read_calibration(tmp_path / "out" / "unit_0000" / "calibration.ssv")
+    np.testing.assert_array_equal(embedded, own)
+    assert settings == own_settings and f"wrote {tmp_path / 'out' / FLEET_FMU}" in printed
+    assert 'name="unit_0000"' in (tmp_path / "out" / "unit_0000" / "calibration.ssv").read_text()  # not the staging folder's
 
 
 def test_a_fleet_of_which_no_unit_trains_exits_1(tmp_path, capsys):

@@ -16,6 +16,10 @@ from contextlib import contextmanager
 from pathlib import Path
 
 from contract.errors import ImuFusionError, one_line
+from fmu.prebuilt import PACKAGE_DIR
+
+#: Where `imufmu prebuild` writes by default: the package's own prebuilt folder.
+PREBUILT_OUT = str(PACKAGE_DIR)
 
 
 def _existing_file(path: str, what: str) -> Path:
@@ -95,11 +99,12 @@ def cmd_fleet_train(args) -> int:
     from training.completeness import EXIT_PARTIAL
     from training.data.outputs import staged_output
     from training.fleet.report import fleet_elm_summary, write_fleet_report
-    from training.fleet.train import train_fleet
+    from training.fleet.train import train_fleet, variant_label, write_fleet_fmu
     with staged_output("fleet train", args.out, args.force, inputs=[args.fleet_dir]) as out:
         results = train_fleet(args.fleet_dir, out.path, seed=args.seed, workers=args.workers,
                               scheduler=args.scheduler)
         json_path, md_path, doc = write_fleet_report(results, out.path, seed=args.seed, progress=True)
+        fmu_path = write_fleet_fmu(results, out.path, fmi_version=args.fmi) if doc["trained"] else None
     json_path, md_path = out.final(json_path), out.final(md_path)
     print(f"trained {doc['trained']} of {len(results)} units; {len(doc['failed'])} failed, "
           f"{len({o['unit'] for o in doc['outliers']})} outlier unit(s)")
@@ -110,6 +115,10 @@ def cmd_fleet_train(args) -> int:
               f"({o['distance']:.1f} robust σ from the median {o['median']:.4g})")
     print(f"  {fleet_elm_summary(doc['elm'])}")
     print(f"wrote {json_path} and {md_path}")
+    if fmu_path is not None:
+        example = next(r.unit for r in results if r.model)
+        print(f"wrote {out.final(fmu_path)}: one FMU (FMI {args.fmi}) with every trained unit's calibration.ssv as a "
+              f"parameter set (imufmu run {out.final(fmu_path)} DATA --variant {variant_label(example)})")
     if doc["failed"]:
         status = EXIT_PARTIAL if doc["trained"] else 1
         print(f"imufmu fleet train: {len(doc['failed'])} of {len(results)} units failed (listed above); "
@@ -151,7 +160,8 @@ def cmd_train(args) -> int:
     from training.train import train_to_folder
     with staged_output("train", args.out, args.force, inputs=[*args.data, *([args.prior] if args.prior else [])]) as out:
         done = train_to_folder([_existing_file(p, "data file") for p in args.data], out.path, seed=args.seed,
-                               degree=args.degree, allow_identity=args.allow_identity, prior_path=args.prior)
+                               degree=args.degree, allow_identity=args.allow_identity, prior_path=args.prior,
+                               name=Path(args.out).resolve().name)
     for note in done.notes:
         print(f"note: {note}")
     print()
@@ -192,6 +202,18 @@ def cmd_build_fmu(args) -> None:
         print(f"embedded parameter set '{label}' (imufmu run {path} DATA --variant {label})")
     print(f"wrote {path} (FMI {args.fmi}.0 co-simulation" + (")" if model else
           "; generic: no calibration compiled in, run it with --calibration UNIT.ssv)"))
+
+
+def cmd_prebuild(args) -> None:
+    """imufmu prebuild [--out DIR]: the runtime library and the generic FMUs, so that train and run need no compiler."""
+    from training.data.outputs import staged_output
+    from training.fmu_build import build_prebuilt
+    with staged_output("prebuild", args.out, args.force) as out:
+        paths = build_prebuilt(out.path)
+    for kind, path in paths.items():
+        print(f"{kind:8s} {out.final(path)}")
+    print(f"prebuilt for this platform from these sources: where no C compiler is on PATH, train uses the runtime "
+          f"library and build-fmu (without --model) the generic FMU{'' if args.out == PREBUILT_OUT else f' (set IMUFUSION_PREBUILT={args.out})'}")
 
 
 def cmd_validate(args) -> None:
@@ -303,6 +325,7 @@ EXAMPLES = {
     "campaign": "imufmu campaign ImuFusion.fmu data/eval_handheld.csv.gz --runs 1000 --vary noise_gyr=uniform(0,0.01) "
                 "--vary declination=normal(0.05,0.01) --out campaign",
     "build-fmu": "imufmu build-fmu --model model/model.json --out ImuFusion.fmu --fmi 3",
+    "prebuild": "imufmu prebuild --force",
     "validate": "imufmu validate ImuFusion.fmu",
     "run": "imufmu run ImuFusion.fmu data/eval_handheld.csv.gz --out outputs.csv --param declination=0.05",
     "compare-thermal": "imufmu compare-thermal data/thermal_plateaus.csv.gz --out thermal --runs 10",
@@ -417,8 +440,10 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("action", choices=("train",))
     s.add_argument("fleet_dir", help="folder of unit folders (each with a calibration/ folder of recordings, "
                    "as simulate-fleet writes, or with its own recordings)")
-    _add_out(s, "output folder: OUT/<unit>/model.json, fleet.json, fleet.md")
+    _add_out(s, "output folder: OUT/<unit>/model.json and calibration.ssv, fleet.json, fleet.md, ImuFusion.fmu (one FMU, "
+                "every unit's set embedded)")
     s.add_argument("--seed", type=int, default=0)
+    s.add_argument("--fmi", type=int, choices=(2, 3), default=2, help="FMI version of the fleet's FMU (default 2)")
     _add_dask_options(s)
     s.set_defaults(func=cmd_fleet_train)
     s = _add_verb(sub, "campaign", "Monte-Carlo co-simulation of an FMU on Dask: parameter variations, noisy inputs")
@@ -443,6 +468,11 @@ def build_parser() -> argparse.ArgumentParser:
                    help="embed a unit's calibration.ssv as parameter set LABEL (repeatable; FMI-LS-REF layout, "
                         "extra/org.fmi-standard.fmi-ls-ref/)")
     s.set_defaults(func=cmd_build_fmu)
+    s = _add_verb(sub, "prebuild", "compile the runtime library and the generic FMUs once: train and run then need no "
+                                   "C compiler (docs/fmu.md)")
+    _add_out(s, "folder to write (the checkout's own, found without a setting; another one is used through env "
+                "IMUFUSION_PREBUILT)", default=PREBUILT_OUT)
+    s.set_defaults(func=cmd_prebuild)
     s = _add_verb(sub, "validate", "validate an FMU (model description, exports, smoke run)")
     s.add_argument("fmu")
     s.set_defaults(func=cmd_validate)

@@ -3,7 +3,8 @@
 The library is the same code that goes into the FMU, so `run_batch` gives the FMU's outputs for
 a whole recording in one call. It is compiled on first use into a cache folder (env
 `IMUFUSION_CACHE`, default `~/.cache/imufusion`) under a name keyed by a hash of the sources,
-the compiler and the flags, and rebuilt only when one of them changes.
+the compiler and the flags, and rebuilt only when one of them changes. Without a C compiler on PATH the
+prebuilt library (fmu.prebuilt, `imufmu prebuild`) built from the same sources is used.
 """
 from __future__ import annotations
 
@@ -20,6 +21,7 @@ import numpy as np
 
 from contract import layout
 from contract.errors import BuildError
+from fmu.prebuilt import missing_tools, prebuilt_file
 
 SOURCES_DIR = Path(__file__).resolve().parent.parent / "sources"
 #: The batch library's own entry points (never in an FMU).
@@ -46,7 +48,7 @@ def runtime_sources() -> list[Path]:
     return sorted(SOURCES_DIR.glob("Imu*.c")) + sorted(BATCH_DIR.glob("*.c"))
 
 
-def _compiler() -> list[str]:
+def compiler_command() -> list[str]:
     """Compiler command: env CC (may hold arguments, e.g. 'ccache gcc') or 'cc'."""
     return shlex.split(os.environ.get("CC", "cc")) or ["cc"]
 
@@ -67,16 +69,19 @@ def _build_key(sources: list[Path], compiler: list[str]) -> str:
 
 
 def build_runtime() -> Path:
-    """Compile the runtime library if the cache has no up-to-date copy; return its path.
+    """Compile the runtime library if the cache has no up-to-date copy; return its path. Without the
+    compiler on PATH: the prebuilt library of these sources (fmu.prebuilt.prebuilt_file).
 
     Raises BuildError with the compiler output when compilation fails. Safe to call from
     parallel processes: each compiles into its own temporary file and renames it atomically.
     """
-    sources, compiler = runtime_sources(), _compiler()
+    sources, compiler = runtime_sources(), compiler_command()
     cache = _cache_dir()
     target = cache / f"libimufusion-{_build_key(sources, compiler)}.so"
     if target.exists():
         return target
+    if missing_tools(compiler[0]):
+        return prebuilt_file("runtime", f"the C compiler '{compiler[0]}' is not on PATH (env CC names another)")
     cache.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(prefix=target.stem + ".", suffix=".tmp", dir=cache)
     os.close(fd)
@@ -144,7 +149,7 @@ _LOADED: dict[tuple, ctypes.CDLL] = {}
 def load_runtime() -> ctypes.CDLL:
     """The runtime library (compiled if needed), with ctypes signatures declared; opened once per process
     while its sources stay as they are."""
-    stamp = _stamp(runtime_sources(), _compiler())
+    stamp = _stamp(runtime_sources(), compiler_command())
     if stamp not in _LOADED:
         _LOADED[stamp] = _load(str(build_runtime()))
     return _LOADED[stamp]

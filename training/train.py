@@ -712,10 +712,11 @@ class TrainedFolder:
 
 def train_to_folder(paths: list[Path], out_dir: str | Path, seed: int = 0, degree: int | str = AUTO,
                     allow_identity: bool = False, progress: bool = True,
-                    prior_path: str | Path | None = None) -> TrainedFolder:
+                    prior_path: str | Path | None = None, name: str | None = None) -> TrainedFolder:
     """`imufmu train`: read the recordings at `paths`, `train` on them (under the fleet prior of
     `prior_path`, a fleet.json, if given), write OUT/model.json, the FMU parameter values OUT/calibration.ssv
-    and the calibration report OUT/calibration.md; progress: the stages' progress bars."""
+    (its set named `name`: the unit's, default out_dir's name — pass the final one when out_dir is a
+    staging folder) and the calibration report OUT/calibration.md; progress: the stages' progress bars."""
     from fmu.calibration_file import FILE_NAME as CALIBRATION_FILE, write_calibration
     from training.data.io import read_imu_csv
     from training.reports.calibration_report import summary_text, write_calibration_report
@@ -728,7 +729,8 @@ def train_to_folder(paths: list[Path], out_dir: str | Path, seed: int = 0, degre
     model = Path(out_dir) / "model.json"
     artefact.save(model)
     calibration = write_calibration(Path(out_dir) / CALIBRATION_FILE, coefficients_array(artefact),
-                                    settings_dict(artefact), artefact.aux_inputs, name=model.parent.name or "calibration",
+                                    settings_dict(artefact), artefact.aux_inputs,
+                                    name=name or Path(out_dir).resolve().name,
                                     description=f"ImuFusion calibration trained on {', '.join(Path(p).name for p in paths)}")
     report = write_calibration_report(artefact, datasets, out_dir)
     return TrainedFolder(model, calibration, report, list(artefact.notes), summary_text(artefact, datasets),

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -24,7 +25,9 @@ RECORDING_PATTERNS = ("*.csv", "*.csv.gz")
 CALIBRATION_DIR = "calibration"
 #: What describes a whole `fleet train` run in OUT (removed when the next run starts: a run stopped
 #: half-way leaves none, so a later `--prior` cannot trust a population it did not compute).
-FLEET_SUMMARIES = ("fleet.json", "fleet.md", "units.json")
+FLEET_SUMMARIES = ("fleet.json", "fleet.md", "units.json", "ImuFusion.fmu")
+#: The fleet's one FMU: the generic FMU with every trained unit's calibration.ssv embedded, labelled by unit.
+FLEET_FMU = FLEET_SUMMARIES[-1]
 
 
 @dataclass(frozen=True)
@@ -97,7 +100,7 @@ def train_unit(folder: Path, out_dir: Path, seed: int) -> UnitResult:
     target = out_dir / folder.name
     try:
         done = replace_folder(target, lambda where: train_to_folder(unit_recordings(folder), where, seed=seed,
-                                                                    progress=False))
+                                                                    progress=False, name=folder.name))
         return UnitResult(folder.name, str(target / done.model.name), None,
                           elm_rows(done.datasets, done.artefact.thermal, seed))
     except Exception as e:  # noqa: BLE001 - the reason is reported per unit, the fleet goes on
@@ -123,3 +126,20 @@ def train_fleet(fleet_dir: str | Path, out_dir: str | Path, seed: int = 0, worke
     results.sort(key=lambda r: r.unit)
     (out_dir / "units.json").write_text(json.dumps([r.summary(out_dir) for r in results], indent=1) + "\n")
     return results
+
+
+def variant_label(unit: str) -> str:
+    """The parameter-set label of a unit in the fleet FMU: its name, with every character a label cannot hold
+    (fmu.references.LABEL) replaced by '_' and a leading one dropped."""
+    return re.sub(r"[^A-Za-z0-9_.-]", "_", unit).lstrip("_.-")[:64] or "unit"
+
+
+def write_fleet_fmu(results: list[UnitResult], out_dir: str | Path, fmi_version: int = 2) -> Path:
+    """out_dir/FLEET_FMU: the generic FMU (training.fmu_build, prebuilt where no compiler is found) with the
+    calibration.ssv of every trained unit embedded as the parameter set variant_label(unit)."""
+    from fmu.calibration_file import FILE_NAME
+    from training.fmu_build import build_fmu_from_model
+    sets = {variant_label(r.unit): Path(r.model).parent / FILE_NAME for r in results if r.model}
+    if len(sets) != sum(1 for r in results if r.model):
+        raise DataError(out_dir, "two units' names give the same parameter-set label; rename one unit folder")
+    return build_fmu_from_model(None, Path(out_dir) / FLEET_FMU, fmi_version=fmi_version, variants=sets)
