@@ -53,6 +53,8 @@ PF_MAX_SPHERE_BINS = 4          # IMU_MAG_PF_MAX_BIN_SIDE
 PF_NOISE_MAX_UT = 100.0         # measurement and hard-iron process noise [µT]
 PF_SPREAD_MAX_UT = 1.0e4        # hard-iron spreads [µT] (10 mT saturates any magnetometer)
 PF_THRESHOLD_HIGH_MAX = 100.0   # ω1 relative to 1/N
+#: Every bit of the Euler fusion's project additions (sources/ImuAttitude.h IMU_EULER_ALL_ADDITIONS; a test pins it).
+EULER_ALL_ADDITIONS = 63
 #: Time alignment [s]: a lag of a second is far beyond any sensor's (milliseconds); the runtime's
 #: buffer (sources/ImuAlign.h IMU_ALIGN_CAPACITY samples) reaches back less at rates above 63 Hz.
 LAG_MAX_S = 1.0

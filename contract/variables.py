@@ -20,7 +20,7 @@ import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 
-from contract.ranges import (BOOLEAN, DECLINATION_TYPICAL_RAD, FIELD_NORM_MAX_UT, FIELD_NORM_MIN_UT, FLAG,
+from contract.ranges import (BOOLEAN, DECLINATION_TYPICAL_RAD, EULER_ALL_ADDITIONS, FIELD_NORM_MAX_UT, FIELD_NORM_MIN_UT, FLAG,
                              GYRO_NOISE_MAX, GYRO_RATE_SETTING_MAX, INT32_MAX, INTEGER, LAG, MOUNT_AXIS,
                              PF_MAX_DECIMATION, PF_MAX_PARTICLES, PF_MAX_SPHERE_BINS, PF_NOISE_MAX_UT, PF_SPREAD,
                              PF_THRESHOLD_HIGH_MAX, REAL, STANDARD_GRAVITY, TIME, TIME_SETTING_MAX_S, UNIT_FRACTION,
@@ -251,6 +251,24 @@ _FILTER_FROM_DATA: tuple[Variable, ...] = (
 )
 
 
+#: Switches between each source method as its source describes it and the product's additions (issue 33):
+#: `imufmu train --method` sets them; the defaults are the product's forms.
+_SOURCE_FORMS: tuple[Variable, ...] = (
+    _parameter("euler_additions", 86, float(EULER_ALL_ADDITIONS), SettingRange(INTEGER, 0.0, float(EULER_ALL_ADDITIONS)),
+               "The project's additions to the adaptive-gain Euler fusion (attitude_mode 0), a sum of bits: "
+               "1 trapezoidal propagation, 2 measurement-error floor, 4 error growth with the norms' departure, "
+               "8 integration-error bound, 16 tilt variance in the yaw error, 32 restart on growing bounds; "
+               "0 = the fusion as its source describes it (docs/attitude.md)"),
+    _parameter("pf_additions", 87, 1.0, FLAG,
+               "The project's additions to the particle filter's 9-state method (pf_rao_blackwell 0): roughening "
+               "of the resampled cloud, resample-move, tempering, innovation-driven inflation, the change test, "
+               "glitch clipping and the ambient-norm mean (0: the method as its source describes it, docs/magpf.md)"),
+    _parameter("psobp_clamp", 88, 1.0, FLAG,
+               "The PSO-BP network's inputs (temperature and its rate) are clamped to their training ranges "
+               "(0: evaluated outside them as the source's network is; calibration_valid reports either way)"),
+)
+
+
 def aux_description(k: int, entry: dict | None) -> str:
     """Description of input aux_k (k from 1): the recording column, unit and meaning a model's
     aux_inputs entry maps to it, or that the model leaves it unused."""
@@ -273,7 +291,8 @@ def variable_table(aux_inputs: Sequence[dict] = ()) -> tuple[Variable, ...]:
     (entry k describes input aux_{k+1})."""
     if len(aux_inputs) > len(AUX_INPUTS):
         raise ValueError(f"{len(aux_inputs)} auxiliary inputs mapped, the FMU has {len(AUX_INPUTS)}")
-    return _LAYOUT_2 + _aux_inputs(aux_inputs) + _LAGS + _LAYOUT_4_OUTPUTS + _MOUNTING + _FILTER_FROM_DATA
+    return (_LAYOUT_2 + _aux_inputs(aux_inputs) + _LAGS + _LAYOUT_4_OUTPUTS + _MOUNTING + _FILTER_FROM_DATA
+            + _SOURCE_FORMS)
 
 
 VARIABLES: tuple[Variable, ...] = variable_table()

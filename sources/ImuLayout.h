@@ -121,6 +121,9 @@ typedef enum {
     ImuSetMagHeading,         /* 0 or 1 */
     ImuSetMotionBias,         /* 0 or 1 */
     ImuSetAccNormTolerance,   /* 1 */
+    ImuSetEulerAdditions,     /* whole number */
+    ImuSetPfAdditions,        /* 0 or 1 */
+    ImuSetPsobpClamp,         /* 0 or 1 */
     IMU_SETTING_COUNT
 } ImuSetting;
 /* generated:end settings */
@@ -186,7 +189,10 @@ typedef struct {
     {0.0, 1.0, 4, "gyro_hold must be 0 or 1"}, \
     {0.0, 1.0, 4, "mag_heading must be 0 or 1"}, \
     {0.0, 1.0, 4, "motion_bias must be 0 or 1"}, \
-    {0.0, 1.0, 0, "acc_norm_tolerance must be finite and within [0, 1]"} \
+    {0.0, 1.0, 0, "acc_norm_tolerance must be finite and within [0, 1]"}, \
+    {0.0, 63.0, 4, "euler_additions must be a whole number in 0..63"}, \
+    {0.0, 1.0, 4, "pf_additions must be 0 or 1"}, \
+    {0.0, 1.0, 4, "psobp_clamp must be 0 or 1"} \
 }
 /* generated:end setting-ranges */
 

@@ -26,13 +26,15 @@
 #define IMU_MAG_PF_MIN_FIELD_RATIO 1e-3   /* samples below 0.001 |h_0| are dropouts */
 
 /** @brief One internal setting: its snake_case name (the batch library's and Python's), unit,
- *         place in ImuMagPfSettings, kind and default. */
+ *         place in ImuMagPfSettings, kind, default and value in the method as its source describes it. */
 typedef struct {
     const char *name;
     const char *unit;
     size_t offset;   /* bytes into ImuMagPfSettings */
     int integer;     /* 1: an int field, 0: a double field */
     double value;    /* default [unit] */
+    double source;   /* [unit] with pf_additions = 0: the default, or the value that switches a project
+                      * addition off (training.models.magpf.ADDITIONS; a test pins the two) */
 } ImuMagPfInternalSetting;
 
 #define IMU_MAG_PF_FIELD(field) offsetof(ImuMagPfSettings, field)
@@ -42,35 +44,35 @@ typedef struct {
  *  calibration, so zero prior hard and soft iron around the calibrated field): the one list of
  *  them, in the order of the batch library's second settings array. */
 static const ImuMagPfInternalSetting ImuMagPfInternal[IMU_MAG_PF_INTERNAL_COUNT] = {
-    {"prior_hard_iron_x", "uT", IMU_MAG_PF_ELEMENT(priorHardIron, 0), 0, 0.0},
-    {"prior_hard_iron_y", "uT", IMU_MAG_PF_ELEMENT(priorHardIron, 1), 0, 0.0},
-    {"prior_hard_iron_z", "uT", IMU_MAG_PF_ELEMENT(priorHardIron, 2), 0, 0.0},
-    {"prior_soft_iron_xx", "1", IMU_MAG_PF_ELEMENT(priorSoftIron, 0), 0, 0.0},
-    {"prior_soft_iron_xy", "1", IMU_MAG_PF_ELEMENT(priorSoftIron, 1), 0, 0.0},
-    {"prior_soft_iron_xz", "1", IMU_MAG_PF_ELEMENT(priorSoftIron, 2), 0, 0.0},
-    {"prior_soft_iron_yy", "1", IMU_MAG_PF_ELEMENT(priorSoftIron, 3), 0, 0.0},
-    {"prior_soft_iron_yz", "1", IMU_MAG_PF_ELEMENT(priorSoftIron, 4), 0, 0.0},
-    {"prior_soft_iron_zz", "1", IMU_MAG_PF_ELEMENT(priorSoftIron, 5), 0, 0.0},
-    {"roughening", "1", IMU_MAG_PF_FIELD(roughening), 0, 0.2},
-    {"innovation_time_constant", "updates", IMU_MAG_PF_FIELD(innovationTimeConstant), 0, 5.0},
-    {"max_inflation", "1", IMU_MAG_PF_FIELD(maxInflation), 0, 20.0},
-    {"hidden_units", "1", IMU_MAG_PF_FIELD(hiddenUnits), 1, 5.0},
-    {"training_epochs", "1", IMU_MAG_PF_FIELD(trainingEpochs), 1, 20.0},
-    {"learning_rate", "1", IMU_MAG_PF_FIELD(learningRate), 0, 0.1},
-    {"max_tries", "1", IMU_MAG_PF_FIELD(maxTries), 1, 3.0},
-    {"enable_splitting", "0/1", IMU_MAG_PF_FIELD(enableSplitting), 1, 1.0},
-    {"change_threshold", "1", IMU_MAG_PF_FIELD(changeThreshold), 0, 25.0},
-    {"change_spread_soft", "1", IMU_MAG_PF_FIELD(changeSpreadSoft), 0, 0.01},
-    {"enable_move", "0/1", IMU_MAG_PF_FIELD(enableMove), 1, 1.0},
-    {"norm_time_constant", "updates", IMU_MAG_PF_FIELD(normTimeConstant), 0, 300.0},
-    {"enable_tempering", "0/1", IMU_MAG_PF_FIELD(enableTempering), 1, 1.0},
-    {"resample_roughening", "0/1", IMU_MAG_PF_FIELD(resampleRoughening), 1, 1.0},
-    {"glitch_clipping", "0/1", IMU_MAG_PF_FIELD(glitchClipping), 1, 1.0},
-    {"update_growth", "1", IMU_MAG_PF_FIELD(updateGrowth), 0, 0.05},
-    {"update_innovation", "1", IMU_MAG_PF_FIELD(updateInnovation), 0, 2.0},
+    {"prior_hard_iron_x", "uT", IMU_MAG_PF_ELEMENT(priorHardIron, 0), 0, 0.0, 0.0},
+    {"prior_hard_iron_y", "uT", IMU_MAG_PF_ELEMENT(priorHardIron, 1), 0, 0.0, 0.0},
+    {"prior_hard_iron_z", "uT", IMU_MAG_PF_ELEMENT(priorHardIron, 2), 0, 0.0, 0.0},
+    {"prior_soft_iron_xx", "1", IMU_MAG_PF_ELEMENT(priorSoftIron, 0), 0, 0.0, 0.0},
+    {"prior_soft_iron_xy", "1", IMU_MAG_PF_ELEMENT(priorSoftIron, 1), 0, 0.0, 0.0},
+    {"prior_soft_iron_xz", "1", IMU_MAG_PF_ELEMENT(priorSoftIron, 2), 0, 0.0, 0.0},
+    {"prior_soft_iron_yy", "1", IMU_MAG_PF_ELEMENT(priorSoftIron, 3), 0, 0.0, 0.0},
+    {"prior_soft_iron_yz", "1", IMU_MAG_PF_ELEMENT(priorSoftIron, 4), 0, 0.0, 0.0},
+    {"prior_soft_iron_zz", "1", IMU_MAG_PF_ELEMENT(priorSoftIron, 5), 0, 0.0, 0.0},
+    {"roughening", "1", IMU_MAG_PF_FIELD(roughening), 0, 0.2, 0.2},
+    {"innovation_time_constant", "updates", IMU_MAG_PF_FIELD(innovationTimeConstant), 0, 5.0, 0.0},
+    {"max_inflation", "1", IMU_MAG_PF_FIELD(maxInflation), 0, 20.0, 1.0},
+    {"hidden_units", "1", IMU_MAG_PF_FIELD(hiddenUnits), 1, 5.0, 5.0},
+    {"training_epochs", "1", IMU_MAG_PF_FIELD(trainingEpochs), 1, 20.0, 20.0},
+    {"learning_rate", "1", IMU_MAG_PF_FIELD(learningRate), 0, 0.1, 0.1},
+    {"max_tries", "1", IMU_MAG_PF_FIELD(maxTries), 1, 3.0, 3.0},
+    {"enable_splitting", "0/1", IMU_MAG_PF_FIELD(enableSplitting), 1, 1.0, 1.0},
+    {"change_threshold", "1", IMU_MAG_PF_FIELD(changeThreshold), 0, 25.0, 0.0},
+    {"change_spread_soft", "1", IMU_MAG_PF_FIELD(changeSpreadSoft), 0, 0.01, 0.01},
+    {"enable_move", "0/1", IMU_MAG_PF_FIELD(enableMove), 1, 1.0, 0.0},
+    {"norm_time_constant", "updates", IMU_MAG_PF_FIELD(normTimeConstant), 0, 300.0, 0.0},
+    {"enable_tempering", "0/1", IMU_MAG_PF_FIELD(enableTempering), 1, 1.0, 0.0},
+    {"resample_roughening", "0/1", IMU_MAG_PF_FIELD(resampleRoughening), 1, 1.0, 0.0},
+    {"glitch_clipping", "0/1", IMU_MAG_PF_FIELD(glitchClipping), 1, 1.0, 0.0},
+    {"update_growth", "1", IMU_MAG_PF_FIELD(updateGrowth), 0, 0.05, 0.05},
+    {"update_innovation", "1", IMU_MAG_PF_FIELD(updateInnovation), 0, 2.0, 2.0},
 };
 
-int ImuMagPfInternalInfo(size_t index, const char **name, const char **unit, double *value)
+int ImuMagPfInternalInfo(size_t index, const char **name, const char **unit, double *value, double *source)
 {
     if (index >= IMU_MAG_PF_INTERNAL_COUNT) {
         return -1;
@@ -78,6 +80,7 @@ int ImuMagPfInternalInfo(size_t index, const char **name, const char **unit, dou
     *name = ImuMagPfInternal[index].name;
     *unit = ImuMagPfInternal[index].unit;
     *value = ImuMagPfInternal[index].value;
+    *source = ImuMagPfInternal[index].source;
     return 0;
 }
 
@@ -95,12 +98,12 @@ void ImuMagPfSetInternal(ImuMagPfSettings *settings, size_t index, double value)
     }
 }
 
-void ImuMagPfSettingsDefault(ImuMagPfSettings *settings)
+void ImuMagPfSettingsDefault(ImuMagPfSettings *settings, int additions)
 {
     size_t i;
     memset(settings, 0, sizeof *settings);
     for (i = 0; i < IMU_MAG_PF_INTERNAL_COUNT; i++) {
-        ImuMagPfSetInternal(settings, i, ImuMagPfInternal[i].value);
+        ImuMagPfSetInternal(settings, i, additions ? ImuMagPfInternal[i].value : ImuMagPfInternal[i].source);
     }
 }
 

@@ -160,13 +160,15 @@ typedef struct {
     ImuMagPfWork work;
 } ImuMagPf;
 
-/** @brief Zero every setting, then give the internal ones (not FMU parameters) their defaults; the
- *         FMU parameters come from the settings array (ImuPipeline.c ImuPipelinePfSettings), whose
- *         defaults are the variable table's (contract/variables.py). */
-IMU_HIDDEN void ImuMagPfSettingsDefault(ImuMagPfSettings *settings);
-/** @brief Name (snake_case), unit and default of internal setting index < IMU_MAG_PF_INTERNAL_COUNT;
- *         0, or -1 past the end. */
-IMU_HIDDEN int ImuMagPfInternalInfo(size_t index, const char **name, const char **unit, double *value);
+/** @brief Zero every setting, then give the internal ones (not FMU parameters) their defaults (additions
+ *         1) or their values in the method as its source describes it (additions 0: FMU parameter
+ *         pf_additions); the FMU parameters come from the settings array (ImuPipeline.c
+ *         ImuPipelinePfSettings), whose defaults are the variable table's (contract/variables.py). */
+IMU_HIDDEN void ImuMagPfSettingsDefault(ImuMagPfSettings *settings, int additions);
+/** @brief Name (snake_case), unit, default and source-method value of internal setting index <
+ *         IMU_MAG_PF_INTERNAL_COUNT; 0, or -1 past the end. */
+IMU_HIDDEN int ImuMagPfInternalInfo(size_t index, const char **name, const char **unit, double *value,
+                                    double *source);
 /** @brief Set internal setting index < IMU_MAG_PF_INTERNAL_COUNT to value [its unit]; an integer
  *         setting that is not a whole number in [0, 2^31) becomes -1, which the check rejects. */
 IMU_HIDDEN void ImuMagPfSetInternal(ImuMagPfSettings *settings, size_t index, double value);

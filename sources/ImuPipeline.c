@@ -52,7 +52,7 @@ static int ImuPipelineInteger(double value)
  *         array to the filter, which the batch library reaches through ImuRuntimeSettings. */
 static void ImuPipelinePfSettings(ImuMagPfSettings *pf, const double *a)
 {
-    ImuMagPfSettingsDefault(pf);
+    ImuMagPfSettingsDefault(pf, ImuPipelineFlag(a[ImuSetPfAdditions]));
     pf->fieldNorm = a[ImuSetFieldNorm];
     pf->particleCount = ImuPipelineInteger(a[ImuSetPfParticles]);
     pf->measurementNoise = a[ImuSetPfMeasurementNoise];
@@ -102,6 +102,8 @@ int ImuPipelineSettingsFromArray(ImuPipelineSettings *s, const double *a, size_t
     s->enablePf = ImuPipelineFlag(a[ImuSetEnablePf]);
     s->pfSeed = ImuPipelineInteger(a[ImuSetPfSeed]);
     s->enablePsoBp = ImuPipelineFlag(a[ImuSetEnablePsobp]);
+    s->psobpClamp = ImuPipelineFlag(a[ImuSetPsobpClamp]);
+    s->eulerAdditions = ImuPipelineInteger(a[ImuSetEulerAdditions]);
     s->align.lag[0] = a[ImuSetLagGyr];
     s->align.lag[1] = a[ImuSetLagAcc];
     s->align.lag[2] = a[ImuSetLagMag];
@@ -174,7 +176,7 @@ static void ImuPipelineAttitudeSettings(const ImuPipelineSettings *s, ImuAttitud
     a->magHeading = s->magHeading;
     a->motionBias = s->motionBias;
     a->accNormTolerance = s->accNormTolerance;
-    a->eulerAdditions = IMU_EULER_ALL_ADDITIONS; /* the FMU's filter; ImuBatchRunEuler ablates them */
+    a->eulerAdditions = s->eulerAdditions; /* checked against its declared range (0..all bits) */
 }
 
 void ImuPipelineConfigure(ImuPipeline *p, const ImuPipelineSettings *s, const ImuCoefficients *c)
@@ -322,7 +324,7 @@ void ImuPipelineUpdate(ImuPipeline *p, double t, double dt, double nominalStep, 
     const double temperature = in[ImuInTemp];
     p->rangeIssues = ImuPipelineThermal(p, in, temperature, out);
     ImuPsoBpUpdate(&p->psobp, t, temperature);
-    if (p->settings.enablePsoBp && !ImuPsoBpCorrect(&p->coefficients.psobp, &p->psobp, &out[ImuOutRateX])) {
+    if (p->settings.enablePsoBp && !ImuPsoBpCorrect(&p->coefficients.psobp, &p->psobp, p->settings.psobpClamp, &out[ImuOutRateX])) {
         p->rangeIssues |= ImuRangePsoBp;
     }
     if (ImuAlignUpdate(&p->align, &p->settings.align, t, &out[ImuOutRateX])) {

@@ -54,6 +54,8 @@ typedef struct {
     int enablePf;            /* 0 or 1: online hard/soft-iron particle filter */
     int pfSeed;              /* particle-filter seed, -1 marks an invalid value for the check */
     int enablePsoBp;         /* 0 or 1: PSO-BP gyro bias network (mode of its block) */
+    int psobpClamp;          /* 0 or 1: the network's inputs clamped to their training ranges */
+    int eulerAdditions;      /* ImuEulerAddition bits of the Euler fusion */
     ImuMagPfSettings pf;     /* particle-filter settings (defaults + the FMU parameters) */
     ImuAlignSettings align;  /* lags [s] of the gyr, acc, mag inputs behind true time */
     ImuMount mount;          /* sensor axes -> body axes (identity when the codes are invalid) */

@@ -121,12 +121,12 @@ static double ImuPsoBpClamp(double x, double lo, double hi)
     return x < lo ? lo : (x > hi ? hi : x);
 }
 
-int ImuPsoBpEvaluate(const ImuPsoBpCoefficients *c, double temperature, double rate, double bias[3])
+int ImuPsoBpEvaluate(const ImuPsoBpCoefficients *c, double temperature, double rate, int clamp, double bias[3])
 {
     const double tc = ImuPsoBpClamp(temperature, c->tMin, c->tMax);
     const double rc = ImuPsoBpClamp(rate, c->rMin, c->rMax);
-    const double u0 = 2.0 * (tc - c->tMin) / (c->tMax - c->tMin) - 1.0;
-    const double u1 = 2.0 * (rc - c->rMin) / (c->rMax - c->rMin) - 1.0;
+    const double u0 = 2.0 * ((clamp ? tc : temperature) - c->tMin) / (c->tMax - c->tMin) - 1.0;
+    const double u1 = 2.0 * ((clamp ? rc : rate) - c->rMin) / (c->rMax - c->rMin) - 1.0;
     int axis, j;
     for (axis = 0; axis < 3; axis++) {
         double sum = c->b2[axis];
@@ -138,16 +138,16 @@ int ImuPsoBpEvaluate(const ImuPsoBpCoefficients *c, double temperature, double r
     return c->mode == ImuPsoBpModeOff || (tc == temperature && rc == rate);
 }
 
-int ImuPsoBpBias(const ImuPsoBpCoefficients *c, const ImuPsoBpState *s, double bias[3])
+int ImuPsoBpBias(const ImuPsoBpCoefficients *c, const ImuPsoBpState *s, int clamp, double bias[3])
 {
-    return ImuPsoBpEvaluate(c, s->temperature, s->rate, bias);
+    return ImuPsoBpEvaluate(c, s->temperature, s->rate, clamp, bias);
 }
 
-int ImuPsoBpCorrect(const ImuPsoBpCoefficients *c, const ImuPsoBpState *s, double gyr[3])
+int ImuPsoBpCorrect(const ImuPsoBpCoefficients *c, const ImuPsoBpState *s, int clamp, double gyr[3])
 {
     double bias[3];
     int axis;
-    const int inside = ImuPsoBpBias(c, s, bias);
+    const int inside = ImuPsoBpBias(c, s, clamp, bias);
     for (axis = 0; axis < 3; axis++) {
         gyr[axis] -= bias[axis];
     }

@@ -9,7 +9,7 @@
  *     h_j = tanh(w1[i][j][0] u0 + w1[i][j][1] u1 + b1[i][j]),  j = 0..H-1
  *     b_i = b2[i] + sum_j w2[i][j] h_j                  [rad/s] (output scale folded in)
  *
- * Calibrated range: T and r are clamped to [tMin, tMax] and [rMin, rMax] (the ranges of the training
+ * Calibrated range: T and r are clamped (setting psobp_clamp) to [tMin, tMax] and [rMin, rMax] (the ranges of the training
  * windows) before they are normalised, so the networks are never evaluated outside what they were
  * fitted on; the evaluation reports whether it had to clamp.
  *
@@ -86,13 +86,14 @@ IMU_HIDDEN int ImuPsoBpStateValid(const ImuPsoBpState *s, double clock);
 /** @brief Feed one sample: time t [s], temperature [degC] (NaN: state unchanged). */
 IMU_HIDDEN void ImuPsoBpUpdate(ImuPsoBpState *s, double t, double temperature);
 /** @brief Gyro bias [rad/s] at temperature [degC] and rate [degC/s], both clamped to the training
- *         ranges; zero when disabled. @return 1 if both were inside their ranges (or the mode is off), 0 if clamped. */
-IMU_HIDDEN int ImuPsoBpEvaluate(const ImuPsoBpCoefficients *c, double temperature, double rate,
+ *         ranges when clamp is 1 (0: the source's network, evaluated outside them too); zero when
+ *         disabled. @return 1 if both were inside their ranges (or the mode is off), else 0. */
+IMU_HIDDEN int ImuPsoBpEvaluate(const ImuPsoBpCoefficients *c, double temperature, double rate, int clamp,
                                 double bias[3]);
-/** @brief Gyro bias [rad/s] at the estimator's current temperature and rate; return as ImuPsoBpEvaluate. */
-IMU_HIDDEN int ImuPsoBpBias(const ImuPsoBpCoefficients *c, const ImuPsoBpState *s, double bias[3]);
+/** @brief Gyro bias [rad/s] at the estimator's current temperature and rate; as ImuPsoBpEvaluate. */
+IMU_HIDDEN int ImuPsoBpBias(const ImuPsoBpCoefficients *c, const ImuPsoBpState *s, int clamp, double bias[3]);
 /** @brief Subtract the current bias from gyr [rad/s] in place (raw gyro in full mode, thermally
  *         compensated gyro in residual mode); unchanged when the mode is off. Return as ImuPsoBpEvaluate. */
-IMU_HIDDEN int ImuPsoBpCorrect(const ImuPsoBpCoefficients *c, const ImuPsoBpState *s, double gyr[3]);
+IMU_HIDDEN int ImuPsoBpCorrect(const ImuPsoBpCoefficients *c, const ImuPsoBpState *s, int clamp, double gyr[3]);
 
 #endif

@@ -1,9 +1,8 @@
 """The switches of the Euler fusion's project additions (issue 18 item 2).
 
 attitude_mode 0 is the adaptive-gain Euler fusion of issue 2 plus six additions (sources/ImuAttitude.h
-ImuEulerAddition), switched by the batch runtime's euler_additions (training.runtime.run_batch; not an
-FMU parameter: the FMU runs them all). Every switch on must be the filter from before the switches;
-each switch must change the output; with none the filter is the method as published, which locks up
+ImuEulerAddition), switched by the FMU parameter euler_additions (default: all of them). Every switch on
+must be the filter from before the switches; each switch must change the output; with none the filter is the method as published, which locks up
 after a glitch of the gyro set (the reason issue 15 added the last three).
 
 Run on tests/test_attitude_recovery.py's eval_handheld recording with its glitches: the
@@ -51,8 +50,9 @@ def outputs(d, case: str, euler_additions: int | None) -> np.ndarray:
     t, x, _, _ = glitched(d, "clean" if case == EVERY_ADDITION_ACTS else case)
     if case == EVERY_ADDITION_ACTS:
         x[int(np.searchsorted(t, GLITCH_S)), [layout.INPUTS.index(c) for c in ("gyr_x", "gyr_y", "gyr_z")]] = SPIKE_RATE
-    values = np.array(layout.settings_array({"field_norm": d.field_norm_ut, **EULER}))
-    return runtime.run_batch(np.array(layout.identity_coefficients()), values, t, x, euler_additions)
+    chosen = {} if euler_additions is None else {"euler_additions": float(euler_additions)}
+    values = np.array(layout.settings_array({"field_norm": d.field_norm_ut, **EULER, **chosen}))
+    return runtime.run_batch(np.array(layout.identity_coefficients()), values, t, x)
 
 
 def recovery_error_deg(d, euler_additions: int | None) -> float:

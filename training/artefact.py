@@ -88,6 +88,8 @@ class ModelArtefact:
     aux_inputs: what the FMU inputs aux_1.. carry, entry k for aux_{k+1} (at most
     len(contract.layout.AUX_INPUTS)): {'column': recording column 'aux_…', 'unit': unit text or '',
     'meaning': free text}. A term on signal aux_k needs entry k.
+    methods: the source-method forms selected by `train --method` (training.models.methods.METHODS:
+    method -> form); empty when train chose every stage itself.
     """
 
     seed: int
@@ -98,6 +100,7 @@ class ModelArtefact:
     notes: list[str] = field(default_factory=list)
     terms: list[dict] = field(default_factory=list)
     aux_inputs: list[dict] = field(default_factory=list)
+    methods: dict[str, str] = field(default_factory=dict)
     elm: ElmModel | None = None
     psobp: PsoBpModel | None = None
     units: dict[str, str] = field(default_factory=lambda: dict(UNITS))
@@ -116,7 +119,8 @@ class ModelArtefact:
                 "thermal": {k: _thermal_to_json(self.thermal[k]) for k in TRIAD_ORDER},
                 "fit_stats": dict(self.fit_stats), "settings": dict(self.settings),
                 "notes": list(self.notes), "terms": [dict(t) for t in self.terms],
-                "aux_inputs": [dict(a) for a in self.aux_inputs], "stages": self.stages_to_json()}
+                "aux_inputs": [dict(a) for a in self.aux_inputs], "methods": dict(self.methods),
+                "stages": self.stages_to_json()}
 
     def stages_to_json(self) -> dict:
         """The trained neural stages by name, each as its model stores itself."""
@@ -310,6 +314,7 @@ def load_artefact(path) -> ModelArtefact:
         notes=doc["notes"] + [n for n in unranged_notes(thermal) if n not in doc["notes"]],
         terms=_terms_from_json(doc.get("terms", []), path),
         aux_inputs=_aux_inputs_from_json(doc.get("aux_inputs", []), doc.get("terms", []), path),
+        methods=_methods_from_json(doc.get("methods", {}), path),
         **_stages_from_json(doc.get("stages", {}), path),
         units=doc["units"], libraries=libraries_from_json(doc["libraries"]), created=doc["created"],
         format=doc["format"], format_version=FORMAT_VERSION, model_type=doc["model_type"])
@@ -341,6 +346,15 @@ def _terms_from_json(terms, path) -> list[dict]:
         if term_problem(term):
             _fail(path, f"terms[{k}] ({name}) {term_problem(term)}")
     return [dict(t) for t in terms]
+
+
+def _methods_from_json(methods, path) -> dict[str, str]:
+    """The 'methods' entry: method -> form, each a form of training.models.methods.METHODS."""
+    from training.models.methods import METHODS
+    if not isinstance(methods, dict) or any(not isinstance(f, str) or f not in METHODS.get(m, {})
+                                            for m, f in methods.items()):
+        _fail(path, "'methods' must map a method (" + ", ".join(METHODS) + ") to one of its forms")
+    return dict(methods)
 
 
 def _aux_inputs_from_json(aux_inputs, terms, path) -> list[dict]:

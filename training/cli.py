@@ -17,6 +17,7 @@ from pathlib import Path
 
 from contract.errors import ImuFusionError, one_line
 from fmu.prebuilt import PACKAGE_DIR
+from training.models.methods import METHODS, parse_method
 
 #: Where `imufmu prebuild` writes by default: the package's own prebuilt folder.
 PREBUILT_OUT = str(PACKAGE_DIR)
@@ -28,6 +29,14 @@ def _existing_file(path: str, what: str) -> Path:
     if not p.is_file():
         raise ImuFusionError(f"{what} '{path}' not found")
     return p
+
+
+def _method(text: str) -> tuple[str, str]:
+    """Parse NAME=FORM for train --method (training.models.methods)."""
+    try:
+        return parse_method(text)
+    except ValueError as e:
+        raise argparse.ArgumentTypeError(str(e)) from None
 
 
 def _variant(text: str) -> tuple[str, Path]:
@@ -161,7 +170,7 @@ def cmd_train(args) -> int:
     with staged_output("train", args.out, args.force, inputs=[*args.data, *([args.prior] if args.prior else [])]) as out:
         done = train_to_folder([_existing_file(p, "data file") for p in args.data], out.path, seed=args.seed,
                                degree=args.degree, allow_identity=args.allow_identity, prior_path=args.prior,
-                               name=Path(args.out).resolve().name)
+                               name=Path(args.out).resolve().name, methods=dict(args.method or []))
     for note in done.notes:
         print(f"note: {note}")
     print()
@@ -434,6 +443,10 @@ def build_parser() -> argparse.ArgumentParser:
                    help="fleet.json from 'imufmu fleet train': fit each triad with a reference as the population's "
                         "most probable unit given this recording (a short recording then calibrates what it "
                         "does not observe from the population)")
+    s.add_argument("--method", type=_method, action="append", metavar="NAME=FORM",
+                   help="run a method in a chosen form, its stage switched on (repeatable): " + "; ".join(
+                       f"{name}={'|'.join(forms)}" for name, forms in METHODS.items())
+                   + " (the first form of each: as its source describes it; docs/methods.md)")
     s.set_defaults(func=cmd_train)
     _add_import_verb(sub)
     s = _add_verb(sub, "fleet", "calibrate every unit of a fleet on Dask and describe the population")

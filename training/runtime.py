@@ -106,7 +106,6 @@ _TEXT = ctypes.POINTER(ctypes.c_char_p)
 #: type): the one place Python declares them.
 SIGNATURES = {
     "ImuBatchRun": ([_DP, _SZ, _DP, _SZ, _SZ, _DP, _DP, _DP], ctypes.c_int),
-    "ImuBatchRunEuler": ([_DP, _SZ, _DP, _SZ, ctypes.c_int, _SZ, _DP, _DP, _DP], ctypes.c_int),
     "ImuBatchRunIssues": ([_DP, _SZ, _DP, _SZ, _SZ, _DP, _DP, _DP, _IP], ctypes.c_int),
     "ImuBatchEulerAllAdditions": ([], ctypes.c_int),
     "ImuBatchCheckSettings": ([_DP, _SZ, _TEXT], ctypes.c_int),
@@ -116,7 +115,7 @@ SIGNATURES = {
     "ImuBatchPsoBpCorrect": ([_DP, _SZ, _SZ, _DP, _DP, _DP, _DP], ctypes.c_int),
     "ImuBatchPsoBpPredict": ([_DP, _SZ, _SZ, _DP, _DP, _DP], ctypes.c_int),
     "ImuBatchPsoBpEvaluate": ([_DP, _SZ, _SZ, _DP, _DP, _DP], ctypes.c_int),
-    "ImuBatchMagPfInternal": ([_SZ, _TEXT, _TEXT, _DP], ctypes.c_int),
+    "ImuBatchMagPfInternal": ([_SZ, _TEXT, _TEXT, _DP, _DP], ctypes.c_int),
     "ImuBatchMagPfRun": ([_DP, _SZ, _DP, _SZ, _SZ, _DP, _DP], ctypes.c_int),
     "ImuBatchMagPfCheckSettings": ([_DP, _SZ, _DP, _SZ, _TEXT], ctypes.c_int),
     "ImuBatchRngDraw": ([ctypes.c_double, ctypes.c_double, ctypes.c_int, _SZ, _DP], ctypes.c_int),
@@ -201,7 +200,7 @@ def _run_arrays(coefficients, settings, t, inputs):
             np.empty((tt.shape[0], len(layout.OUTPUTS)), dtype=np.float64))
 
 
-def run_batch(coefficients, settings, t, inputs, euler_additions: int | None = None) -> np.ndarray:
+def run_batch(coefficients, settings, t, inputs) -> np.ndarray:
     """Run the C pipeline over a recording.
 
     coefficients: (N_COEFFICIENTS,) flat coefficient array (contract.layout); settings: flat settings
@@ -209,22 +208,12 @@ def run_batch(coefficients, settings, t, inputs, euler_additions: int | None = N
     gyr [rad/s], acc [m/s²], mag [µT], temp [°C] and the auxiliary inputs (ImuData.inputs). Returns (N, len(OUTPUTS)) outputs in the order of
     contract.layout.OUTPUTS, finite except the corrected triad of an absent sensor (NaN; docs/fmu.md,
     "Absent sensors"). Only the differences of t are used: sample k is integrated over t[k] − t[k−1],
-    the step size the FMU gets from fmu.cosim.run_fmu. euler_additions: the Euler fusion's project
-    additions in use, a sum of ImuEulerAddition bits (0 = the method as issue 2 describes it), an
-    ablation switch the FMU does not have; None: every addition, as the FMU. Raises ValueError on bad
-    shapes or when the runtime rejects the coefficients or settings.
+    the step size the FMU gets from fmu.cosim.run_fmu. Raises ValueError on bad shapes or when the
+    runtime rejects the coefficients or settings.
     """
     lib = load_runtime()
     c, s, tt, x, out = _run_arrays(coefficients, settings, t, inputs)
-    if euler_additions is None:
-        code = lib.ImuBatchRun(pointer(c), c.size, pointer(s), s.size, tt.shape[0],
-                               pointer(tt), pointer(x), pointer(out))
-    elif not 0 <= euler_additions <= euler_all_additions() or euler_additions != int(euler_additions):
-        raise ValueError(f"euler_additions {euler_additions} is not a sum of the Euler fusion's addition bits "
-                         f"(a whole number in 0..{euler_all_additions()})")
-    else:
-        code = lib.ImuBatchRunEuler(pointer(c), c.size, pointer(s), s.size, int(euler_additions), tt.shape[0],
-                                    pointer(tt), pointer(x), pointer(out))
+    code = lib.ImuBatchRun(pointer(c), c.size, pointer(s), s.size, tt.shape[0], pointer(tt), pointer(x), pointer(out))
     if code != 0:
         raise _error(lib, code, s)
     return out
@@ -268,14 +257,19 @@ def runtime_sizes() -> dict[str, int]:
     return dict(zip(("attitude", "pipeline", "model_instance"), (s.value for s in sizes)))
 
 
-def magpf_internal_table() -> tuple[tuple[str, str, float], ...]:
-    """(name, unit, default) of the particle filter's internal settings, in the order of the second
-    array of ImuBatchMagPfRun (sources/ImuMagPf.c ImuMagPfInternal, their one definition)."""
+def magpf_internal_rows() -> tuple[tuple[str, str, float, float], ...]:
+    """(name, unit, default, value with pf_additions = 0) of the particle filter's internal settings, in the
+    order of the second array of ImuBatchMagPfRun (sources/ImuMagPf.c ImuMagPfInternal, their one definition)."""
     lib, rows = load_runtime(), []
-    name, unit, value = ctypes.c_char_p(), ctypes.c_char_p(), ctypes.c_double()
-    while lib.ImuBatchMagPfInternal(len(rows), ctypes.byref(name), ctypes.byref(unit), ctypes.byref(value)) == 0:
-        rows.append((name.value.decode(), unit.value.decode(), value.value))
+    name, unit, value, source = ctypes.c_char_p(), ctypes.c_char_p(), ctypes.c_double(), ctypes.c_double()
+    while lib.ImuBatchMagPfInternal(len(rows), *(ctypes.byref(x) for x in (name, unit, value, source))) == 0:
+        rows.append((name.value.decode(), unit.value.decode(), value.value, source.value))
     return tuple(rows)
+
+
+def magpf_internal_table() -> tuple[tuple[str, str, float], ...]:
+    """(name, unit, default) of the particle filter's internal settings (magpf_internal_rows)."""
+    return tuple(row[:3] for row in magpf_internal_rows())
 
 
 def magpf_settings_problem(settings: np.ndarray, internal: np.ndarray) -> str | None:

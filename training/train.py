@@ -22,6 +22,7 @@ from training.data.reference_source import TriadReference, choose_reference
 from training.display import DISPLAY
 from training.models.calibrated_range import range_notes
 from training.models.degree import AUTO, ceiling, choose_degree, parse_degree
+from training.models.methods import fit_options, method_notes, method_settings
 from training.models.prior import TriadPrior, load_prior
 from training.models.elm import MIN_GAIN as ELM_MIN_GAIN, ElmModel
 from training.models.fit_quality import BIAS_FALLBACK_NOTE, SCALE_FACTOR_CONVENTION, fit_warnings, scale_factors
@@ -228,16 +229,19 @@ def _fleet_elm_choice(fleet_elm: ElmModel, folds: list, errors: list, notes: lis
 
 
 def _elm_stage(datasets: list[ImuData], thermal: dict[str, ThermalModel], seed: int,
-               notes: list[str], progress: bool, fleet_elm: ElmModel | None = None
+               notes: list[str], progress: bool, fleet_elm: ElmModel | None = None, fit: dict | None = None
                ) -> tuple[ElmModel | None, bool, dict]:
     """Fit the field-form ELM on the thermally compensated field against ref_mag.
 
     Returns (the model or None, enabled, stats). Enabled only when the ELM lowers the field
     error RMS of the held-out data (`_elm_holdout`) by ELM_MIN_GAIN; the block is fitted on all
     the data and kept but off otherwise. With a fleet ELM (`train --prior`), the one of the two with
-    the lower held-out error is the unit's.
+    the lower held-out error is the unit's. fit: ElmFitter options of a selected form (train --method elm=…:
+    its schedule; the fleet ELM is then not considered).
     """
     from training.models import elm
+    fitter = elm.ElmFitter(**ELM_FITTER, **(fit or {}))
+    fleet_elm = None if fit is not None else fleet_elm
     if not _usable_for_elm(datasets) or not thermal["mag"].enabled:
         notes.append("elm: no magnetometer reference (ref_mag, ref_q) or no fitted magnetometer; "
                      "ELM stage off" + ("; the fleet prior's ELM is not used either (nothing to check it on)"
@@ -251,7 +255,7 @@ def _elm_stage(datasets: list[ImuData], thermal: dict[str, ThermalModel], seed: 
     errors, folds = [], _elm_holdout(sets)
     with _stage("ELM (held-out folds, final fit)", len(folds) + 1, progress) as bar:
         for train_x, train_y, test_x, test_y in folds:
-            fold = elm.ElmFitter(**ELM_FITTER).fit(train_x, train_y, seed)
+            fold = fitter.fit(train_x, train_y, seed)
             errors.append(((test_x - test_y) ** 2, (elm.elm_apply(fold, test_x) - test_y) ** 2))
             bar.update()
         from_fleet = fleet_elm is not None and _fleet_elm_choice(fleet_elm, folds, errors, notes)
@@ -259,8 +263,7 @@ def _elm_stage(datasets: list[ImuData], thermal: dict[str, ThermalModel], seed: 
             model = fleet_elm
             errors = [(before, (elm.elm_apply(fleet_elm, x) - y) ** 2) for (before, _), (_, _, x, y) in zip(errors, folds)]
         else:
-            model = elm.ElmFitter(**ELM_FITTER).fit(np.concatenate([s.field for s in sets]),
-                                                   np.concatenate([s.reference for s in sets]), seed)
+            model = fitter.fit(np.concatenate([s.field for s in sets]), np.concatenate([s.reference for s in sets]), seed)
         bar.update()
     before = float(np.sqrt(np.mean(np.concatenate([e for e, _ in errors]))))
     after = float(np.sqrt(np.mean(np.concatenate([e for _, e in errors]))))
@@ -277,12 +280,13 @@ def _elm_stage(datasets: list[ImuData], thermal: dict[str, ThermalModel], seed: 
 
 
 def _psobp_stage(datasets: list[ImuData], thermal: dict[str, ThermalModel], seed: int,
-                 notes: list[str], progress: bool) -> tuple[PsoBpModel | None, bool, dict]:
+                 notes: list[str], progress: bool, fit: dict | None = None) -> tuple[PsoBpModel | None, bool, dict]:
     """Fit the residual PSO-BP gyro bias network on the longest recording with a gyro reference
     and temperature (networks see one continuous series: the temperature rate needs it).
 
     Returns (the model or None, enabled, stats); enabled by psobp.residual_psobp_wins, which
-    fits on the first two thirds and switches the network on only for a held-out gain.
+    fits on the first two thirds and switches the network on only for a held-out gain. fit: PsoBpFitter
+    switches of a selected form (train --method psobp=…).
     """
     from training.models import psobp
     usable = [d for d in datasets if d.ref_gyr is not None and d.has("gyr") and np.isfinite(d.temp).any()]
@@ -293,9 +297,9 @@ def _psobp_stage(datasets: list[ImuData], thermal: dict[str, ThermalModel], seed
     gyr = apply_thermal(thermal["gyr"], d.gyr, d.temp)
     try:
         with _stage("PSO-BP (held-out decision, final fit)", 2, progress) as bar:
-            decision = psobp.residual_psobp_wins(d.t, gyr, d.ref_gyr, d.temp, seed)
+            decision = psobp.residual_psobp_wins(d.t, gyr, d.ref_gyr, d.temp, seed, **(fit or {}))
             bar.update()
-            fit = psobp.fit_gyro_residual_psobp(d.t, gyr, d.ref_gyr, d.temp, seed)
+            fitted = psobp.fit_gyro_residual_psobp(d.t, gyr, d.ref_gyr, d.temp, seed, **(fit or {}))
             bar.update()
     except ValueError as e:  # too few static windows with temperature to fit a network
         notes.append(f"psobp: {e}; PSO-BP stage off")
@@ -306,7 +310,7 @@ def _psobp_stage(datasets: list[ImuData], thermal: dict[str, ThermalModel], seed
     stats = {"unit": "rad/s", "recording": d.name, "held_out_windows": decision.windows,
              "rms_polynomial": decision.rms_polynomial, "rms_hybrid": decision.rms_hybrid,
              "enabled": bool(decision.enable)}
-    return fit.model, bool(decision.enable), stats
+    return fitted.model, bool(decision.enable), stats
 
 
 def gate_outliers(raw: np.ndarray, target: np.ndarray) -> tuple[np.ndarray, int]:
@@ -584,7 +588,8 @@ def _moved(report: dict) -> bool:
 
 def train(datasets: list[ImuData], seed: int = 0, degree: int | str = AUTO,
           progress: bool = True, allow_identity: bool = False,
-          prior: dict[str, TriadPrior] | None = None, fleet_elm: ElmModel | None = None) -> ModelArtefact:
+          prior: dict[str, TriadPrior] | None = None, fleet_elm: ElmModel | None = None,
+          methods: dict[str, str] | None = None) -> ModelArtefact:
     """Fit the gain/bias temperature model of every triad and return the model artefact.
 
     When a triad's reference is derived from an attitude reference (ref_q only), the recordings are
@@ -603,29 +608,30 @@ def train(datasets: list[ImuData], seed: int = 0, degree: int | str = AUTO,
     prior: {triad: TriadPrior} from a fleet (training.models.prior.load_prior): referenced triads
     with a prior are fitted as the population's maximum a posteriori model. fleet_elm: the fleet's
     ELM (training.models.fleet_elm), which the unit gets instead of its own when it leaves less on
-    the unit's held-out data.
+    the unit's held-out data. methods: source-method forms selected by `train --method`
+    (training.models.methods: method -> form), their stages switched on and their settings written.
     Deterministic given `seed`. Raises ModelError when `datasets` is empty,
     and when no triad can be calibrated unless allow_identity (then an identity model is returned).
     """
-    artefact = _fit(datasets, seed, degree, progress, allow_identity, prior, fleet_elm)
+    artefact = _fit(datasets, seed, degree, progress, allow_identity, prior, fleet_elm, methods or {})
     derived = tuple(t for t in TRIAD_ORDER if artefact.fit_stats.get(t, {}).get("reference") == "attitude")
     if not derived:
         return artefact
     try:
-        blind = _fit(datasets, seed, degree, progress, allow_identity, prior, fleet_elm, withheld=derived)
+        blind = _fit(datasets, seed, degree, progress, allow_identity, prior, fleet_elm, methods or {}, withheld=derived)
     except ModelError:
         return artefact
     kept, notes = triads_the_reference_improves(artefact, blind, datasets)
     if kept != derived:
         withheld = tuple(t for t in derived if t not in kept)
-        artefact = blind if not kept else _fit(datasets, seed, degree, progress, allow_identity, prior, fleet_elm,
+        artefact = blind if not kept else _fit(datasets, seed, degree, progress, allow_identity, prior, fleet_elm, methods or {},
                                                withheld=withheld)
     artefact.notes[0:0] = notes
     return artefact
 
 
 def _fit(datasets: list[ImuData], seed: int, degree: int | str, progress: bool, allow_identity: bool,
-         prior: dict[str, TriadPrior] | None, fleet_elm: ElmModel | None,
+         prior: dict[str, TriadPrior] | None, fleet_elm: ElmModel | None, methods: dict[str, str],
          withheld: tuple[str, ...] = ()) -> ModelArtefact:
     """train's fit of every triad from the references the recordings offer (arguments as train's),
     except the `withheld` triads, which are self-calibrated as if no recording had a reference for
@@ -652,8 +658,11 @@ def _fit(datasets: list[ImuData], seed: int, degree: int | str, progress: bool, 
         for triad in TRIAD_ORDER:
             stats.setdefault(triad, {})["reference"] = refs[triad].source
         prepared = _prepared_datasets(datasets, refs)
-        elm_model, elm_on, stats["elm"] = _elm_stage(prepared, thermal, seed, notes, progress, fleet_elm)
-        psobp_model, psobp_on, stats["psobp"] = _psobp_stage(prepared, thermal, seed, notes, progress)
+        elm_model, elm_on, stats["elm"] = _elm_stage(prepared, thermal, seed, notes, progress, fleet_elm,
+                                                     fit_options(methods, "elm") if "elm" in methods else None)
+        psobp_model, psobp_on, stats["psobp"] = _psobp_stage(prepared, thermal, seed, notes, progress,
+                                                             fit_options(methods, "psobp") if "psobp" in methods else None)
+        _refuse_unfitted_methods(methods, {"elm": elm_model, "psobp": psobp_model}, notes)
     if not allow_identity:
         _refuse_identity(thermal, refs, selfcal, notes)
     for triad, score in _held_out(datasets, refs, degree, seed, selfcal, notes, progress, prior or {}).items():
@@ -684,7 +693,19 @@ def _fit(datasets: list[ImuData], seed: int, degree: int | str, progress: bool, 
     chosen = choose_by_replay(coefficients_array(artefact), settings_dict(artefact), datasets, artefact.notes)
     artefact.settings.update({name: chosen[name] for name in REPLAYED_SETTINGS})
     artefact.settings.update(pf_switch(coefficients_array(artefact), settings_dict(artefact), datasets, artefact.notes))
+    artefact.notes += method_notes(methods, settings_dict(artefact))
+    artefact.settings.update(method_settings(methods))
+    artefact.methods = dict(methods)
     return artefact
+
+
+def _refuse_unfitted_methods(methods: dict[str, str], models: dict, notes: list[str]) -> None:
+    """ModelError when a stage `train --method` selected could not be fitted, with the stage's own reason."""
+    for method, model in models.items():
+        if method in methods and model is None:
+            reason = next((n for n in reversed(notes) if n.startswith(f"{method}:")), f"{method}: not fitted")
+            raise ModelError(f"train --method {method}={methods[method]}: the stage cannot be fitted on these "
+                             f"recordings ({reason})")
 
 
 def _training_record(data: ImuData) -> dict:
@@ -712,11 +733,13 @@ class TrainedFolder:
 
 def train_to_folder(paths: list[Path], out_dir: str | Path, seed: int = 0, degree: int | str = AUTO,
                     allow_identity: bool = False, progress: bool = True,
-                    prior_path: str | Path | None = None, name: str | None = None) -> TrainedFolder:
+                    prior_path: str | Path | None = None, name: str | None = None,
+                    methods: dict[str, str] | None = None) -> TrainedFolder:
     """`imufmu train`: read the recordings at `paths`, `train` on them (under the fleet prior of
     `prior_path`, a fleet.json, if given), write OUT/model.json, the FMU parameter values OUT/calibration.ssv
     (its set named `name`: the unit's, default out_dir's name — pass the final one when out_dir is a
-    staging folder) and the calibration report OUT/calibration.md; progress: the stages' progress bars."""
+    staging folder) and the calibration report OUT/calibration.md; progress: the stages' progress bars;
+    methods: train's `methods` (`--method`)."""
     from fmu.calibration_file import FILE_NAME as CALIBRATION_FILE, write_calibration
     from training.data.io import read_imu_csv
     from training.reports.calibration_report import summary_text, write_calibration_report
@@ -725,7 +748,7 @@ def train_to_folder(paths: list[Path], out_dir: str | Path, seed: int = 0, degre
     prior = load_prior(prior_path) if prior_path is not None else None
     fleet_elm = load_fleet_elm(prior_path) if prior_path is not None else None
     artefact = train(datasets, seed=seed, degree=degree, allow_identity=allow_identity, progress=progress,
-                     prior=prior, fleet_elm=fleet_elm)
+                     prior=prior, fleet_elm=fleet_elm, methods=methods)
     model = Path(out_dir) / "model.json"
     artefact.save(model)
     calibration = write_calibration(Path(out_dir) / CALIBRATION_FILE, coefficients_array(artefact),

@@ -18,11 +18,10 @@ int ImuBatchCheckSettings(const double *settings, size_t nSettings, const char *
     return result;
 }
 
-/** @brief ImuBatchRun with the Euler fusion's additions eulerAdditions (ImuEulerAddition bits); the
- *         guard's issue bits of sample k go to issues[k] unless issues is NULL. */
+/** @brief ImuBatchRun; the guard's issue bits of sample k go to issues[k] unless issues is NULL. */
 static int ImuBatchRunWith(const double *coefficients, size_t nCoefficients, const double *settings,
-                           size_t nSettings, int eulerAdditions, size_t nSamples, const double *t,
-                           const double *inputs, double *outputs, int *issues)
+                           size_t nSettings, size_t nSamples, const double *t, const double *inputs,
+                           double *outputs, int *issues)
 {
     ImuRuntime runtime;
     const char *message;
@@ -35,7 +34,6 @@ static int ImuBatchRunWith(const double *coefficients, size_t nCoefficients, con
     if (result != ImuRuntimeOk) {
         return result;
     }
-    runtime.pipeline.attitude.settings.eulerAdditions = eulerAdditions;
     for (k = 0; k < nSamples; k++) {
         const double step = k > 0 ? t[k] - last : 0.0;
         const int found = ImuRuntimeStep(&runtime, step, inputs + k * IMU_INPUT_COUNT, outputs + k * IMU_OUTPUT_COUNT);
@@ -58,8 +56,7 @@ int ImuBatchRun(const double *coefficients, size_t nCoefficients, const double *
                 size_t nSettings, size_t nSamples, const double *t, const double *inputs,
                 double *outputs)
 {
-    return ImuBatchRunWith(coefficients, nCoefficients, settings, nSettings, IMU_EULER_ALL_ADDITIONS, nSamples,
-                           t, inputs, outputs, NULL);
+    return ImuBatchRunWith(coefficients, nCoefficients, settings, nSettings, nSamples, t, inputs, outputs, NULL);
 }
 
 int ImuBatchRunIssues(const double *coefficients, size_t nCoefficients, const double *settings,
@@ -69,19 +66,7 @@ int ImuBatchRunIssues(const double *coefficients, size_t nCoefficients, const do
     if (nSamples > 0 && issues == NULL) {
         return ImuRuntimeNullPointer;
     }
-    return ImuBatchRunWith(coefficients, nCoefficients, settings, nSettings, IMU_EULER_ALL_ADDITIONS, nSamples,
-                           t, inputs, outputs, issues);
-}
-
-int ImuBatchRunEuler(const double *coefficients, size_t nCoefficients, const double *settings,
-                     size_t nSettings, int eulerAdditions, size_t nSamples, const double *t,
-                     const double *inputs, double *outputs)
-{
-    if (eulerAdditions < 0 || eulerAdditions > IMU_EULER_ALL_ADDITIONS) {
-        return ImuRuntimeBadSettings;
-    }
-    return ImuBatchRunWith(coefficients, nCoefficients, settings, nSettings, eulerAdditions, nSamples, t,
-                           inputs, outputs, NULL);
+    return ImuBatchRunWith(coefficients, nCoefficients, settings, nSettings, nSamples, t, inputs, outputs, issues);
 }
 
 /** @brief The Euler fusion's additions that the FMU uses (every ImuEulerAddition bit). */

@@ -30,17 +30,7 @@ IMU_EXPORT int ImuBatchRun(const double *coefficients, size_t nCoefficients, con
 IMU_EXPORT int ImuBatchRunIssues(const double *coefficients, size_t nCoefficients, const double *settings,
                                  size_t nSettings, size_t nSamples, const double *t, const double *inputs,
                                  double *outputs, int *issues);
-/**
- * @brief ImuBatchRun with only some of the project's additions to the Euler fusion (attitude_mode 0):
- *        eulerAdditions is a sum of ImuEulerAddition bits (ImuAttitude.h; 0 = the method as issue 2
- *        describes it). Not an FMU parameter: the FMU always runs every addition (ImuBatchRun);
- *        this entry exists for the ablation (imufmu bench broad). @return as ImuBatchRun;
- *        ImuRuntimeBadSettings when eulerAdditions is not within 0..IMU_EULER_ALL_ADDITIONS.
- */
-IMU_EXPORT int ImuBatchRunEuler(const double *coefficients, size_t nCoefficients, const double *settings,
-                                size_t nSettings, int eulerAdditions, size_t nSamples, const double *t,
-                                const double *inputs, double *outputs);
-/** @brief Every ImuEulerAddition bit: the additions ImuBatchRun and the FMU use. */
+/** @brief Every ImuEulerAddition bit: the largest value of the setting euler_additions (its default). */
 IMU_EXPORT int ImuBatchEulerAllAdditions(void);
 /**
  * @brief Check a settings array; on ImuRuntimeBadSettings point *message at a static text naming

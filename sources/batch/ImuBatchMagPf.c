@@ -18,17 +18,19 @@
 #define IMU_BATCH_MAG_PF_MAX_SEED 9007199254740992.0 /* 2^53: seeds are exact integers as double */
 
 /** @brief Exported prototypes (declared here: only Python calls them). */
-IMU_EXPORT int ImuBatchMagPfInternal(size_t index, const char **name, const char **unit, double *value);
+IMU_EXPORT int ImuBatchMagPfInternal(size_t index, const char **name, const char **unit, double *value,
+                                     double *source);
 IMU_EXPORT int ImuBatchMagPfCheckSettings(const double *settings, size_t nSettings, const double *internal,
                                           size_t nInternal, const char **message);
 IMU_EXPORT int ImuBatchMagPfRun(const double *settings, size_t nSettings, const double *internal, size_t nInternal,
                                 size_t nSamples, const double *mag, double *outputs);
 IMU_EXPORT int ImuBatchRngDraw(double seed, double stream, int kind, size_t n, double *out);
 
-/** @brief Name, unit and default of internal setting index; 0, or -1 past the end. */
-int ImuBatchMagPfInternal(size_t index, const char **name, const char **unit, double *value)
+/** @brief Name, unit, default and source-method value (pf_additions = 0) of internal setting index; 0, or -1
+ *         past the end. */
+int ImuBatchMagPfInternal(size_t index, const char **name, const char **unit, double *value, double *source)
 {
-    return ImuMagPfInternalInfo(index, name, unit, value);
+    return ImuMagPfInternalInfo(index, name, unit, value, source);
 }
 
 /** @brief Filter settings from the FMU settings array and the internal settings; 0, or -1 with

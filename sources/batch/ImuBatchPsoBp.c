@@ -46,7 +46,7 @@ int ImuBatchPsoBpPredict(const double *block, size_t nBlock, size_t n, const dou
     ImuPsoBpInitialise(&s, &c);
     for (k = 0; k < n; k++) {
         ImuPsoBpUpdate(&s, t[k], temp[k]);
-        ImuPsoBpBias(&c, &s, bias_out + 3 * k);
+        ImuPsoBpBias(&c, &s, 1, bias_out + 3 * k); /* clamped: the product's form */
     }
     return ImuBatchPsoBpOk;
 }
@@ -63,7 +63,7 @@ int ImuBatchPsoBpEvaluate(const double *block, size_t nBlock, size_t n, const do
         return ImuBatchPsoBpBadBlock;
     }
     for (k = 0; k < n; k++) {
-        ImuPsoBpEvaluate(&c, temp[k], rate[k], bias_out + 3 * k);
+        ImuPsoBpEvaluate(&c, temp[k], rate[k], 1, bias_out + 3 * k);
     }
     return ImuBatchPsoBpOk;
 }
@@ -87,7 +87,7 @@ int ImuBatchPsoBpCorrect(const double *block, size_t nBlock, size_t n, const dou
             gyr_out[3 * k + axis] = gyr[3 * k + axis];
         }
         ImuPsoBpUpdate(&s, t[k], temp[k]);
-        ImuPsoBpCorrect(&c, &s, gyr_out + 3 * k);
+        ImuPsoBpCorrect(&c, &s, 1, gyr_out + 3 * k);
     }
     return ImuBatchPsoBpOk;
 }

@@ -79,13 +79,10 @@ def _inputs(data: ImuData) -> np.ndarray:
 
 def run_imufusion(data: ImuData, overrides: dict | None = None) -> np.ndarray:
     """(N, 4) body -> magnetic NED quaternion of the ImuFusion batch runtime (identity coefficients).
-    overrides: settings over BROAD_SETTINGS, and EULER_SWITCH (not a setting): the Euler fusion's
-    additions in use (training.runtime.run_batch euler_additions)."""
+    overrides: settings over BROAD_SETTINGS."""
     from training.runtime import run_batch
-    settings = dict(overrides or {})
-    euler_additions = settings.pop(EULER_SWITCH, None)
-    out = run_batch(layout.identity_coefficients(), imufusion_settings(data, settings), data.t - data.t[0],
-                    _inputs(data), euler_additions=euler_additions)
+    out = run_batch(layout.identity_coefficients(), imufusion_settings(data, dict(overrides or {})),
+                    data.t - data.t[0], _inputs(data))
     return out[:, _Q_COLS]
 
 
@@ -152,8 +149,7 @@ def broad_errors(q_est: np.ndarray, data: ImuData) -> dict[str, float]:
     return {"total": rmse(total), "heading": rmse(heading), "inclination": rmse(tilt)}
 
 
-#: Key of an ABLATION row that selects the Euler fusion's additions (a sum of the bits below; not an
-#: FMU setting: training.runtime.run_batch euler_additions).
+#: The setting that selects the Euler fusion's additions (a sum of the bits below).
 EULER_SWITCH = "euler_additions"
 #: The project's additions to the Euler fusion in the order they are ablated (the first three
 #: came with the first runtime, the last three with issue 15's recovery from transients):
