@@ -18,6 +18,8 @@ import re
 from dataclasses import dataclass
 from pathlib import Path
 
+from training.models.methods import TABLE_HEADER as METHODS_HEADER
+
 ROOT = Path(__file__).resolve().parents[2]
 #: The shared measured data (read only); small forms that read it skip without it.
 SHARED = ROOT.parent / "shared" / "data"
@@ -67,6 +69,7 @@ _FLEET_PRIOR_HEADERS = (
 _FLEET_PRIOR_SMALL = ("benchmarks/fleet_prior.py", "--fleet-units", "5", "--units", "1", "--seconds", "30")
 
 GENERATORS = (
+    TableGenerator("python -m training.models.methods", (METHODS_HEADER,), small=("-m", "training.models.methods")),
     TableGenerator(
         "python benchmarks/unit_switch.py --units 200 --compiled 3 --repeats 3",
         ("| FMI | units | switches | median per switch, ms | 95th percentile, ms | largest, ms | "

@@ -24,13 +24,15 @@ class Form:
     fit: dict = field(default_factory=dict)
 
 
-#: method -> form -> Form. The first form of each is the source's.
+#: The methods whose coefficients `train` fits (the others run online in the FMU only).
+FITTED = ("elm", "psobp")
+#: method -> form -> Form. The first form of each is the source's; a fitted method's form without training
+#: options is fitted by its fitter's defaults (ElmFitter, PsoBpFitter: the product's).
 METHODS: dict[str, dict[str, Form]] = {
     "elm": {
         "source": Form("the extreme learning machine with self back-tuning as its source fits it (growth, then plain "
                        "gradient-descent back-tuning)", {"enable_elm": 1.0}, {"schedule": "source"}),
-        "product": Form("the ELM with the product's Adam back-tuning schedule", {"enable_elm": 1.0},
-                        {"schedule": "adam"}),
+        "product": Form("the ELM with the product's Adam back-tuning schedule", {"enable_elm": 1.0}),
     },
     "pf": {
         "source": Form("the particle filter with double-threshold splitting and the BP diversity network as its "
@@ -93,3 +95,29 @@ def method_notes(methods: dict[str, str], chosen: dict[str, float]) -> list[str]
         notes.append(f"method: {method} = {form} (--method): {METHODS[method][form].text}"
                      + (f"; train's own choice was {overridden}" if overridden else ""))
     return notes
+
+
+#: The header of `table`.
+TABLE_HEADER = "| method | form | what runs | FMU parameters it sets | how `train` fits |"
+
+
+def _fit_text(method: str, fit: dict) -> str:
+    """A form's training options as text."""
+    if method not in FITTED:
+        return "— (runs online only)"
+    return ", ".join(f"`{k} = {v!r}`" for k, v in fit.items()) or "the fitter's defaults (the product's)"
+
+
+def table() -> str:
+    """docs/methods.md's table of every method and form (the first form of each is the source's)."""
+    rows = [TABLE_HEADER, "|---|---|---|---|---|"]
+    for method, forms in METHODS.items():
+        for name, form in forms.items():
+            settings = ", ".join(f"`{k} = {v:g}`" for k, v in form.settings.items())
+            rows.append(f"| `{method}` | `{name}` | {form.text} | {settings} | {_fit_text(method, form.fit)} |")
+    return "\n".join(rows)
+
+
+if __name__ == "__main__":
+    print("Command: `python -m training.models.methods`\n")
+    print(table())
