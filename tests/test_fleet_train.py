@@ -176,16 +176,44 @@ def test_a_peer_that_is_no_dask_scheduler_is_one_line_within_the_deadline(tmp_pa
     assert len(err) == 1 and peer.address in err[0] and words in err[0], err
 
 
+def _free_port() -> int:
+    """A TCP port on 127.0.0.1 that nothing listens on now."""
+    import socket
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
 def test_a_scheduler_without_workers_is_one_line_not_a_wait_forever(tmp_path, capsys, monkeypatch):
-    from distributed import LocalCluster
+    # The scheduler runs in its own process (`dask scheduler`): an in-process LocalCluster's event-loop thread
+    # did not start within distributed's 10 s after the earlier tests of this file on one xdist worker.
+    import socket
+    import subprocess
+    import sys
+    import time
     monkeypatch.setattr(engine, "CONNECT_TIMEOUT_S", 2)
     (tmp_path / "fleet" / "unit").mkdir(parents=True)
     (tmp_path / "fleet" / "unit" / "a.csv").write_text("t\n")
-    with LocalCluster(n_workers=0, processes=False, protocol="tcp://", dashboard_address=None) as cluster:
+    port = _free_port()
+    address = f"tcp://127.0.0.1:{port}"
+    scheduler = subprocess.Popen([sys.executable, "-m", "distributed.cli.dask_scheduler", "--host", "127.0.0.1",
+                                  "--port", str(port), "--no-dashboard"], stdout=subprocess.DEVNULL,
+                                 stderr=subprocess.DEVNULL)
+    try:
+        deadline = time.monotonic() + 60
+        while time.monotonic() < deadline:
+            try:
+                socket.create_connection(("127.0.0.1", port), timeout=1).close()
+                break
+            except OSError:
+                time.sleep(0.2)
         assert main(["fleet", "train", str(tmp_path / "fleet"), "--out", str(tmp_path / "out"),
-                     "--scheduler", cluster.scheduler_address]) == 1
+                     "--scheduler", address]) == 1
+    finally:
+        scheduler.terminate()
+        scheduler.wait(timeout=30)
     err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1 and f"the Dask scheduler at {cluster.scheduler_address} has no worker after 2 s" in err[0], err
+    assert len(err) == 1 and f"the Dask scheduler at {address} has no worker after 2 s" in err[0], err
 
 
 def test_ctrl_c_ends_a_distributed_verb_with_one_line_and_status_130(tmp_path):
