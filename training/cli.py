@@ -296,12 +296,22 @@ def cmd_diagnose(args) -> None:
 
 
 def cmd_bench(args) -> None:
-    """imufmu bench broad|broad-trained [--trials ...] --out DIR | imufmu bench speed --out DIR."""
+    """imufmu bench broad|broad-trained [--trials ...] --out DIR | imufmu bench speed --out DIR |
+    imufmu bench methods DATA... [--eval EVAL...] [--seed N] --out DIR."""
     from training.bench.bench import bench_broad, bench_speed
     from training.bench.bench_trained import bench_broad_trained
+    from training.bench.methods_bench import bench_methods
     from training.data.outputs import staged_output
-    with staged_output("bench", args.out, args.force) as out:
-        if args.what == "broad":
+    if args.what == "methods" and not args.data:
+        raise ImuFusionError("bench methods: give the calibration recordings (imufmu bench methods DATA... --out DIR)")
+    if args.what != "methods" and (args.data or args.eval):
+        raise ImuFusionError(f"bench {args.what} takes no recordings (DATA, --eval: bench methods only)")
+    paths = [_existing_file(p, "data file") for p in args.data]
+    eval_paths = [_existing_file(p, "evaluation file") for p in args.eval or []]
+    with staged_output("bench", args.out, args.force, inputs=[*paths, *eval_paths]) as out:
+        if args.what == "methods":
+            bench_methods(paths, out.path, eval_paths, seed=args.seed)
+        elif args.what == "broad":
             bench_broad(args.trials, out.path)
         elif args.what == "broad-trained":
             bench_broad_trained(out.path, args.trials)
@@ -517,9 +527,15 @@ def build_parser() -> argparse.ArgumentParser:
     _add_out(s, "report folder (diagnosis.json, report.md, model.json)")
     s.add_argument("--seed", type=int, default=0)
     s.set_defaults(func=cmd_diagnose)
-    s = _add_verb(sub, "bench", "benchmarks: BROAD attitude accuracy (filters, or trained FMU) or runtime speed")
-    s.add_argument("what", choices=("broad", "broad-trained", "speed"))
+    s = _add_verb(sub, "bench", "benchmarks: BROAD attitude accuracy (filters, or trained FMU), runtime speed, or "
+                                "each source method's forms beside the product's on your data")
+    s.add_argument("what", choices=("broad", "broad-trained", "speed", "methods"))
+    s.add_argument("data", nargs="*", help="methods: the calibration recordings (imu-csv/1) to train on")
     s.add_argument("--trials", nargs="*", default=None, help="BROAD trial prefixes (default: all)")
+    s.add_argument("--eval", nargs="+", default=None, metavar="EVAL",
+                   help="methods: recordings to evaluate on (default: the last quarter in time of each DATA "
+                        "recording, the rest training; docs/methods.md)")
+    s.add_argument("--seed", type=int, default=0, help="methods: the seed of every training (default 0)")
     _add_out(s, "output folder")
     s.set_defaults(func=cmd_bench)
     s = _add_verb(sub, "pipeline", "the main job on the bundled scenarios")
