@@ -97,6 +97,13 @@ GENERATORS = (
         small=_call("from training.bench.bench import bench_broad; bench_broad(['01'], '{tmp}', samples=12000)"),
         needs=("broad",)),
     TableGenerator(
+        "python benchmarks/euler_deviations.py",
+        ("| recording | samples | heading, product's atan2(−m'_y, +m'_x) [°] | heading, source's atan2(−m'_y, −m'_x) "
+         "[°] | source's form, P += σ²·dt: total / inclination / heading [°] | source's form, P through R: "
+         "total / inclination / heading [°] | source's form, yaw de-tilted with the accelerometer's tilt: total / "
+         "inclination / heading [°] | Python form vs C runtime, max [°] |",),
+        small=("benchmarks/euler_deviations.py", "--trials", "01", "--samples", "12000"), needs=("broad",)),
+    TableGenerator(
         "imufmu bench speed --out bench/speed",
         ("| stage | on [µs/sample] | off [µs/sample] | on − off [µs/sample] | on × VQF | off × VQF |",
          "| what | µs/sample | × VQF batch |"),
