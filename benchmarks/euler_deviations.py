@@ -52,9 +52,10 @@ SOURCE = {**METHODS["attitude"]["source-euler"].settings, "rest_gyro_threshold":
 #: White noise of a calibrated MEMS unit added to the simulated truth (as tests/test_attitude_recovery.py's
 #: sensors, without their constant residual biases): gyro [rad/s], specific force [m/s²], field [µT] per sample.
 SIM_NOISE = (math.radians(0.03), 0.02, 0.5)
-_OUT = {name: layout.OUTPUTS.index(name) for name in layout.OUTPUTS}
-_TRIADS = [[_OUT[f"{p}_{a}"] for a in "xyz"] for p in ("rate", "accel", "field")]
-_EULER = [_OUT[n] for n in ("roll", "pitch", "yaw")]
+#: Runtime output name -> column; the corrected rate, specific force and field triads; roll, pitch, yaw.
+OUTPUT_COLUMN = {name: layout.OUTPUTS.index(name) for name in layout.OUTPUTS}
+TRIAD_COLUMNS = [[OUTPUT_COLUMN[f"{p}_{a}"] for a in "xyz"] for p in ("rate", "accel", "field")]
+EULER_COLUMNS = [OUTPUT_COLUMN[n] for n in ("roll", "pitch", "yaw")]
 
 
 def simulated_recording(seed: int) -> ImuData:
@@ -89,8 +90,8 @@ def eval_rows(data: ImuData) -> np.ndarray:
 def heading_errors_deg(data: ImuData, out: np.ndarray) -> tuple[float, float]:
     """Heading RMS error [°] of (the product's formula, the source's literal formula) on the runtime's
     corrected field de-tilted with its own roll and pitch."""
-    roll, pitch = out[:, _OUT["roll"]], out[:, _OUT["pitch"]]
-    m = out[:, _TRIADS[2]]
+    roll, pitch = out[:, OUTPUT_COLUMN["roll"]], out[:, OUTPUT_COLUMN["pitch"]]
+    m = out[:, TRIAD_COLUMNS[2]]
     cr, sr, cp, sp = np.cos(roll), np.sin(roll), np.cos(pitch), np.sin(pitch)
     mx = cp * m[:, 0] + sp * sr * m[:, 1] + sp * cr * m[:, 2]       # Ry(pitch) Rx(roll) m, row x
     my = cr * m[:, 1] - sr * m[:, 2]                                 # row y
@@ -221,12 +222,12 @@ def measure(data: ImuData) -> dict[str, float]:
     formula, literal = heading_errors_deg(data, product)
     s = settings(data, SOURCE)
     c_out = run(data, s)
-    gyr, acc, mag = (c_out[:, cols] for cols in _TRIADS)
+    gyr, acc, mag = (c_out[:, cols] for cols in TRIAD_COLUMNS)
     t = data.t - data.t[0]
     diagonal = euler_fusion(t, gyr, acc, mag, s, grow_diagonal)
     through_r = euler_fusion(t, gyr, acc, mag, s, grow_through_rotation)
     acc_tilt = euler_fusion(t, gyr, acc, mag, s, grow_diagonal, detilt_with_acc=True)
-    twin = float(np.degrees(np.max(np.abs(wrap_angle(diagonal - c_out[:, _EULER])))))
+    twin = float(np.degrees(np.max(np.abs(wrap_angle(diagonal - c_out[:, EULER_COLUMNS])))))
     return {"formula": formula, "literal": literal, "twin": twin,
             **{f"diag_{k}": v for k, v in errors_deg(data, diagonal).items()},
             **{f"rot_{k}": v for k, v in errors_deg(data, through_r).items()},

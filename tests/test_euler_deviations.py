@@ -35,9 +35,9 @@ def recording():
 def test_the_python_source_form_is_the_c_filter(recording):
     s = ed.settings(recording, ed.SOURCE)
     out = ed.run(recording, s)
-    gyr, acc, mag = (out[:, cols] for cols in ed._TRIADS)
+    gyr, acc, mag = (out[:, cols] for cols in ed.TRIAD_COLUMNS)
     python = ed.euler_fusion(recording.t - recording.t[0], gyr, acc, mag, s, ed.grow_diagonal)
-    assert np.max(np.abs(wrap_angle(python - out[:, ed._EULER]))) < TWIN_TOLERANCE
+    assert np.max(np.abs(wrap_angle(python - out[:, ed.EULER_COLUMNS]))) < TWIN_TOLERANCE
 
 
 def test_the_product_formula_gives_the_heading_and_the_literal_one_its_mirror(recording):
@@ -45,8 +45,8 @@ def test_the_product_formula_gives_the_heading_and_the_literal_one_its_mirror(re
     one is π − ψ."""
     out = np.zeros((len(recording), len(ed.layout.OUTPUTS)))
     ref = reference_euler_magnetic(recording)
-    out[:, ed._EULER] = ref
-    out[:, ed._TRIADS[2]] = recording.ref_mag
+    out[:, ed.EULER_COLUMNS] = ref
+    out[:, ed.TRIAD_COLUMNS[2]] = recording.ref_mag
     formula, literal = ed.heading_errors_deg(recording, out)
     mirrored = np.degrees(np.sqrt(np.mean(wrap_angle(np.pi - 2.0 * ref[:, 2]) ** 2)))
     assert formula < 1e-6
