@@ -11,7 +11,9 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from training.bench.methods_bench import FIGURES, OWN, TABLE_HEADER, product_form
+from contract import layout
+from training.bench.methods_bench import FIGURES, OWN, TABLE_HEADER, _figures, product_form
+from training.data.reference_source import strip_references
 from training.cli import main
 from training.data.io import write_imu_csv
 from training.main_job import SCENARIO_DIR
@@ -21,13 +23,13 @@ from training.simulator import load_scenario, simulate
 
 @pytest.fixture(scope="module")
 def bench(tmp_path_factory):
-    """(methods.json as a dict, methods.md's text, the CLI's stdout) of one bench run on a session without
-    temperature."""
+    """(methods.json as a dict, methods.md's text, the session) of one bench run on a session without temperature."""
     tmp = tmp_path_factory.mktemp("bench_methods")
     data = simulate(load_scenario(SCENARIO_DIR / "variants" / "diag_calibration_clean.toml"))
-    path = write_imu_csv(replace(data, temp=np.full(len(data), np.nan)), tmp / "session.csv.gz")
+    data = replace(data, temp=np.full(len(data), np.nan))
+    path = write_imu_csv(data, tmp / "session.csv.gz")
     assert main(["bench", "methods", str(path), "--out", str(tmp / "out")]) == 0
-    return json.loads((tmp / "out" / "methods.json").read_text()), (tmp / "out" / "methods.md").read_text()
+    return json.loads((tmp / "out" / "methods.json").read_text()), (tmp / "out" / "methods.md").read_text(), data
 
 
 def _rows(doc: dict) -> dict[tuple[str, str], dict]:
@@ -36,7 +38,7 @@ def _rows(doc: dict) -> dict[tuple[str, str], dict]:
 
 
 def test_every_method_form_has_a_row_and_a_line_of_the_table(bench):
-    doc, text = bench
+    doc, text, _ = bench
     forms = [(m, f) for m, fs in METHODS.items() for f in fs]
     rows = _rows(doc)
     assert set(forms) <= set(rows)
@@ -68,6 +70,18 @@ def test_without_temperature_the_psobp_rows_say_why_instead_of_crashing(bench):
     for form in METHODS["psobp"]:
         assert "temperature" in rows[("psobp", form)]["cannot_run"]
         assert rows[("psobp", form)]["values"] is None
+
+
+def test_without_a_reference_a_row_shows_its_difference_from_the_product(bench):
+    data = bench[2].slice(slice(0, 100))
+    product = np.zeros((100, len(layout.OUTPUTS)))
+    product[:, layout.OUTPUTS.index("q_w")] = 1.0  # level, north
+    out = product.copy()
+    out[:, layout.OUTPUTS.index("roll")] = np.deg2rad(0.5)
+    settings = dict(layout.SETTINGS)
+    values, referenced = _figures(FIGURES["attitude"], [out], [product], [strip_references(data)], settings)
+    assert not referenced and np.allclose(values, [0.5, 0.0, 0.0])
+    assert _figures(FIGURES["attitude"], [out], [product], [data], settings)[1]
 
 
 def test_the_product_forms_and_figures_cover_every_method():

@@ -18,6 +18,7 @@ import re
 from dataclasses import dataclass
 from pathlib import Path
 
+from training.bench.methods_bench import TABLE_HEADER as METHODS_BENCH_HEADER
 from training.models.methods import TABLE_HEADER as METHODS_HEADER
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -232,6 +233,23 @@ GENERATORS = (
          "| gd_learning_rate | hidden nodes mean | heading RMS [°] mean / worst | diverged |",
          "| trial | eval samples | without ELM [°] | ELM always on [°] | change [°] | gate | gated [°] | gated change [°] |"),
         small=("benchmarks/bench_elm.py", "--small")),
+    TableGenerator(
+        "imufmu bench methods sim/calibration.csv.gz --eval sim/eval_handheld.csv.gz --out bench/methods-sim",
+        (METHODS_BENCH_HEADER,),
+        small=_call("from training.bench.methods_bench import bench_methods; from training.data.io import write_imu_csv; "
+                    "from training.main_job import SCENARIO_DIR; from training.simulator import load_scenario, simulate; "
+                    "bench_methods([write_imu_csv(simulate(load_scenario(SCENARIO_DIR / 'variants' / "
+                    "'diag_calibration_clean.toml')), '{tmp}/session.csv.gz')], '{tmp}/out', samples=2000)"),
+        trains=True),
+    TableGenerator(
+        "OMP_NUM_THREADS=1 imufmu bench methods ../shared/data/broad/01_undisturbed_slow_rotation_A.csv.gz "
+        "../shared/data/broad/02_undisturbed_slow_rotation_B.csv.gz "
+        "--eval ../shared/data/broad/04_undisturbed_slow_rotation_with_breaks_A.csv.gz "
+        "../shared/data/broad/33_disturbed_attached_magnet_2cm.csv.gz --out bench/methods-broad",
+        (METHODS_BENCH_HEADER,),
+        small=_call("from training.bench.bench import trial_paths; from training.bench.methods_bench import bench_methods; "
+                    "bench_methods(trial_paths(['01']), '{tmp}', trial_paths(['04']), samples=6000)"),
+        trains=True, needs=("broad",)),
 )
 
 

@@ -13,7 +13,7 @@ Every row runs through the FMU with fmpy, as `imufmu run GENERIC.fmu EVAL --cali
 --param …` does: the generic FMU (`build_fmu_from_model(None, …)`: compiled once, or the prebuilt one without a
 compiler) with the training's coefficients and settings set as parameters (fmu.cosim.run_fmu), the sidecar's
 declination and field norm on top (recording_parameters), then the form's parameters. One generic FMU serves every
-training: its coefficients are parameters, so no FMU is compiled per row (tests/test_cosim.py: the generic FMU with a
+training: its coefficients are parameters, so no FMU is compiled per row (tests/test_calibration_file.py: the generic FMU with a
 unit's calibration equals that unit's compiled FMU bit for bit).
 
 Figures: the ones the method affects (FIGURES), RMS over each evaluation recording's eval_mask samples, averaged over
@@ -53,12 +53,14 @@ SENSOR_NAMES = {"gyr": "gyroscope", "acc": "accelerometer", "mag": "magnetometer
 
 @dataclass(frozen=True)
 class Figure:
-    """What a method's rows show: the quantity and its unit, the training.evaluate.Metrics fields against a reference,
-    the output columns compared with the product form's without one, their factor to the unit, whether they are angles
-    (their differences wrapped), and the sensors the method needs in the evaluation data."""
+    """What a method's rows show: the quantity and its unit, the ImuData reference it is measured against and the
+    training.evaluate.Metrics fields it gives, the output columns compared with the product form's without one, their
+    factor to the unit, whether they are angles (their differences wrapped), and the sensors the method needs in the
+    evaluation data."""
 
     quantity: str
     unit: str
+    reference: str
     metrics: tuple[str, ...]
     outputs: tuple[str, ...]
     factor: float
@@ -71,14 +73,14 @@ class Figure:
         return f"{self.quantity} error RMS [{self.unit}]"
 
 
-_FIELD = Figure("field", "µT", ("field_ut",), ("field_x", "field_y", "field_z"), 1.0, False, ("mag",))
+_FIELD = Figure("field", "µT", "ref_mag", ("field_ut",), ("field_x", "field_y", "field_z"), 1.0, False, ("mag",))
 #: method -> the figure its rows show (the keys are METHODS').
 FIGURES = {
     "elm": _FIELD,
     "pf": _FIELD,
-    "psobp": Figure("gyro rate", "°/s", ("rate_dps",), ("rate_x", "rate_y", "rate_z"), float(np.rad2deg(1.0)), False,
+    "psobp": Figure("gyro rate", "°/s", "ref_gyr", ("rate_dps",), ("rate_x", "rate_y", "rate_z"), float(np.rad2deg(1.0)), False,
                     ("gyr", "temp")),
-    "attitude": Figure("roll / pitch / yaw", "°", ("roll_deg", "pitch_deg", "yaw_deg"), ("roll", "pitch", "yaw"),
+    "attitude": Figure("roll / pitch / yaw", "°", "ref_q", ("roll_deg", "pitch_deg", "yaw_deg"), ("roll", "pitch", "yaw"),
                        float(np.rad2deg(1.0)), True, ("gyr", "acc")),
 }
 #: The form column of train's own choice (no --method).
@@ -175,13 +177,6 @@ def _train(datasets: list[ImuData], seed: int, methods: dict[str, str]) -> Train
     return Training(label, artefact, time.process_time() - start)
 
 
-def _stage_refusal(method: str, artefact) -> str:
-    """Why train could not fit the stage of a fitted `method` (its own note, as `train --method` refuses it), or ''."""
-    if getattr(artefact, method) is not None:
-        return ""
-    return next((n for n in reversed(artefact.notes) if n.startswith(f"{method}:")), f"{method}: not fitted")
-
-
 def run_through_fmu(fmu: Path, artefact, overrides: dict[str, float], data: ImuData) -> np.ndarray:
     """(N, len(OUTPUTS)) outputs of the generic FMU `fmu` with the artefact's coefficients and settings as parameters,
     the recording's sidecar parameters and `overrides` on top, as `imufmu run FMU DATA --calibration` runs it (from
@@ -212,9 +207,10 @@ def _against_product(figure: Figure, out: np.ndarray, product: np.ndarray) -> li
 def _figures(figure: Figure, outs: list[np.ndarray], products: list[np.ndarray] | None, datas: list[ImuData],
              settings: dict[str, float]) -> tuple[list[float] | None, bool]:
     """(values averaged over the evaluation recordings, against a reference): against the reference when every
-    recording offers one, else the difference from the product form's outputs (None when those did not run)."""
-    referenced = [_against_reference(figure, out, d, settings) for out, d in zip(outs, datas)]
-    if np.all(np.isfinite(referenced)):
+    recording offers one (NaN where a recording has no eval_mask sample with it), else the difference from the product
+    form's outputs (None when those did not run)."""
+    if all(getattr(d, figure.reference) is not None for d in datas):
+        referenced = [_against_reference(figure, out, d, settings) for out, d in zip(outs, datas)]
         return [float(v) for v in np.mean(referenced, axis=0)], True
     if products is None:
         return None, False
@@ -234,14 +230,11 @@ class Plan:
     cannot_run: str = ""
 
 
-def _fitted_plans(method: str, calibration: list[ImuData], seed: int, refusal: str, own: Training,
-                  progress) -> list[Plan]:
-    """A fitted method's rows: one `train --method` per form (none when train's own training could not fit it)."""
+def _fitted_plans(method: str, calibration: list[ImuData], seed: int, progress) -> list[Plan]:
+    """A fitted method's rows: one `train --method` per form; a refusal (the stage cannot be fitted on these
+    recordings) is the row's reason."""
     plans = []
     for form in METHODS[method]:
-        if refusal:
-            plans.append(Plan(method, form, own, {}, f"`train --method {method}={form}`", refusal))
-            continue
         progress.set_description(f"train --method {method}={form}")
         training = _train(calibration, seed, {method: form})
         progress.update()
@@ -258,13 +251,9 @@ def _plans(calibration: list[ImuData], seed: int, datas: list[ImuData], progress
         raise ModelError(f"bench methods: train cannot calibrate these recordings: {own.error}")
     plans = []
     for method, forms in METHODS.items():
-        if method in FITTED:
-            refusal = _stage_refusal(method, own.artefact)
-            progress.total -= len(forms) if refusal else 0
-            plans += _fitted_plans(method, calibration, seed, refusal, own, progress)
-        else:
-            plans += [Plan(method, form, own, method_settings({method: form}),
-                           f"`train`, FMU parameters of `{method}={form}`") for form in forms]
+        plans += (_fitted_plans(method, calibration, seed, progress) if method in FITTED else
+                  [Plan(method, form, own, method_settings({method: form}), f"`train`, FMU parameters of `{method}={form}`")
+                   for form in forms])
         plans.append(Plan(method, "", own, {}, "`train`"))
     missing = {method: _missing_sensor(method, datas) for method in METHODS}
     return [replace(p, cannot_run=p.cannot_run or missing[p.method]) for p in plans]
@@ -278,8 +267,7 @@ def _row(plan: Plan, outs: dict[tuple[str, str], list[np.ndarray] | None], datas
     row = Row(plan.method, form, plan.form == product_form(plan.method), plan.how, None, False,
               plan.training.cpu_s)
     if plan.cannot_run:
-        refused_by_own = plan.method in FITTED and plan.form and plan.training.label == "train"
-        return replace(row, cannot_run=plan.cannot_run, cpu_s=None if refused_by_own else row.cpu_s)
+        return replace(row, cannot_run=plan.cannot_run, cpu_s=None if plan.training.artefact is None else row.cpu_s)
     settings = settings_dict(plan.training.artefact) | plan.overrides
     values, referenced = _figures(figure, outs[(plan.method, plan.form)],
                                   outs.get((plan.method, product_form(plan.method))), datas, settings)
