@@ -3,8 +3,11 @@
 Models, all trained on the static training part of each recording and judged on the rest:
   uncompensated        b = 0
   single polynomial    the gain/bias model's bias term B(Tn) (training/models/thermal.py), degree P
-  piecewise polynomial independent degree-P polynomials on `segments` equal temperature bands
-  BP                   2-H-1 networks per axis from uniform random weights (training/models/psobp.py)
+  piecewise polynomial, 3 equal-width bands
+                       independent degree-P polynomials on PIECEWISE_SEGMENTS equal-width
+                       temperature bands of the training range
+  BP                   2-H-1 networks per axis from uniform random weights (training/models/psobp.py),
+                       the product's fit (window targets, Rprop, patience stop, inputs clamped)
   PSO-BP, the source's form (issue 4)
                        the same networks from the particle-swarm start, whole bias from T and
                        dT/dt (MODE_FULL), every switch in its source form (psobp.SOURCE_FORM)
@@ -34,6 +37,17 @@ Metrics on the validation rows, residual e = gyr - ref_gyr - b_hat (per axis, th
   output shrinkage (b)         per-axis scale s in [0, 1] folded into (b)'s output layer
 Repeated `runs` times with seeds seed, seed+1, ...; the polynomials are deterministic (their
 spread is timing only).
+
+`as_written=True` gives the PSO-BP paper's comparison as written (issue 33 item 5) beside the
+product's variant of each comparator (AS_WRITTEN_MODELS):
+  piecewise polynomial as written   one segment per temperature point: WRITTEN_SEGMENTS bands of
+                                    equal window count (edges at the quantiles of the training
+                                    temperatures; on the protocol one band per training plateau)
+  BP as written                     plain BP from uniform random weights in the source's form of
+                                    every switch (psobp.SOURCE_FORM: single-sample targets, plain
+                                    gradient descent over the whole budget, inputs not clamped)
+  PSO-BP, the source's form         as in the product table
+next to the single polynomial, the 3-band piecewise polynomial, the product's BP, (a) and (b).
 """
 from __future__ import annotations
 
@@ -65,11 +79,21 @@ FULL = "PSO-BP (a)"
 FORM_ROWS = tuple(SOURCE if not added else f"+ {added}" if k < len(cumulative_forms()) - 1
                   else f"{FULL}: + {added}" for k, (added, _, _) in enumerate(cumulative_forms()))
 UNSHRUNK = "poly + PSO-BP (b) without the shrinkage"
-MODELS = ("uncompensated", "single polynomial", "piecewise polynomial", "BP", *FORM_ROWS, UNSHRUNK,
-          "poly + PSO-BP (b)")
-TRAINED = MODELS[1:]
-NETWORKS = MODELS[3:]
-HYBRID = MODELS[-1]
+HYBRID = "poly + PSO-BP (b)"
+#: Bands of the product's piecewise polynomial, and of the paper's (one per training temperature
+#: point: the four training plateaus of the protocol).
+PIECEWISE_SEGMENTS = 3
+WRITTEN_SEGMENTS = 4
+#: Band rules of `fit_piecewise`: equal width over the training range, or equal window count
+#: (edges at the quantiles of the training temperatures).
+BAND_RULES = ("width", "count")
+PIECEWISE = f"piecewise polynomial, {PIECEWISE_SEGMENTS} equal-width bands"
+PIECEWISE_WRITTEN = f"piecewise polynomial as written: {WRITTEN_SEGMENTS} bands, one per temperature point"
+BP_WRITTEN = "BP as written: gradient descent on single samples, whole budget, inputs not clamped"
+#: The product table (the source-form ablation) and the paper's table as written.
+MODELS = ("uncompensated", "single polynomial", PIECEWISE, "BP", *FORM_ROWS, UNSHRUNK, HYBRID)
+AS_WRITTEN_MODELS = ("uncompensated", "single polynomial", PIECEWISE, PIECEWISE_WRITTEN, "BP", BP_WRITTEN,
+                     SOURCE, FORM_ROWS[-1], HYBRID)
 
 
 # ----------------------------------------------------------------------------- metrics
@@ -161,9 +185,17 @@ def polynomial_bias(model: ThermalModel, temp: np.ndarray) -> np.ndarray:
     return -apply_thermal(model, np.zeros((temp.shape[0], 3)), temp)
 
 
-def fit_piecewise(temp: np.ndarray, bias: np.ndarray, degree: int, segments: int) -> PiecewisePolynomial:
-    """Equal-width temperature bands over the training range, one polynomial per band."""
-    edges = np.linspace(temp.min(), temp.max(), segments + 1)
+def fit_piecewise(temp: np.ndarray, bias: np.ndarray, degree: int, segments: int,
+                  bands: str = "width") -> PiecewisePolynomial:
+    """One degree-`degree` polynomial per temperature band, on static targets temp (M,) [°C], bias
+    (M, 3) [rad/s]. bands "width": `segments` equal-width bands over the training range; "count":
+    bands of equal target count (edges at the k/segments quantiles of temp) -- on a plateau
+    protocol with `segments` training plateaus of equal duration, one band per plateau."""
+    if bands not in BAND_RULES:
+        raise ValueError(f"band rule {bands!r} is not one of {BAND_RULES}")
+    cuts = np.linspace(0.0, 1.0, segments + 1)
+    edges = (np.linspace(temp.min(), temp.max(), segments + 1) if bands == "width"
+             else np.quantile(temp, cuts))
     k = np.clip(np.searchsorted(edges, temp, side="right") - 1, 0, segments - 1)
     return PiecewisePolynomial(edges, tuple(fit_bias_polynomial(temp[k == j], bias[k == j], degree)
                                             for j in range(segments)))
@@ -178,44 +210,110 @@ def _split(t: np.ndarray, fraction: float) -> np.ndarray:
     return t < t[0] + fraction * span
 
 
+@dataclass(frozen=True)
+class _Run:
+    """What every row of one run shares: the recording, its training mask (N,), the settings and
+    the causally held temperature (N,) [°C] at which the polynomials are evaluated."""
+
+    data: object
+    train: np.ndarray
+    settings: dict
+    held: np.ndarray
+
+    @classmethod
+    def prepare(cls, data, train, settings: dict) -> "_Run":
+        """Hold the temperature (NaN -> last finite value)."""
+        held = temperature_rate(data.t, data.temp, settings["tau_s"], float(np.nanmean(data.temp)))[0]
+        return cls(data, train, settings, held)
+
+    def forms(self) -> list[tuple[str, dict, bool]]:
+        """`psobp.cumulative_forms` at this run's window: the source's form first, (a) last."""
+        return cumulative_forms(window_s=self.settings["window_s"])
+
+    def common(self) -> dict:
+        """PsoBpFitter arguments every network row shares."""
+        s = self.settings
+        return dict(hidden=s["hidden"], tau_s=s["tau_s"], window_s=s["window_s"], rest_rad_s=s["rest_rad_s"],
+                    epochs=s["bp_epochs"])
+
+    def network(self, seed: int, clamp: bool, gyr=None, **fitter) -> tuple:
+        """(predicted bias (N, 3) [rad/s], CPU s, PsoBpFit) of one PsoBpFitter fitted on the training
+        rows of `gyr` (default the raw gyro) and run over the whole recording."""
+        d, tr = self.data, self.train
+        gyr = d.gyr if gyr is None else gyr
+        fit = PsoBpFitter(**{**self.common(), **fitter}).fit(d.t[tr], gyr[tr], d.ref_gyr[tr], d.temp[tr], seed)
+        return apply_psobp(fit.model, d.t, d.temp, clamp_inputs=clamp), fit.cpu_seconds, fit
+
+
+def _polynomial(run: _Run) -> tuple:
+    """(bias (N, 3) [rad/s], CPU s of targets and fit, None): the single polynomial."""
+    start = time.process_time()
+    d, tr, s = run.data, run.train, run.settings
+    tw, _, bw = bias_targets(d.t[tr], d.gyr[tr], d.ref_gyr[tr], d.temp[tr], s["tau_s"], s["window_s"],
+                             s["rest_rad_s"])
+    poly = polynomial_bias(fit_bias_polynomial(tw, bw, s["degree"]), run.held)
+    return poly, time.process_time() - start, None
+
+
+def _piecewise(run: _Run, segments: int, bands: str) -> tuple:
+    """(bias (N, 3) [rad/s], CPU s of targets and fit, None): a piecewise polynomial."""
+    start = time.process_time()
+    d, tr, s = run.data, run.train, run.settings
+    tw, _, bw = bias_targets(d.t[tr], d.gyr[tr], d.ref_gyr[tr], d.temp[tr], s["tau_s"], s["window_s"],
+                             s["rest_rad_s"])
+    piece = fit_piecewise(tw, bw, s["degree"], segments, bands)
+    return piece.bias(run.held), time.process_time() - start, None
+
+
+def _unshrunk(run: _Run, poly: tuple, seed: int) -> tuple:
+    """(b) without the shrinkage: the residual network on the gyro after the polynomial `poly` (as
+    `_polynomial` returns it); the time includes the polynomial's."""
+    bias, seconds, fit = run.network(seed, True, gyr=run.data.gyr - poly[0], mode=MODE_RESIDUAL)
+    return poly[0] + bias, poly[1] + seconds, fit
+
+
+def _hybrid(run: _Run, poly: tuple, seed: int) -> tuple:
+    """(b): as `_unshrunk`, the output shrunk by the inner validation (fit_gyro_residual_psobp)."""
+    d, tr = run.data, run.train
+    compensated = d.gyr - poly[0]
+    fit = fit_gyro_residual_psobp(d.t[tr], compensated[tr], d.ref_gyr[tr], d.temp[tr], seed, **run.common())
+    return poly[0] + apply_psobp(fit.model, d.t, d.temp), poly[1] + fit.cpu_seconds, fit
+
+
 def _one_run(data, train, settings: dict, seed: int) -> dict:
-    """Fit every model on the training rows: per model (predicted bias (N, 3) [rad/s], CPU
+    """Fit every model of MODELS on the training rows: per model (predicted bias (N, 3) [rad/s], CPU
     seconds of the fit, PsoBpFit or None)."""
-    t, temp, gyr, ref = data.t, data.temp, data.gyr, data.ref_gyr
-    held = temperature_rate(t, temp, settings["tau_s"], float(np.nanmean(temp)))[0]
-    out = {"uncompensated": (np.zeros_like(gyr), 0.0, None)}
-    start = time.process_time()
-    tw, _, bw = bias_targets(t[train], gyr[train], ref[train], temp[train], settings["tau_s"],
-                             settings["window_s"], settings["rest_rad_s"])
-    single = fit_bias_polynomial(tw, bw, settings["degree"])
-    poly = polynomial_bias(single, held)
-    poly_seconds = time.process_time() - start
-    out["single polynomial"] = (poly, poly_seconds, None)
-    start = time.process_time()
-    tw, _, bw = bias_targets(t[train], gyr[train], ref[train], temp[train], settings["tau_s"],
-                             settings["window_s"], settings["rest_rad_s"])
-    piece = fit_piecewise(tw, bw, settings["degree"], settings["segments"])
-    out["piecewise polynomial"] = (piece.bias(held), time.process_time() - start, None)
-    common = dict(hidden=settings["hidden"], tau_s=settings["tau_s"], window_s=settings["window_s"],
-                  rest_rad_s=settings["rest_rad_s"], epochs=settings["bp_epochs"])
-    fit = PsoBpFitter(use_pso=False, **common).fit(t[train], gyr[train], ref[train], temp[train], seed)
-    out["BP"] = (apply_psobp(fit.model, t, temp), fit.cpu_seconds, fit)
+    run = _Run.prepare(data, train, settings)
+    poly = _polynomial(run)
+    out = {"uncompensated": (np.zeros_like(data.gyr), 0.0, None), "single polynomial": poly,
+           PIECEWISE: _piecewise(run, PIECEWISE_SEGMENTS, "width"), "BP": run.network(seed, True, use_pso=False)}
     fits = {}
-    for name, (_, switches, clamp) in zip(FORM_ROWS, cumulative_forms(window_s=settings["window_s"])):
+    for name, (_, switches, clamp) in zip(FORM_ROWS, run.forms()):
         key = tuple(sorted(switches.items()))
         if key not in fits:  # rows that differ only in clamp_inputs share one fit
-            fits[key] = PsoBpFitter(**{**common, **switches}).fit(t[train], gyr[train], ref[train],
-                                                                  temp[train], seed)
+            fits[key] = run.network(seed, clamp, **switches)[2]
         fit = fits[key]
-        out[name] = (apply_psobp(fit.model, t, temp, clamp_inputs=clamp), fit.cpu_seconds, fit)
-    compensated = gyr - poly
-    fit = PsoBpFitter(mode=MODE_RESIDUAL, **common).fit(t[train], compensated[train], ref[train],
-                                                        temp[train], seed)
-    out[UNSHRUNK] = (poly + apply_psobp(fit.model, t, temp), poly_seconds + fit.cpu_seconds, fit)
-    fit = fit_gyro_residual_psobp(t[train], compensated[train], ref[train], temp[train], seed,
-                                  **common)
-    out[HYBRID] = (poly + apply_psobp(fit.model, t, temp), poly_seconds + fit.cpu_seconds, fit)
+        out[name] = (apply_psobp(fit.model, data.t, data.temp, clamp_inputs=clamp), fit.cpu_seconds, fit)
+    out[UNSHRUNK] = _unshrunk(run, poly, seed)
+    out[HYBRID] = _hybrid(run, poly, seed)
     return out
+
+
+def _as_written_run(data, train, settings: dict, seed: int) -> dict:
+    """Fit every model of AS_WRITTEN_MODELS on the training rows (as `_one_run`): the paper's
+    comparators as written beside the product's variant of each."""
+    run = _Run.prepare(data, train, settings)
+    poly = _polynomial(run)
+    forms = run.forms()
+    (_, source, source_clamp), (_, product, product_clamp) = forms[0], forms[-1]
+    return {"uncompensated": (np.zeros_like(data.gyr), 0.0, None), "single polynomial": poly,
+            PIECEWISE: _piecewise(run, PIECEWISE_SEGMENTS, "width"),
+            PIECEWISE_WRITTEN: _piecewise(run, WRITTEN_SEGMENTS, "count"),
+            "BP": run.network(seed, True, use_pso=False),
+            BP_WRITTEN: run.network(seed, source_clamp, use_pso=False, **source),
+            SOURCE: run.network(seed, source_clamp, **source),
+            FORM_ROWS[-1]: run.network(seed, product_clamp, **product),
+            HYBRID: _hybrid(run, poly, seed)}
 
 
 def _summary(values: list[float]) -> dict:
@@ -237,24 +335,26 @@ def _compare_one(path: Path, out_dir: Path, runs: int, seed: int, settings: dict
         data.ref_gyr = np.zeros_like(data.gyr)
     train = _split(data.t, settings["train_fraction"])
     valid = ~train & np.all(np.isfinite(data.gyr - data.ref_gyr), axis=1)
-    metrics = {m: [] for m in MODELS}
-    times = {m: [] for m in TRAINED}
-    epochs = {m: [] for m in NETWORKS}
+    models, one_run = (AS_WRITTEN_MODELS, _as_written_run) if settings["as_written"] else (MODELS, _one_run)
+    trained = models[1:]
+    metrics = {m: [] for m in models}
+    times = {m: [] for m in trained}
+    epochs = {}
     shrinkage = []
     first = None
     for run in tqdm(range(runs), desc=f"compare-thermal {data.name}", disable=not progress):
-        result = _one_run(data, train, settings, seed + run)
+        result = one_run(data, train, settings, seed + run)
         first = first or result
-        for m in MODELS:
+        for m in models:
             e = data.gyr[valid] - data.ref_gyr[valid] - result[m][0][valid]
             metrics[m].append(residual_metrics(data.t[valid], e, settings["window_s"]))
-        for m in TRAINED:
+        for m in trained:
             times[m].append(result[m][1])
-        for m in epochs:
-            epochs[m].append(float(result[m][2].epochs))
+            if result[m][2] is not None:  # a network row
+                epochs.setdefault(m, []).append(float(result[m][2].epochs))
         shrinkage.append(result[HYBRID][2].shrinkage)
     summary = {}
-    for m in MODELS:
+    for m in models:
         summary[m] = {k: _summary([r[k] for r in metrics[m]])
                       for k in ("rms_dps", "var100_dps2", "stability_dph", "allan_min_dph")}
         summary[m]["rms_dps_axis"] = np.mean([r["rms_dps_axis"] for r in metrics[m]], axis=0).tolist()
@@ -287,7 +387,9 @@ def _plots(data, train, valid, first: dict, times: dict, settings: dict, out_dir
     tm = window_means(t, np.column_stack([data.temp, measured]), w)
     for i, ax in enumerate(axes):
         ax.plot(tm[:, 0], tm[:, 1 + i], ".", ms=2, color="0.6", label="measured (window means)")
-        for m in TRAINED:
+        for m in first:
+            if m == "uncompensated":
+                continue
             pm = window_means(t, np.column_stack([data.temp, first[m][0][:, i] * DPS]), w)
             ax.plot(pm[:, 0], pm[:, 1], ".", ms=2, label=m)
         ax.set_ylabel(f"bias {'xyz'[i]} [°/s]")
@@ -296,7 +398,7 @@ def _plots(data, train, valid, first: dict, times: dict, settings: dict, out_dir
     names.append(_save(fig, out_dir, f"{data.name}_bias_vs_temperature.png"))
     fig, axes = plt.subplots(3, 1, figsize=(8, 9), sharex=True)
     for i, ax in enumerate(axes):
-        for m in MODELS:
+        for m in first:
             e = window_means(t[valid], measured[valid, i] - first[m][0][valid, i] * DPS, w)
             ax.plot(window_means(t[valid], t[valid], w), e, lw=0.8, label=m)
         ax.set_ylabel(f"residual {'xyz'[i]} [°/s]")
@@ -305,7 +407,7 @@ def _plots(data, train, valid, first: dict, times: dict, settings: dict, out_dir
     names.append(_save(fig, out_dir, f"{data.name}_residuals.png"))
     fig, ax = plt.subplots(figsize=(7, 5))
     dt = float(np.median(np.diff(t[valid])))
-    for m in MODELS:
+    for m in first:
         curves = [allan_deviation(measured[valid, i] - first[m][0][valid, i] * DPS, dt) for i in range(3)]
         ax.loglog(curves[0][0], np.mean([c[1] for c in curves], axis=0) * 3600.0, label=m)
     ax.set_xlabel("τ [s]")
@@ -314,8 +416,9 @@ def _plots(data, train, valid, first: dict, times: dict, settings: dict, out_dir
     ax.legend(fontsize=7)
     names.append(_save(fig, out_dir, f"{data.name}_allan.png"))
     fig, ax = plt.subplots(figsize=(8, 5))
-    ax.boxplot([times[m] for m in NETWORKS])
-    ax.set_xticks(range(1, len(NETWORKS) + 1), NETWORKS, rotation=30, ha="right", fontsize=7)
+    networks = [m for m in first if first[m][2] is not None]
+    ax.boxplot([times[m] for m in networks])
+    ax.set_xticks(range(1, len(networks) + 1), networks, rotation=30, ha="right", fontsize=7)
     ax.set_ylabel("training CPU time [s]")
     names.append(_save(fig, out_dir, f"{data.name}_training_time.png"))
     return names
@@ -338,7 +441,9 @@ def _markdown(results: dict) -> str:
              f"training = first {s['train_fraction']:.4g} of each recording by time, validation = the rest. "
              f"Networks 2-{s['hidden']}-1 per axis, rate low-pass τ = {s['tau_s']} s, BP budget "
              f"{s['bp_epochs']} epochs; polynomials degree {s['degree']}, piecewise in {s['segments']} "
-             f"temperature bands. Residual RMS on {s['window_s']} s window means; bias stability = "
+             f"equal-width temperature bands"
+             + (f" and, as written, in {s['written_segments']} equal-count bands (one per temperature point)"
+                if s["as_written"] else "") + f". Residual RMS on {s['window_s']} s window means; bias stability = "
              f"standard deviation of the {STABILITY_WINDOW_S:g} s means (GJB 2426 / IEEE Std 952, the "
              "acceptance figure), Allan min = minimum of the overlapping Allan deviation, both °/h, "
              "mean of the three axes; training time = process CPU seconds (CV = sd / mean).", ""]
@@ -372,7 +477,7 @@ def _markdown(results: dict) -> str:
 
 def compare_thermal(paths: list[Path], out_dir: Path, runs: int = 50, seed: int = 0,
                     train_fraction: float = 0.6, hidden: int = 4, tau_s: float = 10.0,
-                    window_s: float = 10.0, degree: int = 2, segments: int = 3,
+                    window_s: float = 10.0, degree: int = 2, as_written: bool = False,
                     rest_rad_s: float = 1e-3, bp_epochs: int = 3000, progress: bool = True) -> dict:
     """Compare the gyro temperature models on static recordings (`imufmu compare-thermal`).
 
@@ -381,7 +486,8 @@ def compare_thermal(paths: list[Path], out_dir: Path, runs: int = 50, seed: int 
     Writes `out_dir/compare_thermal.md`, `compare_thermal.json` and PNG plots; returns the
     JSON content. runs: Monte-Carlo repetitions (seeds seed .. seed + runs - 1). hidden, tau_s
     [s]: network size and rate low-pass; window_s [s]: target/residual averaging window;
-    degree, segments: polynomial degree and piecewise bands; rest_rad_s: static-row bound on
+    degree: polynomial degree; as_written: the PSO-BP paper's comparison as written
+    (AS_WRITTEN_MODELS) instead of the product table with the source-form ablation (MODELS); rest_rad_s: static-row bound on
     |ref_gyr|; bp_epochs: BP budget (same for BP, (a) and (b)); progress: tqdm bar over the runs.
     """
     if runs < 1 or not 0.0 < train_fraction < 1.0:
@@ -390,7 +496,8 @@ def compare_thermal(paths: list[Path], out_dir: Path, runs: int = 50, seed: int 
     out_dir.mkdir(parents=True, exist_ok=True)
     torch.set_num_threads(1)
     settings = {"train_fraction": train_fraction, "hidden": hidden, "tau_s": tau_s,
-                "window_s": window_s, "degree": degree, "segments": segments,
+                "window_s": window_s, "degree": degree, "segments": PIECEWISE_SEGMENTS,
+                "written_segments": WRITTEN_SEGMENTS, "as_written": as_written,
                 "rest_rad_s": rest_rad_s, "bp_epochs": bp_epochs}
     results = {"runs": runs, "seed": seed, "settings": settings, "units": {
         "rms_dps": "°/s", "var100_dps2": "(°/s)²", "stability_dph": "°/h", "allan_min_dph": "°/h",

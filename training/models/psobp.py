@@ -9,7 +9,8 @@ its rate of change, both min-max normalised to [-1, 1] with the training ranges)
 
 T and r are clamped to the training ranges [t_min, t_max] and [r_min, r_max] before they are
 normalised, so the networks are never evaluated outside what they were fitted on (Python's
-`clamp_inputs=False` skips that for the source's form; the C runtime always clamps).
+`clamp_inputs=False` skips that for the source's form; in C the `clamp` argument of
+ImuPsoBpEvaluate, set by the FMU parameter `psobp_clamp`, makes the same choice).
 
 The output normalisation of the training targets is folded into w2, b2, so the stored model
 gives rad/s directly. `sources/ImuPsoBp.c` evaluates the identical formula in the identical
@@ -223,7 +224,7 @@ def evaluate_psobp(model: PsoBpModel, temp: np.ndarray, rate: np.ndarray,
     """Bias (N, 3) [rad/s] of the networks at temperatures (N,) [°C] and rates (N,) [°C/s], each
     clamped to the training range [t_min, t_max], [r_min, r_max] first (the networks are never
     extrapolated). Same operation order as ImuPsoBpEvaluate in C. clamp_inputs=False skips the
-    clamp (the source's form; Python only, the C runtime always clamps)."""
+    clamp (the source's form; in C the `clamp` argument, the FMU parameter `psobp_clamp`)."""
     temp = np.asarray(temp, dtype=np.float64)
     rate = np.asarray(rate, dtype=np.float64)
     if clamp_inputs:
