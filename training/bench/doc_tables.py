@@ -201,6 +201,12 @@ GENERATORS = (
         why_not_small="the plateaus form's code path on the variant sensor's scenario (the plateaus small form runs "
                       "it); its source-form networks cost about 20 s of CPU even at 20 epochs"),
     TableGenerator(
+        "OMP_NUM_THREADS=1 python benchmarks/bench_thermal.py pan --as-written --out /tmp/bench_pan --runs 10 --seed 0",
+        (_THERMAL_HEADER,),
+        small=("benchmarks/bench_thermal.py", "pan", "--as-written", "--out", "{tmp}", "--runs", "1", "--bp-epochs",
+               "20"),
+        needs=("pan_thermal/pan_etu_cold_chamber.csv.gz",)),
+    TableGenerator(
         "OMP_NUM_THREADS=1 python benchmarks/bench_thermal.py gainbias --out /tmp/bench_gainbias",
         ("| fit | iterations | converged | gyro RMS, calibration set [°/s] | gyro RMS, held-out set [°/s] | CPU [s] |",),
         small=("benchmarks/bench_thermal.py", "gainbias", "--out", "{tmp}", "--iterations", "30")),
