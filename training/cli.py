@@ -306,6 +306,8 @@ def cmd_bench(args) -> None:
         raise ImuFusionError("bench methods: give the calibration recordings (imufmu bench methods DATA... --out DIR)")
     if args.what != "methods" and (args.data or args.eval):
         raise ImuFusionError(f"bench {args.what} takes no recordings (DATA, --eval: bench methods only)")
+    if args.what == "methods" and args.trials is not None:
+        raise ImuFusionError("bench methods takes recordings, not --trials (imufmu bench methods DATA... --eval EVAL...)")
     paths = [_existing_file(p, "data file") for p in args.data]
     eval_paths = [_existing_file(p, "evaluation file") for p in args.eval or []]
     with staged_output("bench", args.out, args.force, inputs=[*paths, *eval_paths]) as out:
