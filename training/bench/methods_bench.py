@@ -9,7 +9,7 @@ Each row is the unit as `train` calibrates it with one method in one form:
   `--method` (train's own choice) with the FMU parameters of that form (`method_settings`) on top;
 - per method, one more row: train's own choice, without `--method`.
 
-Every row runs through the FMU with fmpy, as `imufmu run GENERIC.fmu EVAL --calibration DIR/<training>/calibration.ssv
+Every row runs through the FMU with fmpy, as `imufmu run GENERIC.fmu EVAL --calibration UNIT.ssv
 --param …` does: the generic FMU (`build_fmu_from_model(None, …)`: compiled once, or the prebuilt one without a
 compiler) with the training's coefficients and settings set as parameters (fmu.cosim.run_fmu), the sidecar's
 declination and field norm on top (recording_parameters), then the form's parameters. One generic FMU serves every
