@@ -8,7 +8,7 @@ Recordings (one report folder each under OUT):
   pan        /work/shared/data/pan_thermal/pan_etu_cold_chamber.csv.gz, train on the first 60 %
 
 Usage: python benchmarks/bench_thermal.py {plateaus,rate,pan} --out OUT [--runs N] [--seed N]
-       [--bp-epochs N] [--pan-dir DIR] [--as-written]
+       [--bp-epochs N] [--tau-s S] [--pan-dir DIR] [--as-written]
 Each recording is a separate invocation so they can run in parallel on separate cores.
 The table's rows (training/bench/compare_thermal.MODELS): the polynomials, plain BP, PSO-BP in the
 source's form (issue 4), the product's additions one at a time up to (a), (b) without the
@@ -17,11 +17,11 @@ whole budget: about 60 s of CPU per run on the simulated recordings, most of a r
 --as-written prints the PSO-BP paper's comparison as written instead (compare_thermal.AS_WRITTEN_MODELS,
 issue 33 item 5): the piecewise polynomial with one segment per temperature point, plain BP as the
 source trains it and PSO-BP in the source's form, each beside the product's variant; the two
-source-form networks cost about 60 s of CPU each per run on the simulated recordings. Its report
+source-form networks cost about 30 s (BP) and 50 s (PSO-BP) of CPU per run on the simulated recordings. Its report
 folder is OUT/<recording>_as_written.
 
        python benchmarks/bench_thermal.py verdict --out OUT [--recordings plateaus rate pan]
-       [--seeds 0 1 2] [--bp-epochs N] [--pan-dir DIR]
+       [--seeds 0 1 2] [--bp-epochs N] [--tau-s S] [--pan-dir DIR]
 The table of "Verdict for the chain": each whole recording as calibration data, the degree-2
 bias polynomial fitted on all its static rows, then the rule that sets `enable_psobp`
 (training.models.psobp.residual_psobp_wins: residual network fitted on the first 2/3, judged
@@ -93,14 +93,17 @@ def polynomial_compensated(t, gyr, ref_gyr, temp) -> np.ndarray:
     return apply_thermal(fit_bias_polynomial(tw, bw, VERDICT_DEGREE), gyr, temp)
 
 
-def verdict_rows(paths: dict[str, Path], seeds: list[int], bp_epochs: int) -> list[dict]:
+def verdict_rows(paths: dict[str, Path], seeds: list[int], bp_epochs: int,
+                 tau_s: float = TARGETS["tau_s"]) -> list[dict]:
     """Per recording: held-out 10 s-mean RMS [°/s] of the polynomial alone, of the hybrid per
-    seed, the rule's switch per seed and the held-out window count (residual_psobp_wins)."""
+    seed, the rule's switch per seed and the held-out window count (residual_psobp_wins; tau_s [s]:
+    the network's dT/dt low-pass)."""
     rows = []
     for name, path in paths.items():
         d = read_imu_csv(path)
         gyr = polynomial_compensated(d.t, d.gyr, d.ref_gyr, d.temp)
-        decisions = [residual_psobp_wins(d.t, gyr, d.ref_gyr, d.temp, seed, epochs=bp_epochs) for seed in seeds]
+        decisions = [residual_psobp_wins(d.t, gyr, d.ref_gyr, d.temp, seed, tau_s=tau_s, epochs=bp_epochs)
+                     for seed in seeds]
         rows.append({"recording": name, "windows": decisions[0].windows,
                      "polynomial_dps": decisions[0].rms_polynomial / DPS,
                      "hybrid_dps": [x.rms_hybrid / DPS for x in decisions],
@@ -176,12 +179,16 @@ def main() -> None:
     p.add_argument("--recordings", nargs="+", choices=list(LABELS), default=list(LABELS),
                    help="verdict: the recordings")
     p.add_argument("--bp-epochs", type=int, default=3000)
+    p.add_argument("--tau-s", type=float, default=TARGETS["tau_s"],
+                   help="the networks' dT/dt low-pass time constant [s] (the fitter's default 10)")
     p.add_argument("--iterations", type=int, default=GAIN_BIAS_ITERATIONS,
                    help="gainbias: the gain/bias fits' iteration budget (GainBiasFitter's default)")
     p.add_argument("--pan-dir", type=Path, default=PAN_DIR)
     p.add_argument("--as-written", action="store_true",
                    help="the PSO-BP paper's comparison as written, beside the product's variants")
     a = p.parse_args()
+    if not a.tau_s > 0:
+        p.error(f"--tau-s must be positive, got {a.tau_s}")
     if a.as_written and a.recording in ("verdict", "gainbias"):
         p.error(f"--as-written applies to plateaus, rate and pan, not to {a.recording}")
     torch.set_num_threads(1)
@@ -194,14 +201,14 @@ def main() -> None:
         return
     if a.recording == "verdict":
         paths = {name: recording_path(name, out, a.pan_dir) for name in a.recordings}
-        text = verdict_table(verdict_rows(paths, a.seeds, a.bp_epochs), a.seeds)
+        text = verdict_table(verdict_rows(paths, a.seeds, a.bp_epochs, a.tau_s), a.seeds)
         (out / "verdict.md").write_text(text)
         print(text)
         return
     path = recording_path(a.recording, out, a.pan_dir)
     fraction = PAN_TRAIN_FRACTION if a.recording == "pan" else PLATEAU_TRAIN_FRACTION
     compare_thermal([path], out, runs=a.runs, seed=a.seed, train_fraction=fraction,
-                    bp_epochs=a.bp_epochs, as_written=a.as_written, progress=False)
+                    bp_epochs=a.bp_epochs, tau_s=a.tau_s, as_written=a.as_written, progress=False)
     print((out / "compare_thermal.md").read_text())
 
 

@@ -3,6 +3,7 @@ segment per temperature point, plain BP as the source trains it, PSO-BP in the s
 beside the product's variant (training/bench/compare_thermal.py, `as_written=True`)."""
 from __future__ import annotations
 
+import importlib.util
 import subprocess
 import sys
 from types import SimpleNamespace
@@ -13,7 +14,7 @@ import pytest
 from training.bench.compare_thermal import (AS_WRITTEN_MODELS, BP_WRITTEN, FORM_ROWS, PIECEWISE_WRITTEN, SOURCE,
                                             _as_written_run, _split, fit_piecewise)
 from training.bench.doc_tables import ROOT
-from training.models.psobp import apply_psobp
+from training.models.psobp import EnableDecision, apply_psobp
 
 #: Four training "plateaus" as the protocol's warm-ups span them [°C]: equally many targets each,
 #: their ranges separated by gaps. Equal-width bands over -10..42 °C cut the second one at 16 °C.
@@ -87,3 +88,32 @@ def test_as_written_is_refused_for_the_verdict():
     assert run.returncode == 2
     assert "--as-written applies to plateaus, rate and pan, not to verdict" in run.stderr
     assert "Traceback" not in run.stderr
+
+
+def _bench_thermal():
+    """benchmarks/bench_thermal.py as a module."""
+    spec = importlib.util.spec_from_file_location("bench_thermal", ROOT / "benchmarks" / "bench_thermal.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def test_tau_s_reaches_the_verdict_rule(monkeypatch):
+    bench = _bench_thermal()
+    seen = []
+
+    def rule(*args, **kwargs):
+        seen.append(kwargs["tau_s"])
+        return EnableDecision(False, 1.0, 1.0, 1)
+    monkeypatch.setattr(bench, "residual_psobp_wins", rule)
+    monkeypatch.setattr(bench, "read_imu_csv", lambda path: _static_recording())
+    monkeypatch.setattr(bench, "polynomial_compensated", lambda t, gyr, ref_gyr, temp: gyr)
+    bench.verdict_rows({"rate": ROOT / "unused.csv"}, [0, 1], bp_epochs=SMALL_EPOCHS, tau_s=0.5)
+    assert seen == [0.5, 0.5]
+
+
+def test_non_positive_tau_s_is_refused_in_one_line():
+    run = subprocess.run([sys.executable, "benchmarks/bench_thermal.py", "verdict", "--tau-s", "0", "--out", "x"],
+                         cwd=ROOT, capture_output=True, text=True)
+    assert run.returncode == 2
+    assert "--tau-s must be positive" in run.stderr and "Traceback" not in run.stderr
