@@ -134,7 +134,6 @@ def gain_bias_rows(iterations: int, degree: int = VERDICT_DEGREE, seed: int = 0)
     """Per GAIN_BIAS_FITS entry, at an iteration budget of `iterations`: iterations run, converged, gyro
     RMS [°/s] of corrected - ref_gyr on the calibration set and on the held-out evaluation set, CPU s;
     a diverged fit reports its message."""
-    import time
     calibration, evaluation = (simulate(load_scenario(p)) for p in GAIN_BIAS_SCENARIOS)
     # One untimed iteration first: torch's one-off start-up would otherwise be charged to the first row.
     GainBiasFitter(degree=degree, iterations=1).fit(calibration.gyr, calibration.ref_gyr, calibration.temp, seed,
@@ -143,8 +142,8 @@ def gain_bias_rows(iterations: int, degree: int = VERDICT_DEGREE, seed: int = 0)
     for label, arguments in GAIN_BIAS_FITS:
         start = time.process_time()
         try:
-            fit = GainBiasFitter(degree=degree, iterations=iterations, **arguments).fit(calibration.gyr, calibration.ref_gyr,
-                                                                 calibration.temp, seed, "rad/s")
+            fitter = GainBiasFitter(degree=degree, iterations=iterations, **arguments)
+            fit = fitter.fit(calibration.gyr, calibration.ref_gyr, calibration.temp, seed, "rad/s")
         except ValueError as e:
             rows.append({"fit": label, "error": str(e)})
             continue

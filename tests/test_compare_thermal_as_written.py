@@ -82,8 +82,9 @@ def test_as_written_rows_are_the_source_forms():
         assert rows[name][2].windows < static_rows
 
 
-def test_as_written_is_refused_for_the_verdict():
-    run = subprocess.run([sys.executable, "benchmarks/bench_thermal.py", "verdict", "--as-written", "--out", "x"],
+def test_as_written_is_refused_for_the_verdict(tmp_path):
+    run = subprocess.run([sys.executable, "benchmarks/bench_thermal.py", "verdict", "--as-written", "--out",
+                          str(tmp_path)],
                          cwd=ROOT, capture_output=True, text=True)
     assert run.returncode == 2
     assert "--as-written applies to plateaus, rate and pan, not to verdict" in run.stderr
@@ -112,8 +113,9 @@ def test_tau_s_reaches_the_verdict_rule(monkeypatch):
     assert seen == [0.5, 0.5]
 
 
-def test_non_positive_tau_s_is_refused_in_one_line():
-    run = subprocess.run([sys.executable, "benchmarks/bench_thermal.py", "verdict", "--tau-s", "0", "--out", "x"],
+def test_non_positive_tau_s_is_refused_in_one_line(tmp_path):
+    run = subprocess.run([sys.executable, "benchmarks/bench_thermal.py", "verdict", "--tau-s", "0", "--out",
+                          str(tmp_path)],
                          cwd=ROOT, capture_output=True, text=True)
     assert run.returncode == 2
     assert "--tau-s must be positive" in run.stderr and "Traceback" not in run.stderr

@@ -487,8 +487,8 @@ def compare_thermal(paths: list[Path], out_dir: Path, runs: int = 50, seed: int 
     JSON content. runs: Monte-Carlo repetitions (seeds seed .. seed + runs - 1). hidden, tau_s
     [s]: network size and rate low-pass; window_s [s]: target/residual averaging window;
     degree: polynomial degree; as_written: the PSO-BP paper's comparison as written
-    (AS_WRITTEN_MODELS) instead of the product table with the source-form ablation (MODELS); rest_rad_s: static-row bound on
-    |ref_gyr|; bp_epochs: BP budget (same for BP, (a) and (b)); progress: tqdm bar over the runs.
+    (AS_WRITTEN_MODELS) instead of the product table with the source-form ablation (MODELS);
+    rest_rad_s: static-row bound on |ref_gyr|; bp_epochs: BP budget (same for BP, (a) and (b)); progress: tqdm bar over the runs.
     """
     if runs < 1 or not 0.0 < train_fraction < 1.0:
         raise ValueError("need runs >= 1 and 0 < train_fraction < 1")
