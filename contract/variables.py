@@ -258,7 +258,7 @@ _SOURCE_FORMS: tuple[Variable, ...] = (
                "The project's additions to the adaptive-gain Euler fusion (attitude_mode 0), a sum of bits: "
                "1 trapezoidal propagation, 2 measurement-error floor, 4 error growth with the norms' departure, "
                "8 integration-error bound, 16 tilt variance in the yaw error, 32 restart on growing bounds; "
-               "0 = the fusion as its source describes it (docs/attitude.md)"),
+               "0 = the fusion as its source describes it (docs/euler.md)"),
     _parameter("pf_additions", 87, 1.0, FLAG,
                "The project's additions to the particle filter's 9-state method (pf_rao_blackwell 0): roughening "
                "of the resampled cloud, resample-move, tempering, innovation-driven inflation, the change test, "
@@ -266,6 +266,14 @@ _SOURCE_FORMS: tuple[Variable, ...] = (
     _parameter("psobp_clamp", 88, 1.0, FLAG,
                "The PSO-BP network's inputs (temperature and its rate) are clamped to their training ranges "
                "(0: evaluated outside them as the source's network is; calibration_valid reports either way)"),
+)
+
+#: Beyond the calibrated range (issue 33): the gain/bias models continue along their edge tangent.
+_OUTSIDE_RANGE: tuple[Variable, ...] = (
+    _parameter("thermal_continuation", 89, 1.0, FLAG,
+               "Outside the calibrated temperature range the gain/bias polynomials continue along their tangent at "
+               "the range edge for at most one calibrated span, then hold (0: they hold their edge value); "
+               "calibration_valid is 0 outside the range either way (docs/fmu.md, Calibrated range)"),
 )
 
 
@@ -292,7 +300,7 @@ def variable_table(aux_inputs: Sequence[dict] = ()) -> tuple[Variable, ...]:
     if len(aux_inputs) > len(AUX_INPUTS):
         raise ValueError(f"{len(aux_inputs)} auxiliary inputs mapped, the FMU has {len(AUX_INPUTS)}")
     return (_LAYOUT_2 + _aux_inputs(aux_inputs) + _LAGS + _LAYOUT_4_OUTPUTS + _MOUNTING + _FILTER_FROM_DATA
-            + _SOURCE_FORMS)
+            + _SOURCE_FORMS + _OUTSIDE_RANGE)
 
 
 VARIABLES: tuple[Variable, ...] = variable_table()

@@ -78,52 +78,53 @@ typedef enum {
 /** Settings (FMU parameters) in the flat settings array. */
 /* generated:begin settings (python -m contract.generate, from contract/variables.py; do not edit) */
 typedef enum {
-    ImuSetDeclination,        /* rad */
-    ImuSetFieldNorm,          /* uT */
-    ImuSetGyroNoise,          /* rad/s/sqrt(Hz) */
-    ImuSetGyroBiasResidual,   /* rad/s */
-    ImuSetMseTimeConstant,    /* s */
-    ImuSetAngleNoise,         /* rad */
-    ImuSetEnableThermal,      /* 0 or 1 */
-    ImuSetAttitudeMode,       /* whole number */
-    ImuSetFieldDip,           /* rad */
-    ImuSetTauAcc,             /* s */
-    ImuSetTauMag,             /* s */
-    ImuSetRestGyroThreshold,  /* rad/s */
-    ImuSetRestAccThreshold,   /* m/s2 */
-    ImuSetMagRejectTime,      /* s */
-    ImuSetEnableElm,          /* 0 or 1 */
-    ImuSetEnablePf,           /* 0 or 1 */
-    ImuSetPfParticles,        /* whole number */
-    ImuSetPfMeasurementNoise, /* uT */
-    ImuSetPfProcessNoiseHard, /* uT */
-    ImuSetPfProcessNoiseSoft, /* 1 */
-    ImuSetPfPriorSpreadHard,  /* uT */
-    ImuSetPfPriorSpreadSoft,  /* 1 */
-    ImuSetPfDecimation,       /* whole number */
-    ImuSetPfSeed,             /* whole number */
-    ImuSetPfThresholdHigh,    /* 1 */
-    ImuSetPfThresholdLow,     /* 1 */
-    ImuSetPfSphereBins,       /* whole number */
-    ImuSetEnablePsobp,        /* 0 or 1 */
-    ImuSetPfRaoBlackwell,     /* 0 or 1 */
-    ImuSetPfMinRotation,      /* rad */
-    ImuSetPfChangeSpreadHard, /* uT */
-    ImuSetPfHoldPrior,        /* 0 or 1 */
-    ImuSetPfSettleSpread,     /* uT */
-    ImuSetLagGyr,             /* s */
-    ImuSetLagAcc,             /* s */
-    ImuSetLagMag,             /* s */
-    ImuSetMountX,             /* whole number */
-    ImuSetMountY,             /* whole number */
-    ImuSetMountZ,             /* whole number */
-    ImuSetGyroHold,           /* 0 or 1 */
-    ImuSetMagHeading,         /* 0 or 1 */
-    ImuSetMotionBias,         /* 0 or 1 */
-    ImuSetAccNormTolerance,   /* 1 */
-    ImuSetEulerAdditions,     /* whole number */
-    ImuSetPfAdditions,        /* 0 or 1 */
-    ImuSetPsobpClamp,         /* 0 or 1 */
+    ImuSetDeclination,         /* rad */
+    ImuSetFieldNorm,           /* uT */
+    ImuSetGyroNoise,           /* rad/s/sqrt(Hz) */
+    ImuSetGyroBiasResidual,    /* rad/s */
+    ImuSetMseTimeConstant,     /* s */
+    ImuSetAngleNoise,          /* rad */
+    ImuSetEnableThermal,       /* 0 or 1 */
+    ImuSetAttitudeMode,        /* whole number */
+    ImuSetFieldDip,            /* rad */
+    ImuSetTauAcc,              /* s */
+    ImuSetTauMag,              /* s */
+    ImuSetRestGyroThreshold,   /* rad/s */
+    ImuSetRestAccThreshold,    /* m/s2 */
+    ImuSetMagRejectTime,       /* s */
+    ImuSetEnableElm,           /* 0 or 1 */
+    ImuSetEnablePf,            /* 0 or 1 */
+    ImuSetPfParticles,         /* whole number */
+    ImuSetPfMeasurementNoise,  /* uT */
+    ImuSetPfProcessNoiseHard,  /* uT */
+    ImuSetPfProcessNoiseSoft,  /* 1 */
+    ImuSetPfPriorSpreadHard,   /* uT */
+    ImuSetPfPriorSpreadSoft,   /* 1 */
+    ImuSetPfDecimation,        /* whole number */
+    ImuSetPfSeed,              /* whole number */
+    ImuSetPfThresholdHigh,     /* 1 */
+    ImuSetPfThresholdLow,      /* 1 */
+    ImuSetPfSphereBins,        /* whole number */
+    ImuSetEnablePsobp,         /* 0 or 1 */
+    ImuSetPfRaoBlackwell,      /* 0 or 1 */
+    ImuSetPfMinRotation,       /* rad */
+    ImuSetPfChangeSpreadHard,  /* uT */
+    ImuSetPfHoldPrior,         /* 0 or 1 */
+    ImuSetPfSettleSpread,      /* uT */
+    ImuSetLagGyr,              /* s */
+    ImuSetLagAcc,              /* s */
+    ImuSetLagMag,              /* s */
+    ImuSetMountX,              /* whole number */
+    ImuSetMountY,              /* whole number */
+    ImuSetMountZ,              /* whole number */
+    ImuSetGyroHold,            /* 0 or 1 */
+    ImuSetMagHeading,          /* 0 or 1 */
+    ImuSetMotionBias,          /* 0 or 1 */
+    ImuSetAccNormTolerance,    /* 1 */
+    ImuSetEulerAdditions,      /* whole number */
+    ImuSetPfAdditions,         /* 0 or 1 */
+    ImuSetPsobpClamp,          /* 0 or 1 */
+    ImuSetThermalContinuation, /* 0 or 1 */
     IMU_SETTING_COUNT
 } ImuSetting;
 /* generated:end settings */
@@ -192,7 +193,8 @@ typedef struct {
     {0.0, 1.0, 0, "acc_norm_tolerance must be finite and within [0, 1]"}, \
     {0.0, 63.0, 4, "euler_additions must be a whole number in 0..63"}, \
     {0.0, 1.0, 4, "pf_additions must be 0 or 1"}, \
-    {0.0, 1.0, 4, "psobp_clamp must be 0 or 1"} \
+    {0.0, 1.0, 4, "psobp_clamp must be 0 or 1"}, \
+    {0.0, 1.0, 4, "thermal_continuation must be 0 or 1"} \
 }
 /* generated:end setting-ranges */
 

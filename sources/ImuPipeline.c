@@ -103,6 +103,7 @@ int ImuPipelineSettingsFromArray(ImuPipelineSettings *s, const double *a, size_t
     s->pfSeed = ImuPipelineInteger(a[ImuSetPfSeed]);
     s->enablePsoBp = ImuPipelineFlag(a[ImuSetEnablePsobp]);
     s->psobpClamp = ImuPipelineFlag(a[ImuSetPsobpClamp]);
+    s->thermalContinuation = ImuPipelineFlag(a[ImuSetThermalContinuation]);
     s->eulerAdditions = ImuPipelineInteger(a[ImuSetEulerAdditions]);
     s->align.lag[0] = a[ImuSetLagGyr];
     s->align.lag[1] = a[ImuSetLagAcc];
@@ -242,7 +243,7 @@ void ImuPipelineGap(ImuPipeline *p, double gap)
 }
 
 /** @brief Gain/bias temperature compensation of the three raw triads into out[rate..field];
- *         returns the ImuRangeThermal* bits of the triads whose temperature was clamped. */
+ *         returns the ImuRangeThermal* bits of the triads whose temperature was outside their range. */
 static int ImuPipelineThermal(const ImuPipeline *p, const double in[IMU_INPUT_COUNT], double temperature,
                               double out[IMU_OUTPUT_COUNT])
 {
@@ -251,7 +252,8 @@ static int ImuPipelineThermal(const ImuPipeline *p, const double in[IMU_INPUT_CO
         const double *raw = &in[ImuInGyrX + 3 * i];
         double *corrected = &out[ImuOutRateX + 3 * i];
         if (p->settings.enableThermal) {
-            if (!ImuThermalApply(&p->coefficients.thermal[i], raw, temperature, corrected)) {
+            if (!ImuThermalApply(&p->coefficients.thermal[i], raw, temperature, p->settings.thermalContinuation,
+                                 corrected)) {
                 issues |= ImuRangeThermalGyr << i;
             }
         } else {

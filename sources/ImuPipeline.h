@@ -55,6 +55,7 @@ typedef struct {
     int pfSeed;              /* particle-filter seed, -1 marks an invalid value for the check */
     int enablePsoBp;         /* 0 or 1: PSO-BP gyro bias network (mode of its block) */
     int psobpClamp;          /* 0 or 1: the network's inputs clamped to their training ranges */
+    int thermalContinuation; /* 0 or 1: gain/bias models continue along their edge tangent */
     int eulerAdditions;      /* ImuEulerAddition bits of the Euler fusion */
     ImuMagPfSettings pf;     /* particle-filter settings (defaults + the FMU parameters) */
     ImuAlignSettings align;  /* lags [s] of the gyr, acc, mag inputs behind true time */

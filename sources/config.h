@@ -102,13 +102,14 @@ typedef enum {
     vr_acc_norm_tolerance = 85,
     vr_euler_additions = 86,
     vr_pf_additions = 87,
-    vr_psobp_clamp = 88
+    vr_psobp_clamp = 88,
+    vr_thermal_continuation = 89
 } ValueReference;
 
-#define VR_COUNT 89
+#define VR_COUNT 90
 
 /** Parameters of type Boolean (FMI 3: Boolean). */
-#define VR_IS_BOOLEAN(vr) ((vr) == vr_enable_thermal || (vr) == vr_enable_elm || (vr) == vr_enable_pf || (vr) == vr_enable_psobp || (vr) == vr_pf_rao_blackwell || (vr) == vr_pf_hold_prior || (vr) == vr_gyro_hold || (vr) == vr_mag_heading || (vr) == vr_motion_bias || (vr) == vr_pf_additions || (vr) == vr_psobp_clamp)
+#define VR_IS_BOOLEAN(vr) ((vr) == vr_enable_thermal || (vr) == vr_enable_elm || (vr) == vr_enable_pf || (vr) == vr_enable_psobp || (vr) == vr_pf_rao_blackwell || (vr) == vr_pf_hold_prior || (vr) == vr_gyro_hold || (vr) == vr_mag_heading || (vr) == vr_motion_bias || (vr) == vr_pf_additions || (vr) == vr_psobp_clamp || (vr) == vr_thermal_continuation)
 /** Parameters of type Integer (FMI 3: Int32), stored as whole numbers in the settings array. */
 #define VR_IS_INTEGER(vr) ((vr) == vr_attitude_mode || (vr) == vr_pf_particles || (vr) == vr_pf_decimation || (vr) == vr_pf_seed || (vr) == vr_pf_sphere_bins || (vr) == vr_mount_x || (vr) == vr_mount_y || (vr) == vr_mount_z || (vr) == vr_euler_additions)
 
@@ -202,7 +203,8 @@ typedef enum {
     {'s', ImuSetAccNormTolerance}, \
     {'s', ImuSetEulerAdditions}, \
     {'s', ImuSetPfAdditions}, \
-    {'s', ImuSetPsobpClamp} \
+    {'s', ImuSetPsobpClamp}, \
+    {'s', ImuSetThermalContinuation} \
 }
 /** The value references of the inputs, in ImuInput order. */
 #define IMU_INPUT_VRS {vr_gyr_x, vr_gyr_y, vr_gyr_z, vr_acc_x, vr_acc_y, vr_acc_z, vr_mag_x, vr_mag_y, vr_mag_z, vr_temp, vr_aux_1, vr_aux_2, vr_aux_3, vr_aux_4}
