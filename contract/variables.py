@@ -276,6 +276,21 @@ _OUTSIDE_RANGE: tuple[Variable, ...] = (
                "calibration_valid is 0 outside the range either way (docs/fmu.md, Calibrated range)"),
 )
 
+#: Online learning of the gyro bias at rests (issue 33 item 3; sources/ImuBiasLearning.h).
+_BIAS_LEARNING: tuple[Variable, ...] = (
+    _parameter("bias_learning", 90, 1.0, FLAG,
+               "Learn the gyro gain/bias model's constant and linear bias coefficients at rests by the source's "
+               "adaptive-rate gradient rule (needs rest_gyro_threshold > 0; docs/fmu.md, Online bias learning)"),
+    _parameter("bias_learning_rate", 91, 0.01, SettingRange(REAL, 0.0, 1.0, "1/s", min_open=True),
+               "Smallest adaptation rate of the bias learning: while the rest residual is noise the learnt bias "
+               "averages over about 1 / rate seconds of rest; a bias change raises the rate itself"),
+    _parameter("bias_learning_limit", 92, 0.0175, SettingRange(REAL, 0.0, GYRO_RATE_SETTING_MAX, "rad/s"),
+               "Largest learnt change of each bias coefficient (train writes 10 times the rest noise it measured)",
+               "deg/s"),
+    _output("bias_learning_shift", 93, "rad/s", "How far the learnt gyro bias is from the trained one at the current "
+            "temperature, |d0 + d1 Tn| (0 while bias_learning is off or nothing was learnt)", "deg/s"),
+)
+
 
 def aux_description(k: int, entry: dict | None) -> str:
     """Description of input aux_k (k from 1): the recording column, unit and meaning a model's
@@ -300,7 +315,8 @@ def variable_table(aux_inputs: Sequence[dict] = ()) -> tuple[Variable, ...]:
     if len(aux_inputs) > len(AUX_INPUTS):
         raise ValueError(f"{len(aux_inputs)} auxiliary inputs mapped, the FMU has {len(AUX_INPUTS)}")
     return (_LAYOUT_2 + _aux_inputs(aux_inputs) + _LAGS + _LAYOUT_4_OUTPUTS + _MOUNTING + _FILTER_FROM_DATA
-            + _SOURCE_FORMS + _OUTSIDE_RANGE)
+            + _SOURCE_FORMS + _OUTSIDE_RANGE
+            + _BIAS_LEARNING)
 
 
 VARIABLES: tuple[Variable, ...] = variable_table()

@@ -42,35 +42,36 @@ typedef char ImuLayoutCheckAux[(IMU_INPUT_COUNT - ImuInAux1 == IMU_TERMS_AUX_COU
 /** Runtime outputs per sample. */
 /* generated:begin outputs (python -m contract.generate, from contract/variables.py; do not edit) */
 typedef enum {
-    ImuOutRateX,            /* rad/s */
-    ImuOutRateY,            /* rad/s */
-    ImuOutRateZ,            /* rad/s */
-    ImuOutAccelX,           /* m/s2 */
-    ImuOutAccelY,           /* m/s2 */
-    ImuOutAccelZ,           /* m/s2 */
-    ImuOutFieldX,           /* uT */
-    ImuOutFieldY,           /* uT */
-    ImuOutFieldZ,           /* uT */
-    ImuOutRoll,             /* rad */
-    ImuOutPitch,            /* rad */
-    ImuOutYaw,              /* rad */
-    ImuOutHeading,          /* rad */
-    ImuOutQW,               /* 1 */
-    ImuOutQX,               /* 1 */
-    ImuOutQY,               /* 1 */
-    ImuOutQZ,               /* 1 */
-    ImuOutGainRoll,         /* 1 */
-    ImuOutGainPitch,        /* 1 */
-    ImuOutGainYaw,          /* 1 */
-    ImuOutHardIronX,        /* uT */
-    ImuOutHardIronY,        /* uT */
-    ImuOutHardIronZ,        /* uT */
-    ImuOutSoftIronXx,       /* 1 */
-    ImuOutSoftIronYy,       /* 1 */
-    ImuOutSoftIronZz,       /* 1 */
-    ImuOutPfNeff,           /* 1 */
-    ImuOutCalibrationValid, /* 1 */
-    ImuOutMagDisturbed,     /* 1 */
+    ImuOutRateX,             /* rad/s */
+    ImuOutRateY,             /* rad/s */
+    ImuOutRateZ,             /* rad/s */
+    ImuOutAccelX,            /* m/s2 */
+    ImuOutAccelY,            /* m/s2 */
+    ImuOutAccelZ,            /* m/s2 */
+    ImuOutFieldX,            /* uT */
+    ImuOutFieldY,            /* uT */
+    ImuOutFieldZ,            /* uT */
+    ImuOutRoll,              /* rad */
+    ImuOutPitch,             /* rad */
+    ImuOutYaw,               /* rad */
+    ImuOutHeading,           /* rad */
+    ImuOutQW,                /* 1 */
+    ImuOutQX,                /* 1 */
+    ImuOutQY,                /* 1 */
+    ImuOutQZ,                /* 1 */
+    ImuOutGainRoll,          /* 1 */
+    ImuOutGainPitch,         /* 1 */
+    ImuOutGainYaw,           /* 1 */
+    ImuOutHardIronX,         /* uT */
+    ImuOutHardIronY,         /* uT */
+    ImuOutHardIronZ,         /* uT */
+    ImuOutSoftIronXx,        /* 1 */
+    ImuOutSoftIronYy,        /* 1 */
+    ImuOutSoftIronZz,        /* 1 */
+    ImuOutPfNeff,            /* 1 */
+    ImuOutCalibrationValid,  /* 1 */
+    ImuOutMagDisturbed,      /* 1 */
+    ImuOutBiasLearningShift, /* rad/s */
     IMU_OUTPUT_COUNT
 } ImuOutput;
 /* generated:end outputs */
@@ -125,6 +126,9 @@ typedef enum {
     ImuSetPfAdditions,         /* 0 or 1 */
     ImuSetPsobpClamp,          /* 0 or 1 */
     ImuSetThermalContinuation, /* 0 or 1 */
+    ImuSetBiasLearning,        /* 0 or 1 */
+    ImuSetBiasLearningRate,    /* 1/s */
+    ImuSetBiasLearningLimit,   /* rad/s */
     IMU_SETTING_COUNT
 } ImuSetting;
 /* generated:end settings */
@@ -194,7 +198,10 @@ typedef struct {
     {0.0, 63.0, 4, "euler_additions must be a whole number in 0..63"}, \
     {0.0, 1.0, 4, "pf_additions must be 0 or 1"}, \
     {0.0, 1.0, 4, "psobp_clamp must be 0 or 1"}, \
-    {0.0, 1.0, 4, "thermal_continuation must be 0 or 1"} \
+    {0.0, 1.0, 4, "thermal_continuation must be 0 or 1"}, \
+    {0.0, 1.0, 4, "bias_learning must be 0 or 1"}, \
+    {0.0, 1.0, 1, "bias_learning_rate must be finite and within (0, 1] 1/s"}, \
+    {0.0, 1.0, 0, "bias_learning_limit must be finite and within [0, 1] rad/s"} \
 }
 /* generated:end setting-ranges */
 

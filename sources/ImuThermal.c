@@ -70,6 +70,12 @@ static double ImuThermalClampTemperature(const ImuThermalCoefficients *c, double
     return temperature < c->tMin ? c->tMin : (temperature > c->tMax ? c->tMax : temperature);
 }
 
+double ImuThermalNormalisedTemperature(const ImuThermalCoefficients *c, double temperature)
+{
+    const double clamped = ImuThermalClampTemperature(c, temperature);
+    return isnan(clamped) ? 0.0 : (clamped - c->t0) / c->ts;
+}
+
 /** @brief Normalised distance [1] the model continues beyond its range edge at temperature [degC]:
  *         (T - edge) / ts, at most IMU_THERMAL_CONTINUATION_SPANS spans; 0 inside, for NaN or when clamping. */
 static double ImuThermalContinuation(const ImuThermalCoefficients *c, double temperature, double edge,
@@ -105,7 +111,7 @@ int ImuThermalApply(const ImuThermalCoefficients *c, const double x[3], double t
                     double out[3])
 {
     const double clamped = ImuThermalClampTemperature(c, temperature);
-    const double tn = isnan(clamped) ? 0.0 : (clamped - c->t0) / c->ts;
+    const double tn = ImuThermalNormalisedTemperature(c, temperature);
     const double beyond = ImuThermalContinuation(c, temperature, clamped, continuation);
     double y[3];
     int i, k;

@@ -38,6 +38,8 @@ typedef struct {
  *         tMin > tMax.
  */
 IMU_HIDDEN int ImuThermalFromBlock(ImuThermalCoefficients *c, const double *block);
+/** @brief Tn = (T - t0) / ts [1] with T clamped to the calibrated range (NaN -> 0). */
+IMU_HIDDEN double ImuThermalNormalisedTemperature(const ImuThermalCoefficients *c, double temperature);
 /**
  * @brief Compensate one sample x (triad unit) at temperature [degC] (NaN -> Tn = 0) into out; outside
  *        the calibrated range the polynomials continue along their edge tangent (continuation 1, at

@@ -133,9 +133,10 @@ def test_by_default_the_models_continue_along_their_tangent_for_one_span(scenari
         inputs[:, 9] = target
         at_expected = inputs.copy()
         at_expected[:, 9] = target if expected_c is None else expected_c
-        out = batch(artefact, data.t, inputs)
-        np.testing.assert_allclose(out[:, :6], batch(unclamped, data.t, at_expected)[:, :6], rtol=0,
-                                   atol=TWIN_TOLERANCE)
+        # the gain/bias model alone: the bias learning at these rests (tests/test_bias_learning.py) is off
+        out = batch_with(artefact, data.t, inputs, bias_learning=0.0)
+        np.testing.assert_allclose(out[:, :6], batch_with(unclamped, data.t, at_expected, bias_learning=0.0)[:, :6],
+                                   rtol=0, atol=TWIN_TOLERANCE)
         for k, triad in enumerate(("gyr", "acc")):
             twin = apply_thermal(artefact.thermal[triad], getattr(data, triad), inputs[:, 9])
             np.testing.assert_allclose(out[:, 3 * k:3 * k + 3], twin, rtol=0, atol=TWIN_TOLERANCE)
