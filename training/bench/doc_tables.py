@@ -111,6 +111,11 @@ GENERATORS = (
         ("| T [°C] | triad | raw | extrapolated | clamped | continued (default) |",),
         small=("benchmarks/calibrated_range.py",), trains=True),
     TableGenerator(
+        "OMP_NUM_THREADS=1 .venv/bin/python benchmarks/bias_learning.py",
+        ("| unit | bias learning | rate error after 10 min [°/s] | ÷ calibrated that day | 1 s means [°/s] "
+         "| ÷ calibrated that day | learnt shift at the end [°/s] |",),
+        small=("benchmarks/bias_learning.py", "--minutes", "11", "--hour", "2"), trains=True),
+    TableGenerator(
         "OMP_NUM_THREADS=1 .venv/bin/python benchmarks/thermal_continuation.py",
         ("| power-on | raw [°/s] | clamped [°/s] (reduction) | continued, default [°/s] (reduction) "
          "| extrapolated [°/s] (reduction) | continued − clamped [°/s] |",),
