@@ -1,11 +1,13 @@
-"""Bias error outside the calibrated temperature range, extrapolated vs clamped (issue 15 item 2).
+"""Bias error outside the calibrated temperature range: extrapolated, clamped, continued (issues 15 and 33).
 
 Trains on the two-soak calibration of tests/test_calibrated_range.py (scenarios/variants/
 two_soaks.toml with its soaks at 15 and 35 °C, the mems_grade sensor, seed 0), then holds the
 simulated sensor still in four poses at -20, 15, 35 and 70 °C and prints, per triad (gyr, acc),
 the largest |rest bias| per axis of the raw sensor, of the runtime with the temperature polynomial
-extrapolated (the model without its t_range, as before layout version 4) and of the runtime with
-the temperature clamped to the calibrated range (the default since layout version 4).
+extrapolated (the model without its t_range, as before layout version 4), with the temperature
+clamped to the calibrated range (thermal_continuation = 0, the default of layout version 4) and with
+the polynomials continued along their edge tangent for at most one span (thermal_continuation = 1,
+the default since issue 33).
 
 Usage: OMP_NUM_THREADS=1 .venv/bin/python benchmarks/calibrated_range.py
 """
@@ -36,14 +38,15 @@ def main() -> None:
     extrapolated = replace(artefact, thermal={k: replace(m, t_range=None) for k, m in artefact.thermal.items()})
     print(f"calibrated range: {artefact.thermal['gyr'].t_range} °C, degrees "
           f"{[artefact.thermal[k].degree for k in ('gyr', 'acc', 'mag')]}")
-    print("| T [°C] | triad | raw | extrapolated | clamped |")
-    print("|---|---|---|---|---|")
+    clamping = replace(artefact, settings={**artefact.settings, "thermal_continuation": 0.0})
+    print("| T [°C] | triad | raw | extrapolated | clamped | continued (default) |")
+    print("|---|---|---|---|---|---|")
     for temp_c in (OUTSIDE_C[0], *SOAKS_C, OUTSIDE_C[1]):
         data = static_recording(scenario, temp_c, seed=int(temp_c) + 200)
-        clamped, before = rest_bias(artefact, data), rest_bias(extrapolated, data)
+        continued, clamped, before = (rest_bias(a, data) for a in (artefact, clamping, extrapolated))
         for triad, (unit, factor) in UNITS.items():
             cells = [", ".join(f"{v * factor:.3f}" for v in b) for b in
-                     (clamped[f"raw_{triad}"], before[triad], clamped[triad])]
+                     (continued[f"raw_{triad}"], before[triad], clamped[triad], continued[triad])]
             print(f"| {temp_c:g} | {triad} [{unit}] | " + " | ".join(cells) + " |")
 
 

@@ -258,7 +258,7 @@ _SOURCE_FORMS: tuple[Variable, ...] = (
                "The project's additions to the adaptive-gain Euler fusion (attitude_mode 0), a sum of bits: "
                "1 trapezoidal propagation, 2 measurement-error floor, 4 error growth with the norms' departure, "
                "8 integration-error bound, 16 tilt variance in the yaw error, 32 restart on growing bounds; "
-               "0 = the fusion as its source describes it (docs/attitude.md)"),
+               "0 = the fusion as its source describes it (docs/euler.md)"),
     _parameter("pf_additions", 87, 1.0, FLAG,
                "The project's additions to the particle filter's 9-state method (pf_rao_blackwell 0): roughening "
                "of the resampled cloud, resample-move, tempering, innovation-driven inflation, the change test, "
@@ -266,6 +266,29 @@ _SOURCE_FORMS: tuple[Variable, ...] = (
     _parameter("psobp_clamp", 88, 1.0, FLAG,
                "The PSO-BP network's inputs (temperature and its rate) are clamped to their training ranges "
                "(0: evaluated outside them as the source's network is; calibration_valid reports either way)"),
+)
+
+#: Beyond the calibrated range (issue 33): the gain/bias models continue along their edge tangent.
+_OUTSIDE_RANGE: tuple[Variable, ...] = (
+    _parameter("thermal_continuation", 89, 1.0, FLAG,
+               "Outside the calibrated temperature range the gain/bias polynomials continue along their tangent at "
+               "the range edge for at most one calibrated span, then hold (0: they hold their edge value); "
+               "calibration_valid is 0 outside the range either way (docs/fmu.md, Calibrated range)"),
+)
+
+#: Online learning of the gyro bias at rests (issue 33 item 3; sources/ImuBiasLearning.h).
+_BIAS_LEARNING: tuple[Variable, ...] = (
+    _parameter("bias_learning", 90, 1.0, FLAG,
+               "Learn the gyro gain/bias model's constant and linear bias coefficients at rests by the source's "
+               "adaptive-rate gradient rule (needs rest_gyro_threshold > 0; docs/fmu.md, Online bias learning)"),
+    _parameter("bias_learning_rate", 91, 0.01, SettingRange(REAL, 0.0, 1.0, "1/s", min_open=True),
+               "Smallest adaptation rate of the bias learning: while the rest residual is noise the learnt bias "
+               "averages over about 1 / rate seconds of rest; a bias change raises the rate itself"),
+    _parameter("bias_learning_limit", 92, 0.0175, SettingRange(REAL, 0.0, GYRO_RATE_SETTING_MAX, "rad/s"),
+               "Largest learnt change of each bias coefficient (train writes 10 times the rest noise it measured)",
+               "deg/s"),
+    _output("bias_learning_shift", 93, "rad/s", "How far the learnt gyro bias is from the trained one at the current "
+            "temperature, |d0 + d1 Tn| (0 while bias_learning is off or nothing was learnt)", "deg/s"),
 )
 
 
@@ -292,7 +315,8 @@ def variable_table(aux_inputs: Sequence[dict] = ()) -> tuple[Variable, ...]:
     if len(aux_inputs) > len(AUX_INPUTS):
         raise ValueError(f"{len(aux_inputs)} auxiliary inputs mapped, the FMU has {len(AUX_INPUTS)}")
     return (_LAYOUT_2 + _aux_inputs(aux_inputs) + _LAGS + _LAYOUT_4_OUTPUTS + _MOUNTING + _FILTER_FROM_DATA
-            + _SOURCE_FORMS)
+            + _SOURCE_FORMS + _OUTSIDE_RANGE
+            + _BIAS_LEARNING)
 
 
 VARIABLES: tuple[Variable, ...] = variable_table()

@@ -58,6 +58,7 @@ UNITS = {
     "uT": '<BaseUnit kg="1" A="-1" s="-2" factor="1e-06"/>',
     "degC": '<BaseUnit K="1" offset="273.15"/>',
     "s": '<BaseUnit s="1"/>',
+    "1/s": '<BaseUnit s="-1"/>',
 }
 
 

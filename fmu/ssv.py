@@ -56,6 +56,7 @@ UNITS: dict[str, dict[str, float]] = {
     "rad": {"rad": 1},
     "rad/s": {"rad": 1, "s": -1},
     "s": {"s": 1},
+    "1/s": {"s": -1},
     "T": {"kg": 1, "s": -2, "A": -1},
     "uT": {"kg": 1, "s": -2, "A": -1, "factor": 1e-6},
     "V": {"kg": 1, "m": 2, "s": -3, "A": -1},

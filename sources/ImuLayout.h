@@ -42,35 +42,36 @@ typedef char ImuLayoutCheckAux[(IMU_INPUT_COUNT - ImuInAux1 == IMU_TERMS_AUX_COU
 /** Runtime outputs per sample. */
 /* generated:begin outputs (python -m contract.generate, from contract/variables.py; do not edit) */
 typedef enum {
-    ImuOutRateX,            /* rad/s */
-    ImuOutRateY,            /* rad/s */
-    ImuOutRateZ,            /* rad/s */
-    ImuOutAccelX,           /* m/s2 */
-    ImuOutAccelY,           /* m/s2 */
-    ImuOutAccelZ,           /* m/s2 */
-    ImuOutFieldX,           /* uT */
-    ImuOutFieldY,           /* uT */
-    ImuOutFieldZ,           /* uT */
-    ImuOutRoll,             /* rad */
-    ImuOutPitch,            /* rad */
-    ImuOutYaw,              /* rad */
-    ImuOutHeading,          /* rad */
-    ImuOutQW,               /* 1 */
-    ImuOutQX,               /* 1 */
-    ImuOutQY,               /* 1 */
-    ImuOutQZ,               /* 1 */
-    ImuOutGainRoll,         /* 1 */
-    ImuOutGainPitch,        /* 1 */
-    ImuOutGainYaw,          /* 1 */
-    ImuOutHardIronX,        /* uT */
-    ImuOutHardIronY,        /* uT */
-    ImuOutHardIronZ,        /* uT */
-    ImuOutSoftIronXx,       /* 1 */
-    ImuOutSoftIronYy,       /* 1 */
-    ImuOutSoftIronZz,       /* 1 */
-    ImuOutPfNeff,           /* 1 */
-    ImuOutCalibrationValid, /* 1 */
-    ImuOutMagDisturbed,     /* 1 */
+    ImuOutRateX,             /* rad/s */
+    ImuOutRateY,             /* rad/s */
+    ImuOutRateZ,             /* rad/s */
+    ImuOutAccelX,            /* m/s2 */
+    ImuOutAccelY,            /* m/s2 */
+    ImuOutAccelZ,            /* m/s2 */
+    ImuOutFieldX,            /* uT */
+    ImuOutFieldY,            /* uT */
+    ImuOutFieldZ,            /* uT */
+    ImuOutRoll,              /* rad */
+    ImuOutPitch,             /* rad */
+    ImuOutYaw,               /* rad */
+    ImuOutHeading,           /* rad */
+    ImuOutQW,                /* 1 */
+    ImuOutQX,                /* 1 */
+    ImuOutQY,                /* 1 */
+    ImuOutQZ,                /* 1 */
+    ImuOutGainRoll,          /* 1 */
+    ImuOutGainPitch,         /* 1 */
+    ImuOutGainYaw,           /* 1 */
+    ImuOutHardIronX,         /* uT */
+    ImuOutHardIronY,         /* uT */
+    ImuOutHardIronZ,         /* uT */
+    ImuOutSoftIronXx,        /* 1 */
+    ImuOutSoftIronYy,        /* 1 */
+    ImuOutSoftIronZz,        /* 1 */
+    ImuOutPfNeff,            /* 1 */
+    ImuOutCalibrationValid,  /* 1 */
+    ImuOutMagDisturbed,      /* 1 */
+    ImuOutBiasLearningShift, /* rad/s */
     IMU_OUTPUT_COUNT
 } ImuOutput;
 /* generated:end outputs */
@@ -78,52 +79,56 @@ typedef enum {
 /** Settings (FMU parameters) in the flat settings array. */
 /* generated:begin settings (python -m contract.generate, from contract/variables.py; do not edit) */
 typedef enum {
-    ImuSetDeclination,        /* rad */
-    ImuSetFieldNorm,          /* uT */
-    ImuSetGyroNoise,          /* rad/s/sqrt(Hz) */
-    ImuSetGyroBiasResidual,   /* rad/s */
-    ImuSetMseTimeConstant,    /* s */
-    ImuSetAngleNoise,         /* rad */
-    ImuSetEnableThermal,      /* 0 or 1 */
-    ImuSetAttitudeMode,       /* whole number */
-    ImuSetFieldDip,           /* rad */
-    ImuSetTauAcc,             /* s */
-    ImuSetTauMag,             /* s */
-    ImuSetRestGyroThreshold,  /* rad/s */
-    ImuSetRestAccThreshold,   /* m/s2 */
-    ImuSetMagRejectTime,      /* s */
-    ImuSetEnableElm,          /* 0 or 1 */
-    ImuSetEnablePf,           /* 0 or 1 */
-    ImuSetPfParticles,        /* whole number */
-    ImuSetPfMeasurementNoise, /* uT */
-    ImuSetPfProcessNoiseHard, /* uT */
-    ImuSetPfProcessNoiseSoft, /* 1 */
-    ImuSetPfPriorSpreadHard,  /* uT */
-    ImuSetPfPriorSpreadSoft,  /* 1 */
-    ImuSetPfDecimation,       /* whole number */
-    ImuSetPfSeed,             /* whole number */
-    ImuSetPfThresholdHigh,    /* 1 */
-    ImuSetPfThresholdLow,     /* 1 */
-    ImuSetPfSphereBins,       /* whole number */
-    ImuSetEnablePsobp,        /* 0 or 1 */
-    ImuSetPfRaoBlackwell,     /* 0 or 1 */
-    ImuSetPfMinRotation,      /* rad */
-    ImuSetPfChangeSpreadHard, /* uT */
-    ImuSetPfHoldPrior,        /* 0 or 1 */
-    ImuSetPfSettleSpread,     /* uT */
-    ImuSetLagGyr,             /* s */
-    ImuSetLagAcc,             /* s */
-    ImuSetLagMag,             /* s */
-    ImuSetMountX,             /* whole number */
-    ImuSetMountY,             /* whole number */
-    ImuSetMountZ,             /* whole number */
-    ImuSetGyroHold,           /* 0 or 1 */
-    ImuSetMagHeading,         /* 0 or 1 */
-    ImuSetMotionBias,         /* 0 or 1 */
-    ImuSetAccNormTolerance,   /* 1 */
-    ImuSetEulerAdditions,     /* whole number */
-    ImuSetPfAdditions,        /* 0 or 1 */
-    ImuSetPsobpClamp,         /* 0 or 1 */
+    ImuSetDeclination,         /* rad */
+    ImuSetFieldNorm,           /* uT */
+    ImuSetGyroNoise,           /* rad/s/sqrt(Hz) */
+    ImuSetGyroBiasResidual,    /* rad/s */
+    ImuSetMseTimeConstant,     /* s */
+    ImuSetAngleNoise,          /* rad */
+    ImuSetEnableThermal,       /* 0 or 1 */
+    ImuSetAttitudeMode,        /* whole number */
+    ImuSetFieldDip,            /* rad */
+    ImuSetTauAcc,              /* s */
+    ImuSetTauMag,              /* s */
+    ImuSetRestGyroThreshold,   /* rad/s */
+    ImuSetRestAccThreshold,    /* m/s2 */
+    ImuSetMagRejectTime,       /* s */
+    ImuSetEnableElm,           /* 0 or 1 */
+    ImuSetEnablePf,            /* 0 or 1 */
+    ImuSetPfParticles,         /* whole number */
+    ImuSetPfMeasurementNoise,  /* uT */
+    ImuSetPfProcessNoiseHard,  /* uT */
+    ImuSetPfProcessNoiseSoft,  /* 1 */
+    ImuSetPfPriorSpreadHard,   /* uT */
+    ImuSetPfPriorSpreadSoft,   /* 1 */
+    ImuSetPfDecimation,        /* whole number */
+    ImuSetPfSeed,              /* whole number */
+    ImuSetPfThresholdHigh,     /* 1 */
+    ImuSetPfThresholdLow,      /* 1 */
+    ImuSetPfSphereBins,        /* whole number */
+    ImuSetEnablePsobp,         /* 0 or 1 */
+    ImuSetPfRaoBlackwell,      /* 0 or 1 */
+    ImuSetPfMinRotation,       /* rad */
+    ImuSetPfChangeSpreadHard,  /* uT */
+    ImuSetPfHoldPrior,         /* 0 or 1 */
+    ImuSetPfSettleSpread,      /* uT */
+    ImuSetLagGyr,              /* s */
+    ImuSetLagAcc,              /* s */
+    ImuSetLagMag,              /* s */
+    ImuSetMountX,              /* whole number */
+    ImuSetMountY,              /* whole number */
+    ImuSetMountZ,              /* whole number */
+    ImuSetGyroHold,            /* 0 or 1 */
+    ImuSetMagHeading,          /* 0 or 1 */
+    ImuSetMotionBias,          /* 0 or 1 */
+    ImuSetAccNormTolerance,    /* 1 */
+    ImuSetEulerAdditions,      /* whole number */
+    ImuSetPfAdditions,         /* 0 or 1 */
+    ImuSetPsobpClamp,          /* 0 or 1 */
+    ImuSetThermalContinuation, /* 0 or 1 */
+    ImuSetBiasLearning,        /* 0 or 1 */
+    ImuSetBiasLearningRate,    /* 1/s */
+    ImuSetBiasLearningLimit,   /* rad/s */
     IMU_SETTING_COUNT
 } ImuSetting;
 /* generated:end settings */
@@ -192,7 +197,11 @@ typedef struct {
     {0.0, 1.0, 0, "acc_norm_tolerance must be finite and within [0, 1]"}, \
     {0.0, 63.0, 4, "euler_additions must be a whole number in 0..63"}, \
     {0.0, 1.0, 4, "pf_additions must be 0 or 1"}, \
-    {0.0, 1.0, 4, "psobp_clamp must be 0 or 1"} \
+    {0.0, 1.0, 4, "psobp_clamp must be 0 or 1"}, \
+    {0.0, 1.0, 4, "thermal_continuation must be 0 or 1"}, \
+    {0.0, 1.0, 4, "bias_learning must be 0 or 1"}, \
+    {0.0, 1.0, 1, "bias_learning_rate must be finite and within (0, 1] 1/s"}, \
+    {0.0, 1.0, 0, "bias_learning_limit must be finite and within [0, 1] rad/s"} \
 }
 /* generated:end setting-ranges */
 

@@ -103,6 +103,12 @@ int ImuPipelineSettingsFromArray(ImuPipelineSettings *s, const double *a, size_t
     s->pfSeed = ImuPipelineInteger(a[ImuSetPfSeed]);
     s->enablePsoBp = ImuPipelineFlag(a[ImuSetEnablePsobp]);
     s->psobpClamp = ImuPipelineFlag(a[ImuSetPsobpClamp]);
+    s->thermalContinuation = ImuPipelineFlag(a[ImuSetThermalContinuation]);
+    s->learning.enabled = ImuPipelineFlag(a[ImuSetBiasLearning]);
+    s->learning.rate = a[ImuSetBiasLearningRate];
+    s->learning.limit = a[ImuSetBiasLearningLimit];
+    s->learning.gyroThreshold = a[ImuSetRestGyroThreshold];
+    s->learning.accThreshold = a[ImuSetRestAccThreshold];
     s->eulerAdditions = ImuPipelineInteger(a[ImuSetEulerAdditions]);
     s->align.lag[0] = a[ImuSetLagGyr];
     s->align.lag[1] = a[ImuSetLagAcc];
@@ -207,6 +213,7 @@ void ImuPipelineReset(ImuPipeline *p)
     ImuAlignReset(&p->align);
     ImuTermsReset(&p->terms);
     ImuPsoBpInitialise(&p->psobp, &p->coefficients.psobp);
+    ImuBiasLearningReset(&p->learning, &p->settings.learning);
     if (p->settings.enablePf) {
         ImuMagPfReset(&p->pf);
     }
@@ -231,18 +238,31 @@ const char *ImuPipelineStateProblem(const ImuPipeline *p, double clock)
     if (p->settings.enablePf && !ImuMagPfStateValid(&p->pf)) {
         return "the particle filter's bin list, bin count or sample counter does not fit its settings";
     }
+    if (!ImuBiasLearningStateValid(&p->learning, &p->settings.learning)) {
+        return "the learnt gyro bias exceeds bias_learning_limit, or its steps, sums or rest counters are out of range";
+    }
     return NULL;
 }
 
-/** @brief A gap [s]: restart the attitude corrections and empty the time-alignment buffer. */
+/** @brief A gap [s]: restart the attitude corrections, empty the time-alignment buffer and restart the rest
+ *         detection of the bias learning (what it learnt is kept). */
 void ImuPipelineGap(ImuPipeline *p, double gap)
 {
     ImuAttitudeRestart(&p->attitude, gap);
     ImuAlignReset(&p->align);
+    ImuBiasLearningRestart(&p->learning);
+}
+
+/** @brief Normalised temperature [1] of the gyro gain/bias model the learnt bias is a polynomial in (0 when
+ *         the model is off). */
+static double ImuPipelineLearningTemperature(const ImuPipeline *p, double temperature)
+{
+    const ImuThermalCoefficients *gyro = &p->coefficients.thermal[0];
+    return p->settings.enableThermal && gyro->enabled ? ImuThermalNormalisedTemperature(gyro, temperature) : 0.0;
 }
 
 /** @brief Gain/bias temperature compensation of the three raw triads into out[rate..field];
- *         returns the ImuRangeThermal* bits of the triads whose temperature was clamped. */
+ *         returns the ImuRangeThermal* bits of the triads whose temperature was outside their range. */
 static int ImuPipelineThermal(const ImuPipeline *p, const double in[IMU_INPUT_COUNT], double temperature,
                               double out[IMU_OUTPUT_COUNT])
 {
@@ -251,7 +271,8 @@ static int ImuPipelineThermal(const ImuPipeline *p, const double in[IMU_INPUT_CO
         const double *raw = &in[ImuInGyrX + 3 * i];
         double *corrected = &out[ImuOutRateX + 3 * i];
         if (p->settings.enableThermal) {
-            if (!ImuThermalApply(&p->coefficients.thermal[i], raw, temperature, corrected)) {
+            if (!ImuThermalApply(&p->coefficients.thermal[i], raw, temperature, p->settings.thermalContinuation,
+                                 corrected)) {
                 issues |= ImuRangeThermalGyr << i;
             }
         } else {
@@ -322,11 +343,17 @@ void ImuPipelineUpdate(ImuPipeline *p, double t, double dt, double nominalStep, 
                        double out[IMU_OUTPUT_COUNT])
 {
     const double temperature = in[ImuInTemp];
+    double tn;
     p->rangeIssues = ImuPipelineThermal(p, in, temperature, out);
     ImuPsoBpUpdate(&p->psobp, t, temperature);
     if (p->settings.enablePsoBp && !ImuPsoBpCorrect(&p->coefficients.psobp, &p->psobp, p->settings.psobpClamp, &out[ImuOutRateX])) {
         p->rangeIssues |= ImuRangePsoBp;
     }
+    tn = ImuPipelineLearningTemperature(p, temperature);
+    ImuBiasLearningCorrect(&p->learning, &p->settings.learning, tn, &out[ImuOutRateX]);
+    ImuBiasLearningUpdate(&p->learning, &p->settings.learning, temperature, tn, &out[ImuOutRateX],
+                          &out[ImuOutAccelX], dt);
+    out[ImuOutBiasLearningShift] = p->settings.learning.enabled ? ImuBiasLearningShift(&p->learning, tn) : 0.0;
     if (ImuAlignUpdate(&p->align, &p->settings.align, t, &out[ImuOutRateX])) {
         p->rangeIssues |= ImuRangeLag;
     }

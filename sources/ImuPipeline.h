@@ -20,6 +20,7 @@
 #include "ImuElm.h"
 #include "ImuMagPf.h"
 #include "ImuPsoBp.h"
+#include "ImuBiasLearning.h"
 
 /** Trained coefficients of every stage (unpacked from the flat coefficient array). */
 typedef struct {
@@ -55,6 +56,8 @@ typedef struct {
     int pfSeed;              /* particle-filter seed, -1 marks an invalid value for the check */
     int enablePsoBp;         /* 0 or 1: PSO-BP gyro bias network (mode of its block) */
     int psobpClamp;          /* 0 or 1: the network's inputs clamped to their training ranges */
+    int thermalContinuation; /* 0 or 1: gain/bias models continue along their edge tangent */
+    ImuBiasLearningSettings learning; /* online learning of the gyro bias at rests */
     int eulerAdditions;      /* ImuEulerAddition bits of the Euler fusion */
     ImuMagPfSettings pf;     /* particle-filter settings (defaults + the FMU parameters) */
     ImuAlignSettings align;  /* lags [s] of the gyr, acc, mag inputs behind true time */
@@ -84,6 +87,7 @@ typedef struct {
     ImuTermsState terms;
     ImuMagPf pf;       /* used when settings.enablePf */
     ImuPsoBpState psobp; /* causal temperature-rate estimate of the PSO-BP model */
+    ImuBiasLearning learning; /* the gyro bias learnt at rests */
     int rangeIssues;   /* ImuRangeIssue bits of the last sample */
 } ImuPipeline;
 

@@ -34,6 +34,12 @@ IMU_HIDDEN void ImuRestDetectorReset(ImuRestDetector *r);
  */
 IMU_HIDDEN int ImuRestDetectorUpdate(ImuRestDetector *r, const double gyr[3], const double acc[3], double dt,
                                      double gyroThreshold, double accThreshold);
+/**
+ * @brief As ImuRestDetectorUpdate, the low-passed rate checked against biasThreshold [rad/s] instead of
+ *        gyroThreshold (the bias a rest may carry; the samples' spread is still held to gyroThreshold).
+ */
+IMU_HIDDEN int ImuRestDetectorUpdateBias(ImuRestDetector *r, const double gyr[3], const double acc[3], double dt,
+                                         double gyroThreshold, double biasThreshold, double accThreshold);
 /** @brief Low-passed rate [rad/s]: the gyro bias while at rest. */
 IMU_HIDDEN void ImuRestDetectorGetRate(const ImuRestDetector *r, double rate[3]);
 

@@ -57,6 +57,10 @@ int ImuThermalFromBlock(ImuThermalCoefficients *c, const double *block)
     return 0;
 }
 
+/** Largest continuation beyond the calibrated range, in calibrated spans (tMax - tMin): the tangent
+ *  at the edge is followed for at most one span, then held (docs/fmu.md, "Calibrated range"). */
+#define IMU_THERMAL_CONTINUATION_SPANS 1.0
+
 /** @brief temperature [degC] clamped to the calibrated range when the model has one and uses it. */
 static double ImuThermalClampTemperature(const ImuThermalCoefficients *c, double temperature)
 {
@@ -66,12 +70,49 @@ static double ImuThermalClampTemperature(const ImuThermalCoefficients *c, double
     return temperature < c->tMin ? c->tMin : (temperature > c->tMax ? c->tMax : temperature);
 }
 
-/** @brief Compensate one sample x (triad unit) at temperature [degC] (NaN -> Tn = 0) into out, the
- *         temperature clamped to the calibrated range; 1 if it was inside, 0 if clamped. */
-int ImuThermalApply(const ImuThermalCoefficients *c, const double x[3], double temperature, double out[3])
+double ImuThermalNormalisedTemperature(const ImuThermalCoefficients *c, double temperature)
 {
     const double clamped = ImuThermalClampTemperature(c, temperature);
-    const double tn = isnan(clamped) ? 0.0 : (clamped - c->t0) / c->ts;
+    return isnan(clamped) ? 0.0 : (clamped - c->t0) / c->ts;
+}
+
+/** @brief Normalised distance [1] the model continues beyond its range edge at temperature [degC]:
+ *         (T - edge) / ts, at most IMU_THERMAL_CONTINUATION_SPANS spans; 0 inside, for NaN or when clamping. */
+static double ImuThermalContinuation(const ImuThermalCoefficients *c, double temperature, double edge,
+                                     int continuation)
+{
+    const double limit = IMU_THERMAL_CONTINUATION_SPANS * (c->tMax - c->tMin);
+    double beyond = temperature - edge;
+    if (!continuation || isnan(temperature) || edge == temperature) {
+        return 0.0;
+    }
+    beyond = beyond < -limit ? -limit : (beyond > limit ? limit : beyond);
+    return beyond / c->ts;
+}
+
+/** @brief Value and slope (d/dTn) at tn of the polynomial sum_{k=0..degree} coef[k] tn^k, Horner's
+ *         scheme from k = degree down, the slope by the same recursion. */
+static double ImuThermalPolynomial(const double *coef, int degree, double tn, double *slope)
+{
+    double value = coef[degree], derivative = 0.0;
+    int k;
+    for (k = degree - 1; k >= 0; k--) {
+        derivative = derivative * tn + value;
+        value = value * tn + coef[k];
+    }
+    *slope = derivative;
+    return value;
+}
+
+/** @brief Compensate one sample x (triad unit) at temperature [degC] (NaN -> Tn = 0) into out. Outside
+ *         the calibrated range the polynomials continue along their tangent at the edge (continuation 1,
+ *         at most one span) or hold their edge value (0); 1 if the temperature was inside, 0 if not. */
+int ImuThermalApply(const ImuThermalCoefficients *c, const double x[3], double temperature, int continuation,
+                    double out[3])
+{
+    const double clamped = ImuThermalClampTemperature(c, temperature);
+    const double tn = ImuThermalNormalisedTemperature(c, temperature);
+    const double beyond = ImuThermalContinuation(c, temperature, clamped, continuation);
     double y[3];
     int i, k;
     if (!c->enabled) {
@@ -81,13 +122,16 @@ int ImuThermalApply(const ImuThermalCoefficients *c, const double x[3], double t
         return 1;
     }
     for (i = 0; i < 3; i++) {
-        double gain = 0.0, bias = c->b[i][c->degree];
-        for (k = c->degree; k >= 1; k--) { /* Horner, k = P..1, then the constant 1 */
-            gain = gain * tn + c->g[i][k - 1];
+        double gain, bias, gainSlope, biasSlope, gainCoef[IMU_THERMAL_MAX_DEGREE + 1];
+        gainCoef[0] = 1.0;
+        for (k = 1; k <= c->degree; k++) {
+            gainCoef[k] = c->g[i][k - 1];
         }
-        gain = gain * tn + 1.0;
-        for (k = c->degree - 1; k >= 0; k--) {
-            bias = bias * tn + c->b[i][k];
+        gain = ImuThermalPolynomial(gainCoef, c->degree, tn, &gainSlope);
+        bias = ImuThermalPolynomial(c->b[i], c->degree, tn, &biasSlope);
+        if (beyond != 0.0) {
+            gain += gainSlope * beyond;
+            bias += biasSlope * beyond;
         }
         y[i] = gain * (x[i] - bias);
     }

@@ -6,9 +6,10 @@
  * B_i = sum_{k=0..P} b[i][k] Tn^k, A constant symmetric 3x3. Block layout: ImuLayout.h.
  *
  * Calibrated range (layout version 4): when the block carries the temperature range [tMin, tMax]
- * [degC] the model was fitted on, T is clamped to it before Tn is formed, so G and B are never
- * extrapolated (a polynomial fitted on 13-48 degC evaluated at -30 degC is arbitrary); outside it
- * the model holds its value at the range edge and ImuThermalApply reports the excursion.
+ * [degC] the model was fitted on, G and B are never evaluated as polynomials outside it (a polynomial
+ * fitted on 13-48 degC evaluated at -30 degC is arbitrary): beyond an edge they continue along their
+ * tangent at that edge, for at most one span (tMax - tMin), then hold (setting thermal_continuation 1,
+ * the default), or hold their edge value (0); ImuThermalApply reports the excursion either way.
  */
 #ifndef IMU_THERMAL_H
 #define IMU_THERMAL_H
@@ -37,13 +38,16 @@ typedef struct {
  *         tMin > tMax.
  */
 IMU_HIDDEN int ImuThermalFromBlock(ImuThermalCoefficients *c, const double *block);
+/** @brief Tn = (T - t0) / ts [1] with T clamped to the calibrated range (NaN -> 0). */
+IMU_HIDDEN double ImuThermalNormalisedTemperature(const ImuThermalCoefficients *c, double temperature);
 /**
- * @brief Compensate one sample x (triad unit) at temperature [degC] (NaN -> Tn = 0) into out; a
- *        finite temperature is clamped to the calibrated range first.
+ * @brief Compensate one sample x (triad unit) at temperature [degC] (NaN -> Tn = 0) into out; outside
+ *        the calibrated range the polynomials continue along their edge tangent (continuation 1, at
+ *        most one span beyond the edge) or hold their edge value (continuation 0).
  * @return 1 if the model's input is inside its calibrated range (or the model does not depend on
- *         the temperature: disabled, degree 0, no range known, NaN temperature), 0 if it was clamped.
+ *         the temperature: disabled, degree 0, no range known, NaN temperature), 0 if it was outside.
  */
 IMU_HIDDEN int ImuThermalApply(const ImuThermalCoefficients *c, const double x[3], double temperature,
-                                double out[3]);
+                                int continuation, double out[3]);
 
 #endif

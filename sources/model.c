@@ -444,9 +444,12 @@ static void logIssue(const ModelInstance *mi, const char *function, int issue, d
         const int rangeIssues = m->runtime.pipeline.rangeIssues;
         ImuPipelineDescribeRanges(&m->runtime.pipeline, rangeIssues, ranges, sizeof ranges);
         if (rangeIssues & (ImuRangeThermalGyr | ImuRangeThermalAcc | ImuRangeThermalMag | ImuRangePsoBp)) {
-            ModelLog(mi, ModelWarning, LogBadInput, "%s: t = %g s: temperature %g degC: outside the calibrated range of the %s: "
-                     "each model is evaluated with its inputs clamped to that range (no extrapolation) and calibration_valid = 0 until they return",
-                     function, t, x[ImuInTemp], ranges);
+            ModelLog(mi, ModelWarning, LogBadInput, "%s: t = %g s: temperature %g degC: outside the calibrated range of the %s: the gain/bias models "
+                     "%s, the other models hold their edge value, and calibration_valid = 0 until they return",
+                     function, t, x[ImuInTemp], ranges,
+                     m->runtime.pipeline.settings.thermalContinuation
+                         ? "continue along their tangent at the range edge (at most one calibrated span)"
+                         : "hold their edge value");
         } else {
             ModelLog(mi, ModelWarning, LogBadInput, "%s: t = %g s: an input outside the calibrated range of the %s: "
                      "each model is evaluated with its inputs clamped to that range (no extrapolation) and calibration_valid = 0 until they return",

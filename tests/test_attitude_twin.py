@@ -46,9 +46,12 @@ CONSTANTS = {
 
 
 def _c_outputs(settings: dict, t, gyr, acc, mag) -> np.ndarray:
+    """The C pipeline's outputs with the identity calibration and without the bias learning (a stage before
+    the attitude filter, tests/test_bias_learning.py), so the filter sees the raw samples as the twin does."""
     inputs = np.zeros((len(t), len(layout.INPUTS)))
     inputs[:, 0:3], inputs[:, 3:6], inputs[:, 6:9], inputs[:, 9] = gyr, acc, mag, 25.0
-    return run_batch(layout.identity_coefficients(), layout.settings_array(settings), t, inputs)
+    return run_batch(layout.identity_coefficients(), layout.settings_array({**settings, "bias_learning": 0.0}), t,
+                     inputs)
 
 
 def _angle(q1: np.ndarray, q2: np.ndarray) -> float:

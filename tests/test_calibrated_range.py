@@ -26,6 +26,7 @@ from contract.layout import (OUTPUTS, TRIAD_BLOCK, TRIAD_ORDER, identity_block, 
 from training.artefact import coefficients_array, load_artefact, settings_dict
 from training.main_job import SCENARIO_DIR
 from training.models import elm
+from training.models.thermal import CONTINUATION_SPANS, apply_thermal
 from training.models.psobp import MODE_RESIDUAL, evaluate_psobp_c
 from training.runtime import run_batch
 from training.simulator import load_scenario, simulate
@@ -84,11 +85,19 @@ def test_the_artefact_records_the_range_and_train_says_it(artefact, tmp_path):
     assert all(loaded.thermal[k].t_range == artefact.thermal[k].t_range for k in TRIAD_ORDER)
     lo, hi = artefact.thermal["gyr"].t_range
     assert (f"calibrated range: gyroscope gain/bias model: temperature {lo:.1f} … {hi:.1f} °C; outside it the FMU "
-            "clamps the input and sets calibration_valid = 0") in artefact.notes
+            "continues the model along its tangent at the range edge (at most one span) and sets calibration_valid = 0") \
+        in artefact.notes
+
+
+def batch_with(art, t, inputs, **settings) -> np.ndarray:
+    """The batch runtime with the artefact's settings and `settings` changed."""
+    values = settings_dict(art)
+    values.update(settings)
+    return run_batch(coefficients_array(art), np.asarray(settings_array(values)), t, inputs)
 
 
 @pytest.mark.parametrize("temp_c", OUTSIDE_C)
-def test_outside_the_range_the_models_hold_their_edge_value(scenario, artefact, temp_c):
+def test_with_continuation_off_the_models_hold_their_edge_value(scenario, artefact, temp_c):
     # The bound on the corrected biases at T relative to the value at the range edge is zero: the
     # temperature is clamped before any arithmetic, so the same raw samples compensated at T and at
     # the edge temperature give bit-identical outputs (the polynomial extrapolated to T does not).
@@ -97,10 +106,41 @@ def test_outside_the_range_the_models_hold_their_edge_value(scenario, artefact, 
     data = static_recording(scenario, temp_c, seed=int(temp_c) + 200)
     at_edge = data.inputs()
     at_edge[:, 9] = edge
-    out, out_edge = batch(artefact, data.t, data.inputs()), batch(artefact, data.t, at_edge)
+    out = batch_with(artefact, data.t, data.inputs(), thermal_continuation=0.0)
+    out_edge = batch_with(artefact, data.t, at_edge, thermal_continuation=0.0)
     np.testing.assert_array_equal(out[:, :6], out_edge[:, :6])
     unclamped = replace(artefact, thermal={k: replace(m, t_range=None) for k, m in artefact.thermal.items()})
     assert np.max(np.abs(batch(unclamped, data.t, data.inputs())[:, :6] - out_edge[:, :6])) > 1e-3
+
+
+#: C and numpy evaluate the tangent in a different order of operations only through A's rows: a
+#: relative 1e-12 of the triad's values (|x| ≲ 10 m/s²) is far below any sensor's resolution.
+TWIN_TOLERANCE = 1e-12
+
+
+@pytest.mark.parametrize("temp_c", OUTSIDE_C)
+def test_by_default_the_models_continue_along_their_tangent_for_one_span(scenario, artefact, temp_c):
+    # The models here are of degree 1, so their tangent is the polynomial itself: within one span beyond
+    # the edge the runtime equals the unclamped polynomial, beyond it the polynomial one span out. Both
+    # OUTSIDE_C temperatures lie more than one span (20 °C) beyond the soaks, so both cases are seen.
+    lo, hi = calibrated_range(artefact)
+    span = CONTINUATION_SPANS * (hi - lo)
+    edge = lo if temp_c < lo else hi
+    data = static_recording(scenario, temp_c, seed=int(temp_c) + 200)
+    unclamped = replace(artefact, thermal={k: replace(m, t_range=None) for k, m in artefact.thermal.items()})
+    for target, expected_c in ((edge + 0.5 * (temp_c - edge), None), (temp_c, edge + np.sign(temp_c - edge) * span)):
+        inputs = data.inputs()
+        inputs[:, 9] = target
+        at_expected = inputs.copy()
+        at_expected[:, 9] = target if expected_c is None else expected_c
+        # the gain/bias model alone: the bias learning at these rests (tests/test_bias_learning.py) is off
+        out = batch_with(artefact, data.t, inputs, bias_learning=0.0)
+        np.testing.assert_allclose(out[:, :6], batch_with(unclamped, data.t, at_expected, bias_learning=0.0)[:, :6],
+                                   rtol=0, atol=TWIN_TOLERANCE)
+        for k, triad in enumerate(("gyr", "acc")):
+            twin = apply_thermal(artefact.thermal[triad], getattr(data, triad), inputs[:, 9])
+            np.testing.assert_allclose(out[:, 3 * k:3 * k + 3], twin, rtol=0, atol=TWIN_TOLERANCE)
+        assert np.all(out[:, CALIBRATION_VALID] == 0.0)
 
 
 def excursion_recording(lo: float, hi: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -39,6 +39,10 @@ REST_NOISE_SIGMAS = 5.0
 #: means, between and within recordings): the detector also requires the low-passed rate inside
 #: the threshold, so a residual bias at half of it is still accepted.
 REST_BIAS_MARGIN = 2.0
+#: bias_learning_limit = this many times the largest axis's rest noise σ: the online bias learning
+#: (sources/ImuBiasLearning.h) may absorb a power-up bias change of up to 10 σ per coefficient. One
+#: session cannot measure the run-to-run change; a change beyond 10 σ is a fault or a recalibration.
+BIAS_LEARNING_SIGMAS = 10.0
 #: Sidecar earth-field magnitudes of the training sets may differ by this much [µT] before
 #: the artefact warns that their mean is a poor single field_norm.
 FIELD_NORM_SPREAD = 1.0
@@ -102,7 +106,8 @@ def _rest_residuals(recordings, model: ThermalModel):
 
 
 def gyro_rest_settings(runs) -> dict[str, float]:
-    """gyro_noise, gyro_bias_residual and rest_gyro_threshold from the gyro at rest after calibration.
+    """gyro_noise, gyro_bias_residual, rest_gyro_threshold and bias_learning_limit from the gyro at rest
+    after calibration.
 
     runs: [(mean residual (3,), variance (3,), rate_hz, samples)] per rest run. gyro_noise
     [rad/s/√Hz] = σ / √f_s (IEEE Std 952), σ the per-sample std within the runs (RMS over axes);
@@ -111,7 +116,7 @@ def gyro_rest_settings(runs) -> dict[str, float]:
     noisiest axis, REST_BIAS_MARGIN · largest |run mean|): the runtime's rest detector must accept
     every sample of a still sensor (noise) and the bias the calibration leaves (it checks the
     low-passed rate against the threshold too), and no more — a larger threshold takes a slow turn
-    for a bias.
+    for a bias; bias_learning_limit [rad/s] = BIAS_LEARNING_SIGMAS · σ of the noisiest axis.
     """
     weights = np.array([n for *_, n in runs], dtype=float)
     means = np.array([m for m, *_ in runs])
@@ -122,7 +127,8 @@ def gyro_rest_settings(runs) -> dict[str, float]:
     return {"gyro_noise": float(np.average(density, weights=weights)),
             "gyro_bias_residual": float(max(bias.max(), GYRO_BIAS_RESIDUAL_FLOOR)),
             "rest_gyro_threshold": float(max(REST_NOISE_SIGMAS * sigma_axis.max(),
-                                             REST_BIAS_MARGIN * np.abs(means).max()))}
+                                             REST_BIAS_MARGIN * np.abs(means).max())),
+            "bias_learning_limit": float(BIAS_LEARNING_SIGMAS * sigma_axis.max())}
 
 
 def _field_settings(datasets: list[ImuData], selfcal, notes: list[str]) -> dict[str, float]:
@@ -198,7 +204,7 @@ def recommended_settings(datasets: list[ImuData], refs: dict[str, TriadReference
             notes.append("rest_gyro_threshold: one recording shows only this power-up's bias; record a "
                          "second session (power-cycled) so that train sees the run-to-run bias change")
     else:
-        notes.append("gyro_noise, gyro_bias_residual, rest_gyro_threshold: no gyro at rest after "
+        notes.append("gyro_noise, gyro_bias_residual, rest_gyro_threshold, bias_learning_limit: no gyro at rest after "
                      "calibration; defaults kept")
     settings.update(mag_heading_setting(datasets, thermal["mag"], settings, notes))
     settings.update(acc_norm_tolerance_setting(datasets, thermal["acc"], notes))

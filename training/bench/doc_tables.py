@@ -116,8 +116,19 @@ GENERATORS = (
         small=("benchmarks/two_soaks.py",), trains=True),
     TableGenerator(
         "OMP_NUM_THREADS=1 .venv/bin/python benchmarks/calibrated_range.py",
-        ("| T [°C] | triad | raw | extrapolated | clamped |",),
+        ("| T [°C] | triad | raw | extrapolated | clamped | continued (default) |",),
         small=("benchmarks/calibrated_range.py",), trains=True),
+    TableGenerator(
+        "OMP_NUM_THREADS=1 .venv/bin/python benchmarks/bias_learning.py",
+        ("| unit | bias learning | rate error after 10 min [°/s] | ÷ calibrated that day | 1 s means [°/s] "
+         "| ÷ calibrated that day | learnt shift at the end [°/s] |",),
+        small=("benchmarks/bias_learning.py", "--minutes", "11", "--hour", "2"), trains=True),
+    TableGenerator(
+        "OMP_NUM_THREADS=1 .venv/bin/python benchmarks/thermal_continuation.py",
+        ("| power-on | raw [°/s] | clamped [°/s] (reduction) | continued, default [°/s] (reduction) "
+         "| extrapolated [°/s] (reduction) | continued − clamped [°/s] |",),
+        why_not_small="simulates the 2.5 h plateau protocol and trains on its first 100 min (about 40 s); the "
+                      "power-ons it measures are that protocol's last two plateaus"),
     TableGenerator(
         "python benchmarks/bench_protocol.py --seeds 0 --selfcal",
         ("| evaluation | trained on | settings | rate [°/s] | field [µT] | roll [°] | pitch [°] | yaw [°] "

@@ -1,9 +1,10 @@
 """What the calibrated ranges of a trained model are, in words (`imufmu train` prints them).
 
-Every model of the chain carries the range of inputs it was fitted on, and the runtime evaluates
-it with its inputs clamped to that range (docs/fmu.md, 'Calibrated range'): the gain/bias
-polynomials their temperature range (ThermalModel.t_range), the PSO-BP network its temperature
-and temperature-rate ranges, the ELM its box of fields, each correction term its regressor bounds.
+Every model of the chain carries the range of inputs it was fitted on (docs/fmu.md, 'Calibrated
+range'): the gain/bias polynomials their temperature range (ThermalModel.t_range; outside it the
+runtime continues them along their edge tangent for one span, thermal_continuation), the PSO-BP
+network its temperature and temperature-rate ranges, the ELM its box of fields, each correction term
+its regressor bounds (outside them the runtime clamps the input).
 """
 from __future__ import annotations
 
@@ -42,12 +43,14 @@ def elm_range_line(model: ElmModel | None) -> str | None:
 def range_notes(thermal: dict[str, ThermalModel], elm_model: ElmModel | None, psobp_model: PsoBpModel | None,
                 settings: dict[str, float]) -> list[str]:
     """One note per model the FMU applies (settings enable_elm / enable_psobp switch the stages)
-    naming the input range it was calibrated on; the FMU clamps each model's inputs to it and
-    reports an excursion through the output calibration_valid."""
-    lines = [thermal_range_line(triad, thermal[triad]) for triad in TRIAD_ORDER]
+    naming the input range it was calibrated on and what the FMU does outside it; it reports an
+    excursion through the output calibration_valid."""
+    continued = "continues the model along its tangent at the range edge (at most one span)" \
+        if settings.get("thermal_continuation", 1.0) else "clamps the input"
+    lines = [(thermal_range_line(triad, thermal[triad]), continued) for triad in TRIAD_ORDER]
     if settings.get("enable_psobp"):
-        lines.append(psobp_range_line(psobp_model))
+        lines.append((psobp_range_line(psobp_model), "clamps the input"))
     if settings.get("enable_elm"):
-        lines.append(elm_range_line(elm_model))
-    return [f"calibrated range: {line}; outside it the FMU clamps the input and sets calibration_valid = 0"
-            for line in lines if line is not None]
+        lines.append((elm_range_line(elm_model), "clamps the input"))
+    return [f"calibrated range: {line}; outside it the FMU {action} and sets calibration_valid = 0"
+            for line, action in lines if line is not None]

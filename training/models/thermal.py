@@ -9,8 +9,10 @@ Model (adaptive-gain fusion paper, 'gain/bias temperature compensation'; the C r
     x_c = A . (G (.) (x - B))                  A constant symmetric 3x3, (.) element-wise
 
 A model that carries the temperature range it was calibrated on (t_range, layout version 4) is
-evaluated with a finite T clamped to that range first: the polynomials hold their value at the
-range edge instead of being extrapolated (a fit on 13-48 °C evaluated at -30 °C is arbitrary).
+never evaluated as a polynomial outside it (a fit on 13-48 °C evaluated at -30 °C is arbitrary):
+beyond an edge G and B continue along their tangent at that edge for at most CONTINUATION_SPANS
+calibrated spans, then hold (`continuation=True`, the FMU's thermal_continuation = 1), or hold their
+edge value (`continuation=False`).
 
 Polynomials are evaluated by Horner's scheme from k = P down to k = 0. The fit is full-batch
 gradient descent with per-coefficient adaptive step sizes (Rprop, Riedmiller & Braun 1993).
@@ -39,6 +41,10 @@ RPROP_STEP_BOUNDS = (1e-16, 0.5)
 #: Upper-triangle index pairs of the symmetric A (the 6 free entries).
 _A_FREE = ((0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2))
 OPTIMIZERS = ("rprop", "sgd")
+#: How far beyond its calibrated range a model continues along its edge tangent, in calibrated spans
+#: (t_max - t_min) (sources/ImuThermal.c IMU_THERMAL_CONTINUATION_SPANS; tests/test_calibrated_range.py
+#: pins the two together).
+CONTINUATION_SPANS = 1.0
 
 
 def _readonly(a, shape: tuple[int, ...], name: str) -> np.ndarray:
@@ -147,16 +153,18 @@ def normalised_temperature(temp: np.ndarray, t0: float, ts: float) -> np.ndarray
     return np.where(np.isnan(tn), 0.0, tn)
 
 
-def _horner(coefficients: np.ndarray, tn: np.ndarray) -> np.ndarray:
-    """sum_k c[k] * Tn^k by Horner's scheme, k = P..0. c: (P+1,), tn: (N,) -> (N,)."""
-    acc = np.zeros_like(tn)
-    for c in coefficients[::-1]:
-        acc = acc * tn + c
-    return acc
+def _horner(coefficients: np.ndarray, tn: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(value, slope d/dTn) of sum_k c[k] * Tn^k by Horner's scheme from k = P down, the slope by the same
+    recursion (ImuThermalPolynomial). c: (P+1,), tn: (N,) -> two (N,)."""
+    value, slope = np.full_like(tn, coefficients[-1]), np.zeros_like(tn)
+    for c in coefficients[-2::-1]:
+        slope = slope * tn + value
+        value = value * tn + c
+    return value, slope
 
 
 def calibrated_temperature(model: ThermalModel, temp: np.ndarray) -> np.ndarray:
-    """The temperature (N,) [°C] the model is evaluated at: `temp` clamped to model.t_range when
+    """The temperature (N,) [°C] the polynomials are evaluated at: `temp` clamped to model.t_range when
     the model has one and depends on T (degree >= 1); NaN stays NaN (ImuThermalClampTemperature)."""
     temp = np.asarray(temp, dtype=np.float64)
     if model.t_range is None or model.degree == 0:
@@ -164,10 +172,22 @@ def calibrated_temperature(model: ThermalModel, temp: np.ndarray) -> np.ndarray:
     return np.clip(temp, *model.t_range)
 
 
-def apply_thermal(model: ThermalModel, x: np.ndarray, temp: np.ndarray) -> np.ndarray:
+def continuation(model: ThermalModel, temp: np.ndarray, edge: np.ndarray) -> np.ndarray:
+    """Normalised distance (N,) [1] the polynomials continue beyond their range edge: (T − edge) / ts,
+    at most CONTINUATION_SPANS spans; 0 inside the range and for NaN (ImuThermalContinuation)."""
+    temp = np.asarray(temp, dtype=np.float64)
+    beyond = np.where((edge == temp) | np.isnan(temp), 0.0, temp - edge)
+    if model.t_range is None:
+        return np.zeros_like(beyond)
+    limit = CONTINUATION_SPANS * (model.t_range[1] - model.t_range[0])
+    return np.clip(beyond, -limit, limit) / model.ts
+
+
+def apply_thermal(model: ThermalModel, x: np.ndarray, temp: np.ndarray, continuation_on: bool = True) -> np.ndarray:
     """Corrected triad x_c = A . (G(Tn) (.) (x - B(Tn))), (N, 3) in the triad's unit.
 
-    x: (N, 3) raw triad; temp: (N,) °C (NaN -> Tn = 0), clamped to model.t_range when it has one.
+    x: (N, 3) raw triad; temp: (N,) °C (NaN -> Tn = 0). Outside model.t_range G and B continue along
+    their edge tangent (continuation_on, at most CONTINUATION_SPANS spans) or hold their edge value.
     Pure: returns a new array.
     Same operation order as ImuThermalApply in C: Horner per axis, then row i of A times
     y summed as A[i,0]*y0 + A[i,1]*y1 + A[i,2]*y2.
@@ -175,11 +195,16 @@ def apply_thermal(model: ThermalModel, x: np.ndarray, temp: np.ndarray) -> np.nd
     x = np.asarray(x, dtype=np.float64)
     if not model.enabled:
         return x.copy()
-    tn = normalised_temperature(calibrated_temperature(model, temp), model.t0, model.ts)
+    edge = calibrated_temperature(model, temp)
+    tn = normalised_temperature(edge, model.t0, model.ts)
+    beyond = continuation(model, temp, edge) if continuation_on else np.zeros_like(tn)
+    outside = beyond != 0.0
     y = np.empty_like(x)
     for i in range(3):
-        gain = _horner(np.concatenate([[1.0], model.g[i]]), tn)
-        bias = _horner(model.b[i], tn)
+        gain, gain_slope = _horner(np.concatenate([[1.0], model.g[i]]), tn)
+        bias, bias_slope = _horner(model.b[i], tn)
+        gain = np.where(outside, gain + gain_slope * beyond, gain)
+        bias = np.where(outside, bias + bias_slope * beyond, bias)
         y[:, i] = gain * (x[:, i] - bias)
     a = model.A
     return np.column_stack([a[i, 0] * y[:, 0] + a[i, 1] * y[:, 1] + a[i, 2] * y[:, 2]
