@@ -35,8 +35,8 @@ typedef enum {
 
 /**
  * The project's additions to the adaptive-gain Euler fusion (ImuAttitudeSettings.eulerAdditions, a
- * sum of these bits; the FMU sets all, the batch entry ImuBatchRunEuler any, 0 being the method as
- * issue 2 describes it). Why each came: ImuAttitudeEuler.c.
+ * sum of these bits: FMU parameter euler_additions, default all, 0 being the method as its source
+ * describes it, docs/euler.md). Why each came: ImuAttitudeEuler.c.
  */
 typedef enum {
     IMU_EULER_TRAPEZOID = 1,        /* propagate with the mean of the previous and current rate
@@ -71,8 +71,8 @@ typedef struct {
     int motionBias;          /* 1: quaternion mode also estimates the gyro bias in motion (ImuMotionBias.h) */
     double accNormTolerance; /* 1, |f| / g - 1 the still, corrected accelerometer may show (its own scale
                               * error, not linear acceleration; >= 0) */
-    int eulerAdditions;      /* sum of ImuEulerAddition bits in use by the Euler mode (not an FMU
-                              * parameter: IMU_EULER_ALL_ADDITIONS except in ImuBatchRunEuler) */
+    int eulerAdditions;      /* sum of ImuEulerAddition bits in use by the Euler mode (FMU parameter
+                              * euler_additions) */
 } ImuAttitudeSettings;
 
 /** Settings and evolving state (plain struct: copy = save state). */

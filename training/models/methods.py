@@ -6,7 +6,7 @@ pf_additions, pf_rao_blackwell, psobp_clamp, …) and through how `train` fits t
 carries (the training forms: the ELM's schedule, the PSO-BP fit's switches). A selected stage is switched on
 whatever the held-out check says (the user asked to run it); the check stays in the notes. Without a
 selection `train` chooses as before. Every deviation of the product's forms from the sources: docs/elm.md,
-docs/magpf.md, docs/thermal_models.md and docs/attitude.md ("As written / as built").
+docs/magpf.md, docs/thermal_models.md and docs/euler.md ("As written / as built").
 """
 from __future__ import annotations
 
