@@ -75,3 +75,19 @@ def test_a_family_the_residual_holds_already_is_reported_present(setting):
     c = next(c for c in candidates if c.target == "gyr" and c.name == "temperature")
     assert _selected_directly(r, c, np.zeros_like(r.residual["gyr"]), rule)
     assert detection.detection_limit(r, c, rule, rate)["status"] == detection.PRESENT
+
+
+def test_the_p_value_is_bonferroni_corrected_over_the_candidates(setting):
+    """The selection's p-value is the test's p times the candidate count (capped at 1): the same effect,
+    at its detection limit so that its raw p is neither 0 nor 1, fitted as one test and as the loop's
+    n_tests."""
+    r, candidates, rule, rate = setting
+    c = next(c for c in candidates if c.target == "gyr" and c.name == "angular rate signed square")
+    limit = detection.detection_limit(r, c, rule, rate)
+    unit = predict(detection._as_fit(c, detection._direction(c, r)), r)
+    scale = limit["rms"] / metric(replace(r, residual={c.target: unit}), c.target)
+    injected = replace(r, residual={**r.residual, c.target: r.residual[c.target] + scale * unit})
+    base = offset_fit(c.target, injected)
+    single, corrected = (fit_candidates((c,), injected, base, base, n) for n in (1, rule.n_tests))
+    assert rule.n_tests > 1 and 0.0 < single.p_value < corrected.p_value < 1.0
+    assert corrected.p_value == pytest.approx(rule.n_tests * single.p_value, rel=1e-12)
