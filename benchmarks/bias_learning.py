@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import argparse
 import sys
-import tempfile
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -37,6 +37,7 @@ from training.evaluate import attitude_errors  # noqa: E402
 from training.main_job import SCENARIO_DIR  # noqa: E402
 from training.runtime import run_batch  # noqa: E402
 from training.simulator import load_scenario, simulate  # noqa: E402
+from training.simulator.segments import Handheld  # noqa: E402
 from training.train import train  # noqa: E402
 
 RATE = slice(OUTPUTS.index("rate_x"), OUTPUTS.index("rate_x") + 3)
@@ -45,19 +46,16 @@ SHIFT = OUTPUTS.index("bias_learning_shift")
 SETTLE_S = 600.0
 
 
-def handheld_scenario(directory: Path, minutes: float, rest_s: float):
-    """eval_handheld.toml with its hand-held segment stretched to `minutes`, rest_s [s] rests after every
-    20 s move (same motion statistics, same temperature ramp)."""
-    text = (SCENARIO_DIR / "eval_handheld.toml").read_text(encoding="utf-8")
-    sensor = (SCENARIO_DIR / "sensors" / "mems_grade.toml").resolve()
-    for old, new in (("duration_s = 230.0", f"duration_s = {60.0 * minutes - 10.0}"),
-                     ("rest_s = 3.0", f"rest_s = {rest_s}"), ("move_s = 12.0", "move_s = 20.0"),
-                     ('"sensors/mems_grade.toml"', f'"{sensor}"')):
-        assert text.count(old) == 1, old
-        text = text.replace(old, new)
-    path = directory / f"handheld_{minutes:g}min.toml"
-    path.write_text(text, encoding="utf-8")
-    return load_scenario(path)
+def stretched(scenario, minutes: float, rest_s: float, move_s: float = 20.0):
+    """The scenario with its hand-held segments stretched so that it lasts `minutes`, rest_s [s] rests
+    after move_s [s] moves (same motion statistics; the other segments, the temperature ramp's end
+    points and the sensor unchanged)."""
+    handheld = [seg for seg in scenario.segments if isinstance(seg, Handheld)]
+    other_s = sum(seg.duration_s for seg in scenario.segments if not isinstance(seg, Handheld))
+    total = (60.0 * minutes - other_s) / len(handheld)
+    return replace(scenario, segments=tuple(
+        replace(seg, total_s=total, rest_s=rest_s, move_s=move_s) if isinstance(seg, Handheld) else seg
+        for seg in scenario.segments))
 
 
 def run(artefact, data, gyr_shift=None, **overrides) -> np.ndarray:
@@ -136,10 +134,9 @@ def main() -> None:
     args = parser.parse_args()
     artefact = train([simulate(load_scenario(SCENARIO_DIR / "calibration.toml"), seed=args.seed)], seed=args.seed,
                      progress=False)
-    with tempfile.TemporaryDirectory() as tmp:
-        short = simulate(handheld_scenario(Path(tmp), args.minutes, args.rest), seed=args.seed + 1)
-        run_to_run(artefact, short, args.shift)
-        no_harm(artefact, simulate(handheld_scenario(Path(tmp), args.hour, args.rest), seed=args.seed + 2))
+    handheld = load_scenario(SCENARIO_DIR / "eval_handheld.toml")
+    run_to_run(artefact, simulate(stretched(handheld, args.minutes, args.rest), seed=args.seed + 1), args.shift)
+    no_harm(artefact, simulate(stretched(handheld, args.hour, args.rest), seed=args.seed + 2))
 
 
 if __name__ == "__main__":

@@ -68,6 +68,9 @@ _FLEET_PRIOR_HEADERS = (
     "| error | with prior ÷ full calibration (bound ≤ #) | with prior ÷ same # s alone (bound ≤ #) |")
 #: The small form of benchmarks/fleet_prior.py: a 5-unit prior, one new unit, 30 s.
 _FLEET_PRIOR_SMALL = ("benchmarks/fleet_prior.py", "--fleet-units", "5", "--units", "1", "--seconds", "30")
+#: The table of benchmarks/fleet_prior.py --use-minutes (online bias learning on a unit's use recording).
+_FLEET_USE_HEADER = ("| unit | use rate after 10 min [°/s], full | # s + prior | prior ÷ full (bound ≤ #) | full, no learning "
+                     "| # s + prior, no learning | prior ÷ full, no learning |")
 
 #: The table of benchmarks/unit_switch.py.
 _UNIT_SWITCH = ("| FMI | units | switches | median per switch, ms | 95th percentile, ms | largest, ms | "
@@ -162,7 +165,12 @@ GENERATORS = (
     TableGenerator(
         "OMP_NUM_THREADS=1 .venv/bin/python benchmarks/fleet_prior.py --prior FLEET_OUT/fleet.json --units 20",
         _FLEET_PRIOR_HEADERS,
-        small=_FLEET_PRIOR_SMALL, trains=True),
+        small=(*_FLEET_PRIOR_SMALL, "--use-minutes", "11"), trains=True),
+    TableGenerator(
+        "OMP_NUM_THREADS=1 .venv/bin/python benchmarks/fleet_prior.py --fleet-units 12 --units 5 --use-minutes 20",
+        (*_FLEET_PRIOR_HEADERS, _FLEET_USE_HEADER),
+        why_not_small="the small form of the --prior FLEET_OUT/fleet.json --units 20 entry runs this code with "
+                      "--use-minutes 11 (a second run would add its fleet training to the suite)"),
     TableGenerator(
         "OMP_NUM_THREADS=1 .venv/bin/python benchmarks/fleet_prior.py --prior FLEET_OUT/fleet.json --units 20 "
         "--two-temperatures",
