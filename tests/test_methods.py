@@ -6,6 +6,8 @@ switch runs the pure form its Python/batch twin describes: the Euler fusion with
 evaluated outside its training ranges (psobp_clamp = 0: psobp.apply_psobp(clamp_inputs=False))."""
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
@@ -23,11 +25,13 @@ from training.models.methods import METHODS
 from training.simulator import load_scenario, simulate
 
 #: The source form of every method but the PSO-BP network's, whose source fit runs its whole gradient budget
-#: (60 s on this session: a benchmark's cost); its runtime form (psobp_clamp = 0) has its twin test below.
+#: (60 s on this session: a benchmark's cost); it has its own test below on the session decimated (16 s).
 SOURCE = {method: next(iter(forms)) if method != "psobp" else "product" for method, forms in METHODS.items()}
 #: PSO-BP network output against the C runtime's: the same operations in another order (tanh, sums) differ
 #: by rounding, ~1e-16 rad/s; 1e-12 rad/s (2e-11 °/s) is far under any gyro's noise and far over rounding.
 PSOBP_TWIN_RAD_S = 1e-12
+#: The PSO-BP source-form test trains on every DECIMATION-th sample: its fit's cost is proportional to the samples.
+DECIMATION = 5
 
 
 @pytest.fixture(scope="module")
@@ -115,3 +119,33 @@ def test_psobp_clamp_off_evaluates_the_network_outside_its_ranges(trained):
         correction = without - rate(enable_psobp=1.0, psobp_clamp=float(clamp))
         np.testing.assert_allclose(correction, psobp.apply_psobp(model, t, temp, clamp_inputs=clamp),
                                    rtol=0, atol=PSOBP_TWIN_RAD_S, err_msg=f"clamp {clamp}")
+
+
+def test_the_psobp_source_fit_reaches_the_fmu_as_its_pure_form(tmp_path):
+    """`train --method psobp=source` (the source's fit: single-sample targets, plain swarm, plain gradient descent
+    over the whole 3000-epoch budget, no input clamp; on the session decimated to 10 Hz so that the budget costs
+    seconds, not a minute) records the form, its FMU through fmpy equals the batch runtime bit for bit, and the
+    network the FMU applies is psobp.apply_psobp(clamp_inputs=False) of the fitted model within PSOBP_TWIN_RAD_S."""
+    data = simulate(load_scenario(SCENARIO_DIR / "variants" / "diag_calibration_clean.toml"))
+    every = data.slice(np.arange(0, len(data), DECIMATION))
+    every = replace(every, meta={**every.meta, "rate_hz": every.meta["rate_hz"] / DECIMATION})
+    path = write_imu_csv(every, tmp_path / "session.csv.gz")
+    assert main(["train", str(path), "--out", str(tmp_path / "unit"), "--allow-partial", "--method", "psobp=source"]) == 0
+    artefact = load_artefact(tmp_path / "unit" / "model.json")
+    settings = settings_dict(artefact)
+    assert artefact.methods == {"psobp": "source"} and settings["psobp_clamp"] == 0.0 and artefact.psobp is not None
+    fmu = build_fmu_from_model(tmp_path / "unit" / "model.json", tmp_path / "unit.fmu")
+    n = 600
+    t = np.arange(n) * 0.05
+    temp = np.linspace(artefact.psobp.t_min - 10.0, artefact.psobp.t_max + 10.0, n)  # beyond its range too
+    inputs = np.column_stack([np.zeros((n, 3)), np.tile([0.0, 0.0, -9.81], (n, 1)), np.tile([20.0, 0.0, 40.0], (n, 1)),
+                              temp, np.zeros((n, len(layout.AUX_INPUTS)))])
+    values = {**settings, "rest_gyro_threshold": 0.0, "motion_bias": 0.0}
+    out = run_fmu(fmu, t, inputs, parameters={"rest_gyro_threshold": 0.0, "motion_bias": 0.0})
+    np.testing.assert_array_equal(out, runtime.run_batch(coefficients_array(artefact), layout.settings_array(values),
+                                                         t, inputs))
+    rates = [layout.OUTPUTS.index(f"rate_{a}") for a in "xyz"]
+    without = runtime.run_batch(coefficients_array(artefact), layout.settings_array({**values, "enable_psobp": 0.0}),
+                                t, inputs)[:, rates]
+    np.testing.assert_allclose(without - out[:, rates], psobp.apply_psobp(artefact.psobp, t, temp, clamp_inputs=False),
+                               rtol=0, atol=PSOBP_TWIN_RAD_S)
