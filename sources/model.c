@@ -1,6 +1,7 @@
 /**
  * @file model.c
- * @brief FMI-free core of the FMU: value references, state machine, logging, bad-input handling.
+ * @brief The ImuFusion FMU's model (model.h hooks): value references, initialisation, the step and its
+ *        bad-input handling, the checks of a restored state. The state machine and logging are ModelCore.c's.
  */
 #include "model.h"
 
@@ -24,13 +25,6 @@ static const VariableSlot variableSlots[VR_COUNT] = IMU_VR_SLOTS;
 /** The coefficient blocks (FMI 3 array parameters VR_COEFFICIENT_BLOCKS + b), in array order. */
 static const ImuCoefficientBlock coefficientBlocks[IMU_COEFFICIENT_BLOCK_COUNT] = IMU_COEFFICIENT_BLOCKS;
 
-#define MODEL_STATE_MAGIC 0x494D5546u /* "IMUF" */
-#define MODEL_LOG_BUFFER_SIZE 640
-
-static const char *const logCategoryNames[MODEL_LOG_CATEGORY_COUNT] = {
-    "logEvents", "logBadInput", "logStatusWarning", "logStatusError"
-};
-
 /** Short names of the ModelIssue kinds, in bit order (for the recovery messages). */
 static const char *const issueNames[MODEL_ISSUE_COUNT] = {
     "gyroscope", "accelerometer", "magnetometer", "magnetometer field", "temperature",
@@ -51,8 +45,7 @@ static void setInitialOutputs(ModelData *m) {
     m->outputs[ImuOutCalibrationValid] = 1.0; /* no model has been evaluated outside its range */
 }
 
-/** @brief Every variable at its start value (the state right after instantiation). */
-static void setStartValues(ModelData *m) {
+void ModelDataStart(ModelData *m) {
     static const double startInputs[IMU_INPUT_COUNT] = {
         0.0, 0.0, 0.0,        /* rad/s */
         0.0, 0.0, -9.80665,   /* m/s^2: at rest and level */
@@ -259,105 +252,14 @@ ModelStatus ModelSetInteger(ModelInstance *mi, const char *function, unsigned in
 
 /* ---- instance: logging and state machine ---------------------------------------------------- */
 
-void ModelLog(const ModelInstance *mi, ModelStatus status, ModelLogCategory category, const char *format, ...) {
-    char buffer[MODEL_LOG_BUFFER_SIZE];
-    va_list args;
-    if (mi == NULL || mi->log == NULL || !(status >= ModelWarning || (mi->loggingOn && mi->categoryOn[category]))) {
-        return;
-    }
-    va_start(args, format);
-    vsnprintf(buffer, sizeof buffer, format, args);
-    va_end(args);
-    mi->log(mi->environment, status, logCategoryNames[category], buffer);
-}
 
-ModelStatus ModelFail(const ModelInstance *mi, const char *function, const char *message) {
-    ModelLog(mi, ModelError, LogStatusError, "%s: %s", function, message);
-    return ModelError;
-}
 
-int ModelGiven(const ModelInstance *mi, const char *function, const void *pointer, const char *what) {
-    if (pointer == NULL) {
-        ModelLog(mi, ModelError, LogStatusError, "%s: %s is NULL", function, what);
-        return 0;
-    }
-    return 1;
-}
 
-int ModelArraysGiven(const ModelInstance *mi, const char *function, size_t n, const void *vr, const void *values) {
-    return n == 0 || (ModelGiven(mi, function, vr, "the value reference array") &&
-                      ModelGiven(mi, function, values, "the value array"));
-}
 
-int ModelAllowed(const ModelInstance *mi, const char *function, int phases) {
-    if (mi == NULL) {
-        return 0;
-    }
-    if ((mi->state.phase & phases) == 0) {
-        ModelLog(mi, ModelError, LogStatusError, "%s must not be called in the current state", function);
-        return 0;
-    }
-    return 1;
-}
 
-ModelStatus ModelSetDebugLogging(ModelInstance *mi, int loggingOn, size_t n, const char *const categories[]) {
-    size_t i;
-    int k;
-    if (n > 0 && categories == NULL) {
-        return ModelFail(mi, "SetDebugLogging", "nCategories > 0 but the category list is NULL");
-    }
-    for (i = 0; i < n; i++) {
-        if (categories[i] == NULL) {
-            ModelLog(mi, ModelError, LogStatusError, "SetDebugLogging: category %lu of the list is NULL", (unsigned long)i);
-            return ModelError;
-        }
-    }
-    mi->loggingOn = loggingOn != 0;
-    for (k = 0; k < MODEL_LOG_CATEGORY_COUNT; k++) {
-        mi->categoryOn[k] = n == 0;
-    }
-    for (i = 0; i < n; i++) {
-        for (k = 0; k < MODEL_LOG_CATEGORY_COUNT && strcmp(categories[i], logCategoryNames[k]) != 0; k++) {
-        }
-        if (k == MODEL_LOG_CATEGORY_COUNT) {
-            ModelLog(mi, ModelWarning, LogStatusWarning, "SetDebugLogging: unknown log category '%s'", categories[i]);
-            return ModelWarning;
-        }
-        mi->categoryOn[k] = 1;
-    }
-    return ModelOk;
-}
 
-void ModelReset(ModelInstance *mi) {
-    ModelState *s = &mi->state;
-    memset(s, 0, sizeof *s);
-    s->header.magic = MODEL_STATE_MAGIC;
-    s->header.size = (unsigned int)sizeof(ModelState);
-    strncpy(s->header.guid, ModelGuid(), MODEL_GUID_SIZE - 1);
-    s->phase = PhaseInstantiated;
-    s->time = 0.0;
-    setStartValues(&s->model);
-}
 
-void ModelInstanceInitialise(ModelInstance *mi, ModelLogCallback log, void *environment, int loggingOn) {
-    mi->log = log;
-    mi->environment = environment;
-    ModelSetDebugLogging(mi, loggingOn, 0, NULL);
-    ModelReset(mi);
-}
 
-ModelStatus ModelEnterInitialization(ModelInstance *mi, const char *function, double startTime,
-                                     int stopTimeDefined, double stopTime) {
-    if (!ModelAllowed(mi, function, PhaseInstantiated)) {
-        return ModelError;
-    }
-    if (!isfinite(startTime) || (stopTimeDefined && !(stopTime >= startTime))) {
-        return ModelFail(mi, function, "startTime must be finite and stopTime not before it");
-    }
-    mi->state.time = startTime;
-    mi->state.phase = PhaseInitialization;
-    return ModelOk;
-}
 
 ModelStatus ModelExitInitialization(ModelInstance *mi, const char *function) {
     ModelData *m;
@@ -379,13 +281,6 @@ ModelStatus ModelExitInitialization(ModelInstance *mi, const char *function) {
     return ModelError;
 }
 
-ModelStatus ModelTerminate(ModelInstance *mi, const char *function) {
-    if (!ModelAllowed(mi, function, PhaseStepMode)) {
-        return ModelError;
-    }
-    mi->state.phase = PhaseTerminated;
-    return ModelOk;
-}
 
 /* ---- bad input ------------------------------------------------------------------------------- */
 
@@ -534,49 +429,11 @@ ModelStatus ModelDoStep(ModelInstance *mi, const char *function, double t, doubl
 
 /* ---- FMU state ------------------------------------------------------------------------------- */
 
-#define MODEL_FNV_OFFSET 14695981039346656037ull
-#define MODEL_FNV_PRIME 1099511628211ull
 
-unsigned long long ModelStateChecksum(const void *bytes, size_t size) {
-    const unsigned char *b = (const unsigned char *)bytes;
-    unsigned long long hash = MODEL_FNV_OFFSET;
-    size_t i;
-    for (i = 0; i < size; i++) {
-        hash = (hash ^ b[i]) * MODEL_FNV_PRIME;
-    }
-    return hash;
-}
 
-/** @brief Checksum of the body of a serialized state: every byte after the header. */
-static unsigned long long bodyChecksum(const void *bytes) {
-    return ModelStateChecksum((const unsigned char *)bytes + sizeof(ModelStateHeader),
-                              sizeof(ModelState) - sizeof(ModelStateHeader));
-}
 
-void ModelSerialize(const ModelState *state, void *bytes) {
-    ModelStateHeader header;
-    memcpy(bytes, state, sizeof(ModelState));
-    memcpy(&header, bytes, sizeof header);
-    header.checksum = bodyChecksum(bytes);
-    memcpy(bytes, &header, sizeof header);
-}
 
-/** @brief NULL if *h heads a state of this binary, else what is wrong with it. */
-static const char *stateProblem(const ModelStateHeader *h) {
-    if (h->magic != MODEL_STATE_MAGIC || h->size != sizeof(ModelState)) {
-        return "the bytes are not an " MODEL_NAME " FMU state of this binary";
-    }
-    if (strncmp(h->guid, ModelGuid(), MODEL_GUID_SIZE) != 0) {
-        return "the FMU state was made by a different build (GUID differs)";
-    }
-    return NULL;
-}
 
-/** @brief 1 if phase is exactly one ModelPhase. */
-static int validPhase(int phase) {
-    return phase == PhaseInstantiated || phase == PhaseInitialization || phase == PhaseStepMode
-        || phase == PhaseTerminated || phase == PhaseError;
-}
 
 /** @brief 1 if the n values are all finite. */
 static int allFinite(const double *x, int n) {
@@ -600,14 +457,9 @@ static const char *rederivePipeline(ModelData *m) {
     return problem;
 }
 
-/** @brief Make the restored state s safe to run: check every field that indexes or sizes anything
- *         and re-derive the parameters' consequences; NULL, or what is wrong (in s's terms). */
-static const char *restoredStateProblem(ModelState *s) {
+const char *ModelDataRestoredProblem(ModelState *s) {
     ModelData *m = &s->model;
     const char *problem;
-    if (!validPhase(s->phase)) {
-        return "phase is not a state-machine phase";
-    }
     if (m->initialised != 0 && m->initialised != 1) {
         return "initialised is not 0 or 1";
     }
@@ -639,42 +491,4 @@ static const char *restoredStateProblem(ModelState *s) {
     return ImuPipelineStateProblem(&m->runtime.pipeline, m->runtime.guard.clock);
 }
 
-ModelStatus ModelSetState(ModelInstance *mi, const char *function, const ModelState *state) {
-    ModelState *restored;
-    const char *problem;
-    if (state == NULL) {
-        return ModelFail(mi, function, "the FMU state is NULL");
-    }
-    problem = stateProblem(&state->header);
-    if (problem != NULL) {
-        return ModelFail(mi, function, problem);
-    }
-    restored = (ModelState *)malloc(sizeof *restored);
-    if (restored == NULL) {
-        return ModelFail(mi, function, "out of memory");
-    }
-    memcpy(restored, state, sizeof *restored);
-    problem = restoredStateProblem(restored);
-    if (problem == NULL) {
-        memcpy(&mi->state, restored, sizeof(ModelState));
-        mi->state.header.checksum = 0;
-    } else {
-        ModelLog(mi, ModelError, LogStatusError, "%s: invalid FMU state: %s", function, problem);
-    }
-    free(restored);
-    return problem == NULL ? ModelOk : ModelError;
-}
 
-ModelStatus ModelCheckSerialized(const ModelInstance *mi, const char *function, const void *bytes, size_t size) {
-    ModelStateHeader incoming;
-    const char *problem;
-    if (bytes == NULL || size != sizeof(ModelState)) {
-        return ModelFail(mi, function, "the serialized FMU state has the wrong size for this binary");
-    }
-    memcpy(&incoming, bytes, sizeof incoming); /* the header is the state's first member */
-    problem = stateProblem(&incoming);
-    if (problem == NULL && incoming.checksum != bodyChecksum(bytes)) {
-        problem = "the serialized FMU state is corrupt (FNV-1a 64 checksum of its body differs)";
-    }
-    return problem == NULL ? ModelOk : ModelFail(mi, function, problem);
-}

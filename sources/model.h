@@ -1,6 +1,12 @@
 /**
  * @file model.h
- * @brief FMI-free core of the ImuFusion FMU, shared by the FMI 2.0 and FMI 3.0 wrappers.
+ * @brief FMI-free core of an FMU of this source tree, shared by the FMI 2.0 and FMI 3.0 wrappers.
+ *
+ * Two models share it: the ImuFusion FMU (ModelData.h, model.c) and the virtual sensor
+ * (sources/sensor/: its own ModelData.h, config.h and SensorModel.c, staged in their place by
+ * fmu/sensor_fmu.py). ModelCore.c holds what does not depend on the model: the state machine,
+ * logging and the FMU state's serialisation; each model implements the value access, the step and
+ * the hooks declared at the end of this file.
  *
  * ModelData maps value references to the runtime; bad input is sanitised by the guard the
  * batch library shares (ImuGuard.h). ModelInstance adds what both FMI versions share: the state machine, debug logging and the FMU state. The FMU
@@ -14,9 +20,7 @@
 #include <stddef.h>
 
 #include "ImuCommon.h"
-#include "ImuLayout.h"
-#include "ImuRuntime.h"
-#include "config.h"
+#include "ModelData.h"
 
 /** Result of a model call; same numbering as fmi2Status and fmi3Status. */
 typedef enum {
@@ -47,40 +51,10 @@ typedef enum {
 #define MODEL_ANY_PHASE (PhaseInstantiated | PhaseInitialization | PhaseStepMode | PhaseTerminated | PhaseError)
 #define MODEL_SET_PHASES (PhaseInstantiated | PhaseInitialization | PhaseStepMode)
 
-/** Kinds of bad input (one bit each); an episode of a kind lasts while its bit stays set. The
- *  input and time kinds are those of the shared guard (ImuGuard.h). */
-typedef enum {
-    ModelIssueGyr = ImuGuardIssueGyr,         /* gyroscope not finite or beyond IMU_GUARD_GYR_LIMIT */
-    ModelIssueAcc = ImuGuardIssueAcc,         /* accelerometer not finite or beyond IMU_GUARD_ACC_LIMIT */
-    ModelIssueMag = ImuGuardIssueMag,         /* magnetometer not finite or an axis saturated */
-    ModelIssueMagZero = ImuGuardIssueMagZero, /* magnetometer reads (almost) no field */
-    ModelIssueTemp = ImuGuardIssueTemp,       /* temperature not finite or outside the valid range */
-    ModelIssueOrder = ImuGuardIssueOrder,     /* time since the previous sample not finite and > 0 */
-    ModelIssueGap = ImuGuardIssueGap,         /* a gap: step longer than IMU_GUARD_GAP_STEPS nominal steps */
-    ModelIssueStep = 1 << 7,    /* step size not finite and > 0: the step is discarded */
-    ModelIssueOutput = ImuGuardIssueOutput, /* an output was not finite although the inputs were valid */
-    ModelIssueAux = ImuGuardIssueAux,       /* an auxiliary input a correction term uses is not finite: held */
-    ModelIssueCalibration = 1 << 10 /* a model input left its calibrated range (ImuRangeIssue): evaluated clamped */
-} ModelIssue;
-
-#define MODEL_ISSUE_COUNT 11
-
-/** Every value of the model and the pipeline that produces the outputs. */
-typedef struct {
-    double inputs[IMU_INPUT_COUNT];     /* raw sample as set: rad/s, m/s^2, uT, degC, auxiliary inputs */
-    double outputs[IMU_OUTPUT_COUNT];   /* estimate for the last consumed sample: finite, except the
-                                         * corrected outputs of an absent sensor (NaN, ImuGuard.h) */
-    double settings[IMU_SETTING_COUNT]; /* parameters in user units (ImuLayout.h order) */
-    double coefficients[IMU_COEFFICIENT_COUNT]; /* the coefficient parameters (contract/coefficient_parameters.py):
-                                         * start = the compiled-in ImuCoefficientsData.h */
-    int issues;                         /* ModelIssue bits of the last step */
-    double stepSize;                    /* s, communicationStepSize of the last doStep: the time from
-                                         * the last consumed sample to the next (ImuGuardStep) */
-    int initialised;                    /* 1 once settings are applied: parameters are locked */
-    ImuRuntime runtime;                 /* the guarded pipeline (ImuRuntime.h, shared with the batch library) */
-} ModelData;
-
 #define MODEL_GUID_SIZE 48
+
+/** Longest log message [bytes], NUL included. */
+#define MODEL_LOG_BUFFER_SIZE 640
 
 /** What identifies an FMU state of this binary (the start of every serialized state). */
 typedef struct {
@@ -180,5 +154,15 @@ IMU_HIDDEN void ModelSerialize(const ModelState *state, void *bytes);
 IMU_HIDDEN ModelStatus ModelSetState(ModelInstance *mi, const char *function, const ModelState *state);
 /** @brief Check that size bytes are a serialized state of this binary whose checksum matches. */
 IMU_HIDDEN ModelStatus ModelCheckSerialized(const ModelInstance *mi, const char *function, const void *bytes, size_t size);
+
+/* ---- hooks every model implements (model.c, sensor/SensorModel.c) -------------------------------- */
+
+/** @brief Every variable of m at its start value (the state right after instantiation). */
+IMU_HIDDEN void ModelDataStart(ModelData *m);
+/**
+ * @brief Make the restored state s (its phase already checked) safe to run: check every field of s->model
+ *        that indexes or sizes anything and re-derive the parameters' consequences; NULL, or what is wrong.
+ */
+IMU_HIDDEN const char *ModelDataRestoredProblem(ModelState *s);
 
 #endif

@@ -316,7 +316,7 @@ def test_fmutool_check_finds_no_problems(trained_fmu2):
 
 def test_log_categories_match_the_binary():
     names = re.search(r"logCategoryNames\[MODEL_LOG_CATEGORY_COUNT\] = \{(.*?)\};",
-                      (SOURCE_DIR / "model.c").read_text(), re.S).group(1)
+                      (SOURCE_DIR / "ModelCore.c").read_text(), re.S).group(1)
     assert re.findall(r'"(\w+)"', names) == [name for name, _ in LOG_CATEGORIES]
 
 

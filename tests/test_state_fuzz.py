@@ -1,9 +1,9 @@
 """A tampered serialized FMU state is reported, never executed (issue 16 item 1).
 
-Serialized states carry an FNV-1a 64 checksum of their body (model.c ModelStateChecksum, pinned
+Serialized states carry an FNV-1a 64 checksum of their body (ModelCore.c ModelStateChecksum, pinned
 here by `fnv1a64`); a restored state's settings and coefficients are re-derived from its
 parameters and the compiled-in coefficients, and its evolving counters and indices are checked
-(model.c restoredStateProblem). Seeded mutations of real states -- bit flips, edits of every
+(model.c ModelDataRestoredProblem). Seeded mutations of real states -- bit flips, edits of every
 integer field that indexes, sizes or switches something, truncation, extension, each with the
 checksum kept or recomputed -- are restored into FMI 2 and FMI 3 instances of a shipped FMU
 (fmpy) and, a subset, into an AddressSanitizer + UndefinedBehaviorSanitizer build of the sources
@@ -45,7 +45,7 @@ DOUBLE_VALUES = [float("nan"), float("inf"), -1.0, 0.0, 0.5, 3.0, 97.0, 1e9, 1e3
 
 
 def fnv1a64(data: bytes) -> int:
-    """FNV-1a 64 of data (the same constants as model.c ModelStateChecksum)."""
+    """FNV-1a 64 of data (the same constants as ModelCore.c ModelStateChecksum)."""
     h = FNV_OFFSET
     for b in data:
         h = ((h ^ b) * FNV_PRIME) & 0xFFFFFFFFFFFFFFFF
