@@ -6,6 +6,7 @@ that are otherwise written by hand:
 - sources/config.h: the value references, which parameters are Boolean or Integer, VR_COUNT and
   the slot of every value reference in those arrays (model.c's variable lookup); the value references
   of the coefficient parameters, whose blocks go to sources/ImuLayout.h (contract/coefficient_parameters.py);
+- sources/sensor/config.h: the same for the virtual sensor's table (contract/sensor_variables.py);
 - README.md: the variable table; docs/fmu.md: the parameters' types, ranges and defaults, and the
   coefficient parameters.
 
@@ -22,6 +23,7 @@ from pathlib import Path
 
 from contract import coefficient_parameters as cp
 from contract.schema import range_text
+from contract.sensor_variables import SENSOR_VARIABLES
 from contract.variables import VARIABLES, Variable
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -30,13 +32,17 @@ ROOT = Path(__file__).resolve().parent.parent
 _C_ARRAYS = {"input": ("ImuIn", "ImuInput", "IMU_INPUT_COUNT"),
              "output": ("ImuOut", "ImuOutput", "IMU_OUTPUT_COUNT"),
              "parameter": ("ImuSet", "ImuSetting", "IMU_SETTING_COUNT")}
+#: The same for the virtual sensor's arrays (sources/sensor/config.h, contract/sensor_variables.py).
+SENSOR_ARRAYS = {"input": ("SensorIn", "SensorInput", "SENSOR_INPUT_COUNT"),
+                 "output": ("SensorOut", "SensorOutput", "SENSOR_OUTPUT_COUNT"),
+                 "parameter": ("SensorSet", "SensorSetting", "SENSOR_SETTING_COUNT")}
 #: model.c's one-letter tag of the array each causality lives in.
 _SLOT_TAG = {"input": "i", "output": "o", "parameter": "s"}
 
 
-def c_name(v: Variable) -> str:
+def c_name(v: Variable, arrays: dict = _C_ARRAYS) -> str:
     """The C enum constant of v's array slot: the prefix and the name in CamelCase (gyr_x -> ImuInGyrX)."""
-    return _C_ARRAYS[v.causality][0] + "".join(part.capitalize() for part in v.name.split("_"))
+    return arrays[v.causality][0] + "".join(part.capitalize() for part in v.name.split("_"))
 
 
 def _unit_comment(v: Variable) -> str:
@@ -45,42 +51,44 @@ def _unit_comment(v: Variable) -> str:
     return f"/* {unit} */"
 
 
-def _of(causality: str) -> list[Variable]:
-    return [v for v in VARIABLES if v.causality == causality]
+def _of(causality: str, table: tuple[Variable, ...] = VARIABLES) -> list[Variable]:
+    return [v for v in table if v.causality == causality]
 
 
-def c_array_enum(causality: str) -> str:
-    """The typedef enum of one array (value-reference order within the causality)."""
-    _, type_name, count = _C_ARRAYS[causality]
-    width = max(len(c_name(v)) for v in _of(causality)) + 1
+def c_array_enum(causality: str, table: tuple[Variable, ...] = VARIABLES, arrays: dict = _C_ARRAYS) -> str:
+    """The typedef enum of one array (value-reference order within the causality); `arrays` names the enum
+    prefix, type and count of each causality (the virtual sensor's differ: SENSOR_ARRAYS)."""
+    prefix, type_name, count = arrays[causality]
+    width = max(len(c_name(v, arrays)) for v in _of(causality, table)) + 1
     lines = ["typedef enum {"]
-    lines += [f"    {c_name(v) + ',':<{width}} {_unit_comment(v)}" for v in _of(causality)]
+    lines += [f"    {c_name(v, arrays) + ',':<{width}} {_unit_comment(v)}" for v in _of(causality, table)]
     lines += [f"    {count}", f"}} {type_name};"]
     return "\n".join(lines)
 
 
-def c_value_references() -> str:
-    """config.h: the ValueReference enum, VR_COUNT, VR_IS_BOOLEAN / VR_IS_INTEGER, IMU_VR_SLOTS and the
-    value references of the inputs and outputs in array order (IMU_INPUT_VRS, IMU_OUTPUT_VRS)."""
+def c_value_references(table: tuple[Variable, ...] = VARIABLES, arrays: dict = _C_ARRAYS, slots: str = "IMU_VR_SLOTS",
+                       vrs: tuple[str, str] = ("IMU_INPUT_VRS", "IMU_OUTPUT_VRS")) -> str:
+    """config.h: the ValueReference enum, VR_COUNT, VR_IS_BOOLEAN / VR_IS_INTEGER, the slot table `slots` and the
+    value references of the inputs and outputs in array order (`vrs`)."""
     lines = ["/** Value references of every model variable. */", "typedef enum {"]
-    lines += [f"    vr_{v.name} = {v.value_reference}{',' if k + 1 < len(VARIABLES) else ''}"
-              for k, v in enumerate(VARIABLES)]
-    lines += ["} ValueReference;", "", f"#define VR_COUNT {len(VARIABLES)}", ""]
+    lines += [f"    vr_{v.name} = {v.value_reference}{',' if k + 1 < len(table) else ''}"
+              for k, v in enumerate(table)]
+    lines += ["} ValueReference;", "", f"#define VR_COUNT {len(table)}", ""]
     for macro, type_name in (("VR_IS_BOOLEAN", "Boolean"), ("VR_IS_INTEGER", "Integer")):
-        names = " || ".join(f"(vr) == vr_{v.name}" for v in VARIABLES if v.causality == "parameter"
-                            and v.type == type_name)
+        names = " || ".join(f"(vr) == vr_{v.name}" for v in table if v.causality == "parameter"
+                            and v.type == type_name) or "0"
         lines += [f"/** Parameters of type {type_name} (FMI 3: {'Boolean' if type_name == 'Boolean' else 'Int32'})"
                   f"{'' if type_name == 'Boolean' else ', stored as whole numbers in the settings array'}. */",
                   f"#define {macro}(vr) ({names})"]
     lines += ["", "/** Where each value reference lives: {'i' inputs / 'o' outputs / 's' settings, array index}. */",
-              "#define IMU_VR_SLOTS { \\"]
-    lines += [f"    {{'{_SLOT_TAG[v.causality]}', {c_name(v)}}}{',' if k + 1 < len(VARIABLES) else ''} \\"
-              for k, v in enumerate(VARIABLES)]
+              f"#define {slots} {{ \\"]
+    lines += [f"    {{'{_SLOT_TAG[v.causality]}', {c_name(v, arrays)}}}{',' if k + 1 < len(table) else ''} \\"
+              for k, v in enumerate(table)]
     lines += ["}"]
-    for causality, macro in (("input", "IMU_INPUT_VRS"), ("output", "IMU_OUTPUT_VRS")):
-        vrs = ", ".join(f"vr_{v.name}" for v in _of(causality))
-        lines += [f"/** The value references of the {causality}s, in {_C_ARRAYS[causality][1]} order. */",
-                  f"#define {macro} {{{vrs}}}"]
+    for causality, macro in zip(("input", "output"), vrs):
+        names = ", ".join(f"vr_{v.name}" for v in _of(causality, table))
+        lines += [f"/** The value references of the {causality}s, in {arrays[causality][1]} order. */",
+                  f"#define {macro} {{{names}}}"]
     return "\n".join(lines)
 
 
@@ -132,6 +140,21 @@ def c_setting_ranges() -> str:
     return "\n".join(lines)
 
 
+def sensor_setting_ranges() -> str:
+    """SENSOR_SETTING_RANGES: {min, max, whole number, message} of every sensor parameter (SensorSetting order)."""
+    params = _of("parameter", SENSOR_VARIABLES)
+    lines = ["/** Declared range of every parameter, in SensorSetting order (SensorSettingRange). */",
+             "#define SENSOR_SETTING_RANGES { \\"]
+    for k, v in enumerate(params):
+        r = v.range
+        unit = f" {r.unit}" if r.unit else ""
+        lines.append(f'    {{{float(r.min)!r}, {float(r.max)!r}, {int(r.type != "Real")}, '
+                     f'"{v.name} must be {"finite and " if r.type == "Real" else ""}within [{r.min:.10g}, {r.max:.10g}]{unit}"}}'
+                     f"{',' if k + 1 < len(params) else ''} \\")
+    lines.append("}")
+    return "\n".join(lines)
+
+
 def markdown_table() -> str:
     """The variable table as Markdown (README.md)."""
     lines = ["| variable | causality | unit | description |", "|---|---|---|---|"]
@@ -169,6 +192,11 @@ REGIONS: dict[str, dict[str, Callable[[], str]]] = {
                             "settings": lambda: c_array_enum("parameter"), "setting-ranges": c_setting_ranges,
                             "coefficient-blocks": c_coefficient_blocks},
     "sources/config.h": {"value-references": c_value_references, "coefficient-parameters": c_coefficient_vrs},
+    "sources/sensor/config.h": {
+        "arrays": lambda: "\n\n".join(c_array_enum(c, SENSOR_VARIABLES, SENSOR_ARRAYS) for c in ("input", "output", "parameter")),
+        "value-references": lambda: c_value_references(SENSOR_VARIABLES, SENSOR_ARRAYS, "SENSOR_VR_SLOTS",
+                                                       ("SENSOR_INPUT_VRS", "SENSOR_OUTPUT_VRS")),
+        "setting-ranges": sensor_setting_ranges},
     "README.md": {"variables": markdown_table},
     "docs/fmu.md": {"parameter-ranges": ranges_markdown, "coefficient-parameters": coefficient_parameters_markdown},
 }

@@ -4,7 +4,7 @@ from __future__ import annotations
 import ctypes
 import shutil
 import tempfile
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
 from pathlib import Path
 
@@ -17,10 +17,12 @@ from tqdm import tqdm
 from fmu.archive import extract_archive, extracted_binary, read_description
 from fmu.fmi2_logger import callbacks_for, release
 from contract import coefficient_parameters
+from contract.sensor_variables import MODEL_NAME as SENSOR_MODEL_NAME, SENSOR_VARIABLES
 from contract.variables import by_name
 from contract.errors import ImuFusionError, one_line
 from contract.layout import INPUTS, OUTPUTS
 from contract.schema import check_setting
+from fmu.model_description import MODEL_NAME
 
 _STATUS = ("OK", "WARNING", "DISCARD", "ERROR", "FATAL", "PENDING")
 
@@ -80,17 +82,19 @@ def value_reference(fmu: FMU2Slave | FMU3Slave, name: str) -> int:
 
 class Stepper:
     """Raw per-sample FMI calls on an initialised FMU2Slave or FMU3Slave: set the inputs,
-    doStep, get the outputs (contract.layout INPUTS / OUTPUTS order, by the value references of
-    the FMU's model description)."""
+    doStep, get the outputs (the ImuFusion FMU's contract.layout INPUTS / OUTPUTS order, or the
+    names given, by the value references of the FMU's model description)."""
 
-    def __init__(self, fmu: FMU2Slave | FMU3Slave) -> None:
+    def __init__(self, fmu: FMU2Slave | FMU3Slave, inputs: Sequence[str] = INPUTS,
+                 outputs: Sequence[str] = OUTPUTS) -> None:
         self.fmu = fmu
         self.fmi3 = isinstance(fmu, FMU3Slave)
         real, vr = (fmi3Float64, fmi3ValueReference) if self.fmi3 else (fmi2Real, fmi2ValueReference)
-        self.vr_in = (vr * len(INPUTS))(*(value_reference(fmu, n) for n in INPUTS))
-        self.vr_out = (vr * len(OUTPUTS))(*(value_reference(fmu, n) for n in OUTPUTS))
-        self.values_in = (real * len(INPUTS))()
-        self.values_out = (real * len(OUTPUTS))()
+        self.n_in, self.n_out = len(inputs), len(outputs)
+        self.vr_in = (vr * self.n_in)(*(value_reference(fmu, n) for n in inputs))
+        self.vr_out = (vr * self.n_out)(*(value_reference(fmu, n) for n in outputs))
+        self.values_in = (real * self.n_in)()
+        self.values_out = (real * self.n_out)()
         self._flags = [fmi3Boolean() for _ in range(3)]
         self._last_time = fmi3Float64()
 
@@ -98,7 +102,7 @@ class Stepper:
         """Set the raw inputs: (len(INPUTS),) rad/s, m/s², µT, °C, auxiliary inputs (NaN and Inf
         are passed as they are)."""
         self.values_in[:] = [float(v) for v in values]
-        n = len(INPUTS)
+        n = self.n_in
         if self.fmi3:
             self.fmu.fmi3SetFloat64(self.fmu.component, self.vr_in, n, self.values_in, n)
         else:
@@ -118,7 +122,7 @@ class Stepper:
 
     def get_outputs(self) -> np.ndarray:
         """(len(OUTPUTS),) current outputs."""
-        n = len(OUTPUTS)
+        n = self.n_out
         if self.fmi3:
             self.fmu.fmi3GetFloat64(self.fmu.component, self.vr_out, n, self.values_out, n)
         else:
@@ -162,12 +166,14 @@ def _set_parameters(fmu: FMU2Slave | FMU3Slave, parameters: dict) -> None:
     fmi3 = isinstance(fmu, FMU3Slave)
     for name, value in parameters.items():
         try:
-            variable = by_name(name)
+            variable = by_name(name) if fmu.model_identifier == MODEL_NAME else fmu.table[name]
         except KeyError as e:
-            raise FmuError(str(e.args[0])) from e
+            raise FmuError(f"{fmu.model_identifier}: unknown parameter {e.args[0]!r}") from e
         if variable.causality != "parameter":
             raise FmuError(f"'{name}' is an {variable.causality}, not a parameter")
-        if variable.type != "Real":   # bool(0.5) or int(2.9) would pass the FMU a different value
+        if variable.type != "Real" and value != int(value):  # bool(0.5) or int(2.9) would pass the FMU a different value
+            raise FmuError(f"{name} must be a whole number, got {value!r}")
+        if fmu.model_identifier == MODEL_NAME and variable.type != "Real":
             try:
                 value = check_setting(name, value)
             except ValueError as e:
@@ -230,6 +236,8 @@ def _instantiate(fmu_path: str | Path, unzipdir: str, log: _Log, instance_name: 
     except Exception as e:  # fmpy raises bare Exception, ctypes OSError for a binary that does not load
         raise FmuError(f"{fmu_path}: cannot load the FMU's binary ({one_line(str(e))})") from None
     fmu.value_references = {v.name: v.valueReference for v in description.modelVariables}
+    fmu.model_identifier = description.coSimulation.modelIdentifier
+    fmu.table = {v.name: v for v in SENSOR_VARIABLES} if fmu.model_identifier == SENSOR_MODEL_NAME else {}
     try:
         if cls is FMU3Slave:
             fmu.instantiate(logMessage=log.log3)
@@ -343,3 +351,21 @@ def run_fmu(fmu_path: str | Path, t: np.ndarray, inputs: np.ndarray, parameters:
         if log is not None:
             log.extend(fmu.log_messages)
         return out
+
+
+def run_named(fmu_path: str | Path, t: np.ndarray, inputs: dict[str, np.ndarray], outputs: Sequence[str],
+              parameters: dict | None = None) -> np.ndarray:
+    """Run any FMU of this tree (the virtual sensor, say) over samples t [s]: inputs by name ((N,) each), set
+    before each doStep(t_k, t_{k+1} - t_k); returns (N, len(outputs)), row k after the step of sample k."""
+    names = list(inputs)
+    values = np.column_stack([np.asarray(inputs[n], dtype=float) for n in names])
+    t = np.asarray(t, dtype=float)
+    h = description_step_sizes(read_description(fmu_path), t)
+    with initialised_fmu(fmu_path, float(t[0]), parameters) as fmu:
+        stepper = Stepper(fmu, names, outputs)
+        result = np.empty((t.size, len(outputs)))
+        for k in range(t.size):
+            stepper.set_inputs(values[k])
+            stepper.do_step(t[k], h[k])
+            result[k] = stepper.get_outputs()
+        return result

@@ -48,12 +48,18 @@ _DEG = f'<DisplayUnit name="deg" factor="{180.0 / math.pi!r}"/>'
 _DEG_S = f'<DisplayUnit name="deg/s" factor="{180.0 / math.pi!r}"/>'
 
 #: Unit definitions: name -> inner XML (BaseUnit and display units). FMI 2.0 base-unit exponents
-#: are integers, so rad/s/sqrt(Hz) = rad*s^(-1/2) has no BaseUnit.
+#: are integers, so rad/s/sqrt(Hz) = rad*s^(-1/2) and the other noise units have no BaseUnit. A
+#: model description declares those its variables use (`_shared_sections`).
 UNITS = {
     "1": "<BaseUnit/>",
     "rad": f'<BaseUnit rad="1"/>{_DEG}',
     "rad/s": f'<BaseUnit rad="1" s="-1"/>{_DEG_S}',
     "rad/s/sqrt(Hz)": "",
+    "rad/s/sqrt(s)": "",
+    "m/s2/sqrt(Hz)": "",
+    "m/s2/sqrt(s)": "",
+    "uT/sqrt(Hz)": "",
+    "uT/sqrt(s)": "",
     "m/s2": '<BaseUnit m="1" s="-2"/>',
     "uT": '<BaseUnit kg="1" A="-1" s="-2" factor="1e-06"/>',
     "degC": '<BaseUnit K="1" offset="273.15"/>',
@@ -180,10 +186,12 @@ def _settings_values(settings: dict) -> dict:
     return values
 
 
-def _shared_sections(values: dict, experiment: dict) -> str:
-    """UnitDefinitions, LogCategories and DefaultExperiment (the same in FMI 2 and FMI 3)."""
+def _shared_sections(table: tuple[Variable, ...], experiment: dict) -> str:
+    """UnitDefinitions (those of `table`'s Reals, "1" and "s"), LogCategories and DefaultExperiment (the same in FMI 2
+    and FMI 3)."""
+    used = {"1", "s"} | {v.unit for v in table if v.type == "Real" and v.unit}  # "s": FMI 3 time
     units = "\n".join(f"    <Unit name={quoteattr(name)}>{inner}</Unit>" if inner else f"    <Unit name={quoteattr(name)}/>"
-                      for name, inner in UNITS.items())
+                      for name, inner in UNITS.items() if name in used)
     categories = "\n".join(f"    <Category name={quoteattr(n)} description={quoteattr(d)}/>" for n, d in LOG_CATEGORIES)
     experiment = " ".join(f'{k}="{v!r}"' for k, v in experiment.items())
     return f"""  <UnitDefinitions>
@@ -205,19 +213,20 @@ def _generation_attributes(built: str | None) -> str:
 
 
 def _fmi3_xml(values: dict, guid: str, description: str, table: tuple[Variable, ...], built: str | None,
-              coefficients, experiment: dict) -> str:
-    """Text of an FMI 3.0 modelDescription.xml (sources are listed in buildDescription.xml)."""
-    variables = "\n".join([_TIME_XML] + [_variable_xml3(v, values) for v in table] + _coefficient_xml(coefficients, 3))
+              extra: list[str], experiment: dict, model_name: str) -> str:
+    """Text of an FMI 3.0 modelDescription.xml (sources are listed in buildDescription.xml); `extra`: variable
+    elements after the table's (the coefficient parameters)."""
+    variables = "\n".join([_TIME_XML] + [_variable_xml3(v, values) for v in table] + extra)
     return f"""<?xml version="1.0" encoding="UTF-8"?>
 <fmiModelDescription
   fmiVersion="3.0"
-  modelName="{MODEL_NAME}"
+  modelName="{model_name}"
   instantiationToken={quoteattr(guid)}
   description={quoteattr(description)}
 {_generation_attributes(built)}
   variableNamingConvention="flat">
   <CoSimulation
-    modelIdentifier="{MODEL_NAME}"
+    modelIdentifier="{model_name}"
     canHandleVariableCommunicationStepSize="true"
     maxOutputDerivativeOrder="0"
     canGetAndSetFMUState="true"
@@ -225,7 +234,7 @@ def _fmi3_xml(values: dict, guid: str, description: str, table: tuple[Variable, 
     providesDirectionalDerivatives="false"
     providesAdjointDerivatives="false"
     hasEventMode="false"/>
-{_shared_sections(values, experiment)}
+{_shared_sections(table, experiment)}
   <ModelVariables>
 {variables}
   </ModelVariables>
@@ -254,24 +263,35 @@ def model_description_xml(settings: dict, guid: str, description: str,
     values = _settings_values(settings)
     table = variable_table(aux_inputs)
     coefficients = identity_coefficients() if coefficients is None else coefficients
-    experiment = default_experiment(training_data)
-    if check_fmi_version(fmi_version) == 3:
-        return _fmi3_xml(values, guid, description, table, built, coefficients, experiment)
     if source_files is None:
         source_files = [p.name for p in fmu_source_files(fmi_version=2) if p.suffix == ".c"]
+    return description_xml(MODEL_NAME, table, values, guid, description, source_files, fmi_version, built,
+                           _coefficient_xml(coefficients, check_fmi_version(fmi_version)),
+                           default_experiment(training_data))
+
+
+def description_xml(model_name: str, table: tuple[Variable, ...], values: dict, guid: str, description: str,
+                    source_files: list[str], fmi_version: int, built: str | None, extra: list[str],
+                    experiment: dict) -> str:
+    """Text of the modelDescription.xml of any FMU of this source tree: `model_name` (also the model identifier),
+    its variable `table` with the parameters' start `values` by name, `extra` variable elements after them,
+    the .c `source_files` (FMI 2 lists them; FMI 3 in buildDescription.xml). Used by `model_description_xml`
+    (ImuFusion) and fmu.sensor_fmu (the virtual sensor)."""
+    if check_fmi_version(fmi_version) == 3:
+        return _fmi3_xml(values, guid, description, table, built, extra, experiment, model_name)
     files = "\n".join(f"      <File name={quoteattr(name)}/>" for name in source_files)
-    variables = "\n".join([_variable_xml(v, values) for v in table] + _coefficient_xml(coefficients, 2))
+    variables = "\n".join([_variable_xml(v, values) for v in table] + extra)
     return f"""<?xml version="1.0" encoding="UTF-8"?>
 <fmiModelDescription
   fmiVersion="2.0"
-  modelName="{MODEL_NAME}"
+  modelName="{model_name}"
   guid={quoteattr(guid)}
   description={quoteattr(description)}
 {_generation_attributes(built)}
   variableNamingConvention="flat"
   numberOfEventIndicators="0">
   <CoSimulation
-    modelIdentifier="{MODEL_NAME}"
+    modelIdentifier="{model_name}"
     canHandleVariableCommunicationStepSize="true"
     canInterpolateInputs="false"
     maxOutputDerivativeOrder="0"
@@ -282,10 +302,10 @@ def model_description_xml(settings: dict, guid: str, description: str,
 {files}
     </SourceFiles>
   </CoSimulation>
-{_shared_sections(values, experiment)}
+{_shared_sections(table, experiment)}
   <ModelVariables>
 {variables}
   </ModelVariables>
-{_model_structure_xml(2, table)}
+{_model_structure_xml(fmi_version, table)}
 </fmiModelDescription>
 """

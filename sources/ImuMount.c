@@ -64,6 +64,15 @@ void ImuMountVector(const ImuMount *m, double v[3])
     }
 }
 
+void ImuMountVectorInverse(const ImuMount *m, double v[3])
+{
+    const double body[3] = {v[0], v[1], v[2]};
+    int i;
+    for (i = 0; i < 3; i++) {
+        v[m->axis[i]] = m->sign[i] * body[i];
+    }
+}
+
 void ImuMountDiagonal(const ImuMount *m, double d[3])
 {
     const double sensor[3] = {d[0], d[1], d[2]};

@@ -32,6 +32,8 @@ IMU_HIDDEN void ImuMountIdentity(ImuMount *m);
 IMU_HIDDEN int ImuMountValid(const ImuMount *m);
 /** @brief Turn the sensor-axes vector v[3] (any unit) into body axes, in place. */
 IMU_HIDDEN void ImuMountVector(const ImuMount *m, double v[3]);
+/** @brief Turn the body-axes vector v[3] (any unit) back into sensor axes, in place (the inverse of ImuMountVector). */
+IMU_HIDDEN void ImuMountVectorInverse(const ImuMount *m, double v[3]);
 /** @brief Permute the diagonal d[3] of a sensor-axes matrix into body axes, in place (no signs:
  *         the diagonal of M D M^T for a signed permutation M). */
 IMU_HIDDEN void ImuMountDiagonal(const ImuMount *m, double d[3]);

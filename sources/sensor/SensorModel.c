@@ -1,0 +1,334 @@
+/**
+ * @file SensorModel.c
+ * @brief The virtual-sensor FMU's model (model.h hooks): value references, initialisation from the trained
+ *        chain compiled in (ImuCoefficientsData.h) and the noise parameters, the step, the checks of a
+ *        restored state. The state machine, logging and serialisation are ModelCore.c's.
+ */
+#include "model.h"
+
+#include <math.h>
+#include <string.h>
+
+#include "ImuCoefficientsData.h"
+#include "ImuMath.h"
+#include "ImuQuaternion.h"
+
+/** Where a value reference lives in ModelData: its array and index there (config.h SENSOR_VR_SLOTS). */
+typedef struct {
+    char causality; /* 'i' inputs[], 'o' outputs[], 's' settings[] */
+    int index;
+} VariableSlot;
+
+static const VariableSlot variableSlots[VR_COUNT] = SENSOR_VR_SLOTS;
+static const SensorSettingRange settingRanges[SENSOR_SETTING_COUNT] = SENSOR_SETTING_RANGES;
+
+/* The noise parameters run triad by triad, figure by figure, axis by axis; then LSB and full scale per triad. */
+typedef char SensorCheckNoiseLayout[SensorSetMagRandomWalkZ == SensorSetGyrNoiseDensityX + 26
+                                    && SensorSetMagFullScale == SensorSetGyrLsb + 5 ? 1 : -1];
+
+const char *ModelGuid(void) {
+    return IMU_MODEL_GUID;
+}
+
+void ModelDataStart(ModelData *m) {
+    int i;
+    memset(m, 0, sizeof *m);
+    for (i = 0; i < SENSOR_SETTING_COUNT; i++) {
+        m->settings[i] = 0.0;
+    }
+    m->inputs[SensorInTrueAccelZ] = -9.80665; /* at rest and level */
+    m->inputs[SensorInTrueQW] = 1.0;
+    m->inputs[SensorInTrueFieldX] = 20.0;
+    m->inputs[SensorInTrueFieldZ] = 40.0;
+    m->inputs[SensorInTrueTemp] = 25.0;
+    m->settings[SensorSetNoise] = 1.0;
+    m->settings[SensorSetFieldFromAttitude] = 1.0;
+    m->settings[SensorSetFieldNorm] = 50.0;
+    m->settings[SensorSetFieldDip] = 1.0471975511965976; /* 60 deg */
+}
+
+/** @brief Kind of variable vr: 'R' Real, 'B' Boolean, 'I' Integer, 0 unknown. */
+static char variableType(unsigned int vr) {
+    if (vr >= VR_COUNT) {
+        return 0;
+    }
+    if (VR_IS_BOOLEAN(vr)) {
+        return 'B';
+    }
+    return VR_IS_INTEGER(vr) ? 'I' : 'R';
+}
+
+/** @brief Log "function: problem (value reference vr)" and return ModelError. */
+static ModelStatus badReference(const ModelInstance *mi, const char *function, unsigned int vr, const char *type) {
+    if (variableType(vr) == 0) {
+        ModelLog(mi, ModelError, LogStatusError, "%s: unknown value reference %u", function, vr);
+    } else {
+        ModelLog(mi, ModelError, LogStatusError, "%s: value reference %u is not a %s variable", function, vr, type);
+    }
+    return ModelError;
+}
+
+/** @brief Store parameter vr (any type, as double) if parameters may still change. */
+static ModelStatus setParameter(ModelInstance *mi, const char *function, unsigned int vr, double value) {
+    ModelData *m = &mi->state.model;
+    if (variableSlots[vr].causality != 's') {
+        return ModelFail(mi, function, "outputs cannot be set");
+    }
+    if (m->initialised) {
+        ModelLog(mi, ModelError, LogStatusError,
+                 "%s: parameters are fixed after initialisation (value reference %u)", function, vr);
+        return ModelError;
+    }
+    m->settings[variableSlots[vr].index] = value;
+    return ModelOk;
+}
+
+ModelStatus ModelGetReal(const ModelInstance *mi, const char *function, unsigned int vr, double *value) {
+    const ModelData *m = &mi->state.model;
+    if (vr == VR_TIME) {
+        *value = mi->state.time;
+        return ModelOk;
+    }
+    if (variableType(vr) != 'R') {
+        return badReference(mi, function, vr, "Real/Float64");
+    }
+    switch (variableSlots[vr].causality) {
+    case 'i':
+        *value = m->inputs[variableSlots[vr].index];
+        break;
+    case 'o':
+        *value = m->outputs[variableSlots[vr].index];
+        break;
+    default:
+        *value = m->settings[variableSlots[vr].index];
+    }
+    return ModelOk;
+}
+
+ModelStatus ModelSetReal(ModelInstance *mi, const char *function, unsigned int vr, double value) {
+    if (vr == VR_TIME) {
+        return ModelFail(mi, function, "time is the independent variable: it cannot be set");
+    }
+    if (variableType(vr) != 'R') {
+        return badReference(mi, function, vr, "Real/Float64");
+    }
+    if (variableSlots[vr].causality == 'i') {
+        mi->state.model.inputs[variableSlots[vr].index] = value;
+        return ModelOk;
+    }
+    return setParameter(mi, function, vr, value);
+}
+
+size_t ModelFloat64Count(unsigned int vr) {
+    return vr == VR_TIME || variableType(vr) != 0 ? 1 : 0;
+}
+
+ModelStatus ModelGetFloat64s(const ModelInstance *mi, const char *function, unsigned int vr, double *values) {
+    return ModelGetReal(mi, function, vr, values);
+}
+
+ModelStatus ModelSetFloat64s(ModelInstance *mi, const char *function, unsigned int vr, const double *values) {
+    return ModelSetReal(mi, function, vr, *values);
+}
+
+ModelStatus ModelGetBoolean(const ModelInstance *mi, const char *function, unsigned int vr, int *value) {
+    if (variableType(vr) != 'B') {
+        return badReference(mi, function, vr, "Boolean");
+    }
+    *value = mi->state.model.settings[variableSlots[vr].index] != 0.0;
+    return ModelOk;
+}
+
+ModelStatus ModelSetBoolean(ModelInstance *mi, const char *function, unsigned int vr, int value) {
+    if (variableType(vr) != 'B') {
+        return badReference(mi, function, vr, "Boolean");
+    }
+    return setParameter(mi, function, vr, value ? 1.0 : 0.0);
+}
+
+ModelStatus ModelGetInteger(const ModelInstance *mi, const char *function, unsigned int vr, int *value) {
+    if (variableType(vr) != 'I') {
+        return badReference(mi, function, vr, "Integer/Int32");
+    }
+    *value = (int)mi->state.model.settings[variableSlots[vr].index];
+    return ModelOk;
+}
+
+ModelStatus ModelSetInteger(ModelInstance *mi, const char *function, unsigned int vr, int value) {
+    if (variableType(vr) != 'I') {
+        return badReference(mi, function, vr, "Integer/Int32");
+    }
+    return setParameter(mi, function, vr, (double)value);
+}
+
+/* ---- initialisation ------------------------------------------------------------------------- */
+
+/** @brief NULL if every parameter is within its declared range, else the message of the first that is not. */
+static const char *settingsProblem(const double *settings) {
+    int i;
+    for (i = 0; i < SENSOR_SETTING_COUNT; i++) {
+        const SensorSettingRange *r = &settingRanges[i];
+        const double v = settings[i];
+        if (!(v >= r->min && v <= r->max) || (r->whole && v != floor(v))) {
+            return r->message;
+        }
+    }
+    return NULL;
+}
+
+/** @brief The noise of the parameters (SensorSetting order: figures triad by triad, then LSB and full scale). */
+static void noiseFromSettings(const double *settings, ImuSensorNoise *noise) {
+    int i, a;
+    memset(noise, 0, sizeof *noise);
+    for (i = 0; i < 3; i++) {
+        for (a = 0; a < 3; a++) {
+            noise->density[i][a] = settings[SensorSetGyrNoiseDensityX + 9 * i + a];
+            noise->instability[i][a] = settings[SensorSetGyrNoiseDensityX + 9 * i + 3 + a];
+            noise->walk[i][a] = settings[SensorSetGyrNoiseDensityX + 9 * i + 6 + a];
+        }
+        noise->lsb[i] = settings[SensorSetGyrLsb + 2 * i];
+        noise->fullScale[i] = settings[SensorSetGyrFullScale + 2 * i];
+    }
+    noise->enabled = settings[SensorSetNoise] != 0.0;
+    noise->seed = (int)settings[SensorSetSeed];
+}
+
+/** @brief The trained chain compiled in (settings and coefficients) into *settings and *c; NULL or what is wrong. */
+static const char *trainedChain(ImuPipelineSettings *settings, ImuCoefficients *c) {
+    const char *message = NULL;
+    if (ImuPipelineSettingsFromArray(settings, IMU_SETTING_DEFAULTS, IMU_SETTING_COUNT) != 0
+        || ImuPipelineSettingsCheck(settings, &message) != 0) {
+        return message != NULL ? message : "the compiled-in settings of the trained chain do not fit its layout";
+    }
+    if (ImuCoefficientsFromArray(c, IMU_COEFFICIENT_DATA, IMU_COEFFICIENT_COUNT) != 0) {
+        return "the compiled-in coefficients of the trained chain are invalid";
+    }
+    return NULL;
+}
+
+/** @brief Set up m's sensor from the compiled-in chain and m's parameters, keeping the evolving state when
+ *         `keepState` (a restored FMU state); NULL or what is wrong. */
+static const char *configure(ModelData *m, int keepState) {
+    ImuPipelineSettings settings;
+    ImuCoefficients coefficients;
+    ImuSensorNoise noise;
+    const ImuSensor kept = m->sensor; /* its evolving state, for a restored FMU state */
+    const char *problem = settingsProblem(m->settings);
+    if (problem == NULL) {
+        problem = trainedChain(&settings, &coefficients);
+    }
+    if (problem != NULL) {
+        return problem;
+    }
+    noiseFromSettings(m->settings, &noise);
+    ImuSensorInitialise(&m->sensor, &settings, &coefficients, &noise);
+    if (keepState) {
+        m->sensor.align = kept.align;
+        m->sensor.terms = kept.terms;
+        m->sensor.psobp = kept.psobp;
+        m->sensor.noiseState = kept.noiseState;
+        m->sensor.hasSample = kept.hasSample;
+        m->sensor.clock = kept.clock;
+    }
+    return NULL;
+}
+
+ModelStatus ModelExitInitialization(ModelInstance *mi, const char *function) {
+    const char *problem;
+    if (!ModelAllowed(mi, function, PhaseInitialization)) {
+        return ModelError;
+    }
+    problem = configure(&mi->state.model, 0);
+    if (problem != NULL) {
+        mi->state.phase = PhaseError;
+        ModelLog(mi, ModelError, LogStatusError, "%s: invalid parameter: %s", function, problem);
+        return ModelError;
+    }
+    mi->state.model.initialised = 1;
+    mi->state.phase = PhaseStepMode;
+    ModelLog(mi, ModelOk, LogEvents, "%s: initialised at t = %g s", function, mi->state.time);
+    return ModelOk;
+}
+
+/* ---- the step -------------------------------------------------------------------------------- */
+
+/** @brief The true body rate, specific force and field (9 values) of the inputs; 0 if one is not finite or the
+ *         attitude quaternion is zero. The field: the earth field (norm, dip, declination; true NED) turned into
+ *         body axes by the attitude, or the body field inputs. */
+static int truthOf(const ModelData *m, double truth[9]) {
+    const double *in = m->inputs, *s = m->settings;
+    int i;
+    for (i = 0; i < 6; i++) {
+        truth[i] = in[SensorInTrueRateX + i];
+    }
+    if (s[SensorSetFieldFromAttitude] != 0.0) {
+        const double dip = s[SensorSetFieldDip], declination = s[SensorSetDeclination];
+        const double ned[3] = {s[SensorSetFieldNorm] * cos(dip) * cos(declination),
+                               s[SensorSetFieldNorm] * cos(dip) * sin(declination), s[SensorSetFieldNorm] * sin(dip)};
+        double inverse[4] = {in[SensorInTrueQW], -in[SensorInTrueQX], -in[SensorInTrueQY], -in[SensorInTrueQZ]};
+        const double norm = sqrt(inverse[0] * inverse[0] + inverse[1] * inverse[1] + inverse[2] * inverse[2]
+                                 + inverse[3] * inverse[3]);
+        if (!isfinite(norm) || norm == 0.0) {
+            return 0;
+        }
+        ImuQuaternionNormalise(inverse);
+        ImuQuaternionRotate(inverse, ned, &truth[6]);
+    } else {
+        for (i = 0; i < 3; i++) {
+            truth[6 + i] = in[SensorInTrueFieldX + i];
+        }
+    }
+    return ImuAllFinite(truth, 9);
+}
+
+ModelStatus ModelDoStep(ModelInstance *mi, const char *function, double t, double h) {
+    ModelData *m = &mi->state.model;
+    double truth[9], raw[9];
+    int issues = 0, i;
+    if (!isfinite(t) || !isfinite(h) || !(h > 0.0) || !isfinite(t + h)) {
+        issues = ModelIssueStep;
+    } else if (!truthOf(m, truth)) {
+        issues = ModelIssueTruth;
+    } else {
+        ImuSensorUpdate(&m->sensor, t, h, truth, m->inputs[SensorInTrueTemp], &m->inputs[SensorInAux1], raw);
+        for (i = 0; i < 9; i++) {
+            m->outputs[SensorOutGyrX + i] = raw[i];
+        }
+        m->outputs[SensorOutTemp] = m->inputs[SensorInTrueTemp];
+        mi->state.time = t + h;
+    }
+    if ((issues & ~m->issues) != 0) {
+        ModelLog(mi, ModelWarning, LogBadInput, "%s: t = %g s: %s", function, t, issues == ModelIssueStep
+                 ? "the step size is not finite and > 0: the step is discarded"
+                 : "a true rate, specific force, attitude or field input is not finite (or the attitude quaternion is "
+                   "zero): the sample is skipped and the outputs hold");
+    } else if (issues == 0 && m->issues != 0) {
+        ModelLog(mi, ModelOk, LogBadInput, "%s: t = %g s: valid input again", function, t);
+    }
+    m->issues = issues;
+    return issues == ModelIssueStep ? ModelDiscard : (issues != 0 ? ModelWarning : ModelOk);
+}
+
+/* ---- FMU state ------------------------------------------------------------------------------- */
+
+const char *ModelDataRestoredProblem(ModelState *s) {
+    ModelData *m = &s->model;
+    const char *problem;
+    if (m->initialised != 0 && m->initialised != 1) {
+        return "initialised is not 0 or 1";
+    }
+    if ((s->phase & (PhaseStepMode | PhaseTerminated)) && !m->initialised) {
+        return "the phase is Step Mode or Terminated but the sensor is not initialised";
+    }
+    if ((m->issues & ~((1 << MODEL_ISSUE_COUNT) - 1)) != 0) {
+        return "issues has bits that are no ModelIssue";
+    }
+    if (!isfinite(s->time)) {
+        return "the time is not finite";
+    }
+    if (!m->initialised) {
+        return NULL; /* the sensor is set up from the parameters before it runs */
+    }
+    problem = configure(m, 1);
+    return problem != NULL ? problem : ImuSensorStateProblem(&m->sensor, s->time);
+}

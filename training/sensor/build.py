@@ -1,0 +1,83 @@
+"""`imufmu build-sensor-fmu`: the virtual-sensor FMU of a trained model (fmu/sensor_fmu.py): its chain compiled
+in, its noise figures (model.json's "noise" block, training/noise) as the noise parameters' start values."""
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from contract.errors import ModelError
+from contract.sensor_variables import AXES, FIGURES, TRIADS, noise_parameter_name
+from fmu.sensor_fmu import pack_sensor_fmu
+from training.artefact import coefficients_array, load_artefact, settings_dict
+
+
+@dataclass
+class SensorNoisePlan:
+    """The noise parameters a model gives (name -> value) and, loudly, what it could not give."""
+
+    parameters: dict[str, float] = field(default_factory=dict)
+    unsupported: list[str] = field(default_factory=list)   # "gyr random_walk x: <why>"
+    source: str = ""
+
+
+def noise_plan(noise: dict | None) -> SensorNoisePlan:
+    """The sensor's noise parameters from a model's "noise" block (format imufusion-noise/1): each figure the
+    data support, 0 for each they do not (listed in `unsupported` with the reason), the LSB where the data
+    show one. None (a model trained before the block existed): nothing, every figure unsupported."""
+    plan = SensorNoisePlan()
+    if not noise:
+        plan.unsupported.append("the model has no noise characterisation (train it again with this version): "
+                                "the sensor is noise-free unless the noise parameters are set")
+        return plan
+    plan.source = str(noise.get("source", ""))
+    triads = noise.get("triads", {})
+    for triad, *_ in TRIADS:
+        entry = triads.get(triad)
+        if entry is None:
+            plan.unsupported.append(f"{triad}: not in the calibration data: no noise")
+            continue
+        for a, axis in enumerate(entry.get("axes", [])[:3]):
+            for figure, _ in FIGURES:
+                item = axis.get(figure) or {}
+                value = float(item.get("value", 0.0))
+                if item.get("supported") and math.isfinite(value) and value >= 0.0:
+                    plan.parameters[noise_parameter_name(triad, figure, a)] = value
+                else:
+                    plan.unsupported.append(f"{triad} {figure} {AXES[a]}: {item.get('why') or 'not characterised'}")
+        lsb = entry.get("lsb")
+        if isinstance(lsb, (int, float)) and math.isfinite(lsb) and lsb > 0:
+            plan.parameters[f"{triad}_lsb"] = float(lsb)
+    return plan
+
+
+def field_parameters(chain: dict[str, float]) -> dict[str, float]:
+    """The earth field the model was trained in (its declination, field_norm, field_dip settings)."""
+    return {"declination": chain["declination"], "field_norm": chain["field_norm"], "field_dip": chain["field_dip"]}
+
+
+def build_sensor_fmu(model_path: str | Path, out_path: str | Path, fmi_version: int = 2,
+                     overrides: dict[str, float] | None = None) -> tuple[Path, SensorNoisePlan]:
+    """The virtual-sensor FMU of the trained model at `model_path` at `out_path` (FMI 2 or 3): its chain, the
+    field it was trained in and its noise figures as start values, `overrides` (parameter name -> value, e.g.
+    data-sheet figures) last. Returns the FMU's path and the noise plan (what was not supported)."""
+    artefact = load_artefact(model_path)
+    try:
+        noise = json.loads(Path(model_path).read_text()).get("noise")
+    except (OSError, ValueError) as e:
+        raise ModelError(f"{model_path}: cannot read the model ({e})") from e
+    chain = settings_dict(artefact)
+    plan = noise_plan(noise)
+    parameters = {**field_parameters(chain), **plan.parameters, **(overrides or {})}
+    plan.unsupported = [u for u in plan.unsupported if not _overridden(u, overrides or {})]
+    rates = [d["rate_hz"] for d in artefact.training_data if isinstance(d.get("rate_hz"), (int, float))]
+    path = pack_sensor_fmu(coefficients_array(artefact), chain, parameters, out_path, fmi_version,
+                           provenance=f"Model {Path(model_path).name}", rate_hz=max(rates) if rates else None)
+    return path, plan
+
+
+def _overridden(unsupported: str, overrides: dict[str, float]) -> bool:
+    """Whether the unsupported figure named by the line (`triad figure axis: why`) was set by the user."""
+    words = unsupported.split(":")[0].split()
+    return len(words) == 3 and noise_parameter_name(words[0], words[1], AXES.index(words[2])) in overrides
