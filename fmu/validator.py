@@ -21,6 +21,8 @@ from fmu.compiler import WIN64_PLATFORMS, binary_path, win64_binary_path
 from fmu.cosim import run_fmu
 from fmu.description_check import behaviour_problems, description_problems
 from fmu.model_description import MODEL_NAME
+from fmu.sensor_validation import sensor_behaviour_problems, sensor_description_problems, sensor_smoke_problems
+from contract.sensor_variables import MODEL_NAME as SENSOR_MODEL_NAME
 from fmu.packer import REFERENCE_INPUT, REFERENCE_OUTPUT, read_reference_csv
 from fmu.pe import MACHINE_AMD64, PeImage, read_pe
 from fmu.references import embedded_problems
@@ -85,17 +87,22 @@ def fmi_version_of(path: str | Path) -> int:
     return int(fmpy.read_model_description(str(path), validate=False).fmiVersion[0])
 
 
-def binary_member(fmi_version: int = 2) -> str:
+def model_identifier_of(path: str | Path) -> str:
+    """The co-simulation model identifier of the FMU at path (ImuFusion, or ImuSensor for the virtual sensor)."""
+    return fmpy.read_model_description(str(path), validate=False).coSimulation.modelIdentifier
+
+
+def binary_member(fmi_version: int = 2, model_name: str = MODEL_NAME) -> str:
     """Path of this platform's binary inside an FMI `fmi_version` FMU archive."""
-    return binary_path(Path(), MODEL_NAME, fmi_version).as_posix()
+    return binary_path(Path(), model_name, fmi_version).as_posix()
 
 
-def binary_members(fmi_version: int = 2) -> dict[str, str]:
+def binary_members(fmi_version: int = 2, model_name: str = MODEL_NAME) -> dict[str, str]:
     """Path inside an FMI `fmi_version` FMU archive of each binary the packer builds, by platform
     folder name: this platform's (linux64 / x86_64-linux) and the Windows one (win64 /
     x86_64-windows)."""
-    here = binary_path(Path(), MODEL_NAME, fmi_version)
-    windows = win64_binary_path(Path(), MODEL_NAME, fmi_version)
+    here = binary_path(Path(), model_name, fmi_version)
+    windows = win64_binary_path(Path(), model_name, fmi_version)
     return {here.parent.name: here.as_posix(), windows.parent.name: windows.as_posix()}
 
 
@@ -105,11 +112,11 @@ def _library(path: Path, platform: str | None, tmp: str) -> Path:
     the FMU lacks it."""
     if not zipfile.is_zipfile(path):
         return path
-    version = fmi_version_of(path)
-    members = binary_members(version)
+    version, name = fmi_version_of(path), model_identifier_of(path)
+    members = binary_members(version, name)
     if platform is not None and platform not in members:
         raise ImuFusionError(f"no binary check for platform {platform!r} (known: {', '.join(members)})")
-    member = binary_member(version) if platform is None else members[platform]
+    member = binary_member(version, name) if platform is None else members[platform]
     with zipfile.ZipFile(path) as zf:
         if member not in zf.namelist():
             raise ImuFusionError(f"{path}: no binary {member} in the FMU")
@@ -203,7 +210,7 @@ def _symbol_problems(path: Path, fmi_version: int) -> list[str]:
     problems = []
     with tempfile.TemporaryDirectory(prefix="imufusion-binaries-") as tmp, zipfile.ZipFile(path) as zf:
         present = set(zf.namelist())
-        for member in binary_members(fmi_version).values():
+        for member in binary_members(fmi_version, model_identifier_of(path)).values():
             if member in present:
                 problems += [f"{member}: {p}" for p in _library_problems(Path(zf.extract(member, tmp)), fmi_version)]
     return problems
@@ -264,9 +271,24 @@ VALIDATION_CHECKS = ("archive", "fmpy model description", "description matches s
                      "fmutool -check", "smoke co-simulation", "description matches binary", "reference result")
 
 
+def _sensor_checks(path: Path, counted) -> list[str]:
+    """The checks of the virtual-sensor FMU after fmpy's validation (fmu.sensor_validation: its description
+    against its variable table and sources, then as for ImuFusion: binaries, fmutool, a smoke co-simulation
+    and the start values the binary holds)."""
+    problems = counted("description matches sources", sensor_description_problems(path))
+    problems += counted("binaries", _symbol_problems(path, fmi_version_of(path)))
+    problems += counted("fmutool -check", fmutool_problems(path))
+    if not problems:
+        problems += counted("smoke co-simulation", sensor_smoke_problems(path))
+    if not problems:
+        problems += counted("description matches binary", sensor_behaviour_problems(path))
+    return problems
+
+
 def validate_fmu(path: str | Path, checks: list[tuple[str, int]] | None = None) -> list[str]:
     """Every problem found in the FMU (FMI 2 or 3) at path (empty list = valid); `checks`, when
-    given, receives (name in VALIDATION_CHECKS, number of problems) for every check that ran.
+    given, receives (name in VALIDATION_CHECKS, number of problems) for every check that ran. A virtual-sensor
+    FMU (model identifier ImuSensor) gets the checks that apply to it (`_sensor_checks`).
 
     First the archive itself (fmu.archive: a zip within the size caps, safe member names, a
     well-formed modelDescription.xml, this platform's binary present); then fmpy's model-description
@@ -294,6 +316,8 @@ def validate_fmu(path: str | Path, checks: list[tuple[str, int]] | None = None) 
     problems = counted("fmpy model description", [one_line(p) for p in fmpy_validate_fmu(str(path))])
     if problems:
         return problems
+    if model_identifier_of(path) == SENSOR_MODEL_NAME:
+        return problems + _sensor_checks(path, counted)
     problems += counted("description matches sources", description_problems(path))
     problems += counted("parameter sets", embedded_problems(path, read_description(path)))
     problems += counted("binaries", _symbol_problems(path, fmi_version_of(path)))

@@ -10,6 +10,7 @@
 #include <string.h>
 
 #include "ImuCoefficientsData.h"
+#include "ImuSensorData.h"
 #include "ImuMath.h"
 #include "ImuQuaternion.h"
 
@@ -21,6 +22,8 @@ typedef struct {
 
 static const VariableSlot variableSlots[VR_COUNT] = SENSOR_VR_SLOTS;
 static const SensorSettingRange settingRanges[SENSOR_SETTING_COUNT] = SENSOR_SETTING_RANGES;
+/** The parameters' start values of this build (fmu/sensor_fmu.py writes ImuSensorData.h). */
+static const double settingDefaults[SENSOR_SETTING_COUNT] = IMU_SENSOR_SETTING_DEFAULTS;
 
 /* The noise parameters run triad by triad, figure by figure, axis by axis; then LSB and full scale per triad. */
 typedef char SensorCheckNoiseLayout[SensorSetMagRandomWalkZ == SensorSetGyrNoiseDensityX + 26
@@ -31,20 +34,13 @@ const char *ModelGuid(void) {
 }
 
 void ModelDataStart(ModelData *m) {
-    int i;
     memset(m, 0, sizeof *m);
-    for (i = 0; i < SENSOR_SETTING_COUNT; i++) {
-        m->settings[i] = 0.0;
-    }
+    memcpy(m->settings, settingDefaults, sizeof m->settings);
     m->inputs[SensorInTrueAccelZ] = -9.80665; /* at rest and level */
     m->inputs[SensorInTrueQW] = 1.0;
     m->inputs[SensorInTrueFieldX] = 20.0;
     m->inputs[SensorInTrueFieldZ] = 40.0;
     m->inputs[SensorInTrueTemp] = 25.0;
-    m->settings[SensorSetNoise] = 1.0;
-    m->settings[SensorSetFieldFromAttitude] = 1.0;
-    m->settings[SensorSetFieldNorm] = 50.0;
-    m->settings[SensorSetFieldDip] = 1.0471975511965976; /* 60 deg */
 }
 
 /** @brief Kind of variable vr: 'R' Real, 'B' Boolean, 'I' Integer, 0 unknown. */
