@@ -16,6 +16,14 @@ the FMU before initialisation; the run's `unit` column is the drawn unit's index
 The runs are split into partitions, one Dask task each; a task instantiates the FMU once and
 resets it between its runs (fmu.cosim.fmu_runner). Each run's errors against the recording's truth
 are training.evaluate's (rate, field, roll, pitch, yaw, tilt, heading).
+
+`--sensor ImuSensor.fmu` closes the loop (issue 34, training.sensor.closed_loop): each run drives the virtual
+sensor with the recording's truth and the ImuFusion FMU with the sensor's outputs (fmpy, the exchange Ecos makes;
+the outputs aligned by its one-step delay). The sensor's noise `seed` is the run's own draw from its stream
+(after the variations) unless `--vary seed=choice(...)` names it; any other sensor parameter (noise,
+gyr_noise_density_x, …) may be varied too. A name both FMUs have (field_norm, field_dip, declination) varies the
+ImuFusion FMU's. Input noise (noise_*) and the unit are not varied in a closed loop: the sensor makes the noise,
+and it models the one unit whose model it was built from.
 """
 from __future__ import annotations
 
@@ -40,6 +48,9 @@ from training.data.io import read_imu_csv
 from training.evaluate import compute_metrics
 from training.main_job import recording_parameters
 from training.mounting import body_references
+
+#: The sensor parameter a closed-loop run draws itself when no variation names it (--sensor).
+SENSOR_SEED = "seed"
 
 #: Input perturbations a variation may name, with the INPUTS columns they add noise to.
 NOISE_INPUTS = {f"noise_{triad}": [INPUTS.index(f"{triad}_{axis}") for axis in "xyz"] for triad in ("gyr", "acc", "mag")}
@@ -104,8 +115,9 @@ def _unit_variation(folder: str, text: str) -> Variation:
     return Variation(UNIT, "choice", tuple(float(k) for k in range(len(units))), units)
 
 
-def parse_variation(text: str) -> Variation:
-    """A Variation from NAME=DIST or unit=FLEET_DIR; CampaignError naming the problem."""
+def parse_variation(text: str, sensor: bool = False) -> Variation:
+    """A Variation from NAME=DIST or unit=FLEET_DIR; CampaignError naming the problem. `sensor`: the campaign
+    closes the loop through a virtual-sensor FMU, whose parameters may be varied too."""
     name, sep, folder = text.partition("=")
     if sep and name.strip() == UNIT:
         return _unit_variation(folder.strip(), text)
@@ -127,7 +139,7 @@ def parse_variation(text: str) -> Variation:
         raise CampaignError(f"--vary {text!r}: need SIGMA ≥ 0 / LOW ≤ HIGH")
     if distribution == "uniform" and not math.isfinite(args[1] - args[0]):
         raise CampaignError(f"--vary {text!r}: HIGH − LOW must be a finite number (it overflows)")
-    _check_name(name, text)
+    _check_name(name, text, sensor)
     _check_support(name, distribution, args, text)
     return Variation(name, distribution, args)
 
@@ -136,7 +148,8 @@ def _support(name: str) -> SettingRange | None:
     """The values a variation of `name` may draw: a parameter's declared range, a noise σ's [0, NOISE_MAX]."""
     if name in NOISE_INPUTS:
         return SettingRange(REAL, 0.0, NOISE_MAX[name])
-    return by_name(name).range
+    sensor = _sensor_parameter(name)
+    return sensor.range if sensor is not None and not _fusion_parameter(name) else by_name(name).range
 
 
 def _check_support(name: str, distribution: str, args: tuple[float, ...], text: str) -> None:
@@ -161,24 +174,43 @@ def _check_support(name: str, distribution: str, args: tuple[float, ...], text: 
                             f"{distribution}({', '.join(f'{a:g}' for a in args)}) draws outside it")
 
 
-def _check_name(name: str, text: str) -> None:
-    """CampaignError unless name is an input perturbation or an FMU parameter."""
-    if name in NOISE_INPUTS:
+def _fusion_parameter(name: str) -> bool:
+    """Whether `name` is a parameter of the ImuFusion FMU."""
+    try:
+        return by_name(name).causality == "parameter"
+    except KeyError:
+        return False
+
+
+def _sensor_parameter(name: str):
+    """The virtual-sensor FMU's parameter `name` (contract.sensor_variables), None when it has none."""
+    from contract.sensor_variables import sensor_parameters
+    return next((v for v in sensor_parameters() if v.name == name), None)
+
+
+def _check_name(name: str, text: str, sensor: bool = False) -> None:
+    """CampaignError unless name is an input perturbation or an FMU parameter (`sensor`: of either FMU)."""
+    if name in NOISE_INPUTS or sensor and _sensor_parameter(name) is not None:
         return
     try:
         variable = by_name(name)
     except KeyError:
+        also = "" if sensor else " (a virtual-sensor parameter needs --sensor)" if _sensor_parameter(name) else ""
         raise CampaignError(f"--vary {text!r}: '{name}' is neither an FMU parameter nor one of "
-                            f"{', '.join(NOISE_INPUTS)}") from None
+                            f"{', '.join(NOISE_INPUTS)}{also}") from None
     if variable.causality != "parameter":
         raise CampaignError(f"--vary {text!r}: '{name}' is an {variable.causality}, not a parameter")
 
 
-def run_draws(variations: tuple[Variation, ...], seed: int, run: int,
-              samples: int) -> tuple[dict[str, float], dict[str, float], np.ndarray]:
-    """(FMU parameters, input-noise σ by name, additive input noise (samples, len(INPUTS))) of one run."""
+def run_draws(variations: tuple[Variation, ...], seed: int, run: int, samples: int,
+              sensor: bool = False) -> tuple[dict[str, float], dict[str, float], np.ndarray]:
+    """(FMU parameters, input-noise σ by name, additive input noise (samples, len(INPUTS))) of one run. `sensor`
+    (a closed loop): the sensor's noise seed is drawn after the variations when none of them names it."""
+    from contract.ranges import INT32_MAX
     rng = np.random.default_rng(np.random.SeedSequence(seed, spawn_key=(run,)))
     values = {v.name: v.draw(rng) for v in variations}
+    if sensor and SENSOR_SEED not in values:
+        values[SENSOR_SEED] = float(rng.integers(0, INT32_MAX, endpoint=True))
     parameters = {k: v for k, v in values.items() if k not in NOISE_INPUTS}
     noise_sigma = {k: abs(v) for k, v in values.items() if k in NOISE_INPUTS}
     noise = np.zeros((samples, len(INPUTS)))
@@ -223,11 +255,44 @@ def _unit_of(variations: tuple[Variation, ...], parameters: dict[str, float]) ->
     return coefficients, settings
 
 
+@functools.lru_cache(maxsize=2)
+def _trajectory(data_path: str, fmu_path: str):
+    """The closed loop's trajectory source of the recording (built once per worker process)."""
+    from training.sensor.closed_loop import trajectory
+    return trajectory(_recording(data_path), fmu_path)
+
+
+def run_closed_loop_partition(runs: Iterable[int], fmu_path: str, data_path: str, variations: tuple[Variation, ...],
+                              seed: int, sensor_path: str) -> list[dict]:
+    """Each of `runs` as a closed loop (training.sensor.closed_loop.run_fmpy): the recording's truth through the
+    sensor FMU at sensor_path with the run's seed and sensor draws, then the FMU with the recording's parameters
+    and its draws; one dict per run as run_partition's, the sensor's seed among the drawn values."""
+    from training.sensor.closed_loop import aligned, run_fmpy, sensor_parameters
+    traj = _trajectory(data_path, fmu_path)
+    out = []
+    for r in runs:
+        parameters, _, _ = run_draws(variations, seed, r, 0, sensor=True)
+        metrics, failed = dict.fromkeys(CAMPAIGN_METRICS, float("nan")), ""
+        try:
+            fusion = {k: v for k, v in parameters.items() if _fusion_parameter(k)}
+            sensor = sensor_parameters(int(parameters[SENSOR_SEED]), traj.sensor_parameters,
+                                       {k: v for k, v in parameters.items() if k not in fusion})
+            stepped = run_fmpy(sensor_path, fmu_path, traj, sensor, {**traj.fusion_parameters, **fusion})
+            metrics = compute_metrics(aligned(stepped), traj.body).as_dict()
+        except Exception as e:  # noqa: BLE001 - a run that fails is reported with its reason, the others go on
+            failed = one_line(f"{type(e).__name__}: {e}")
+        out.append({"run": r, **parameters, **{m: metrics[m] for m in CAMPAIGN_METRICS}, "failed": failed})
+    return out
+
+
 def run_partition(runs: Iterable[int], fmu_path: str, data_path: str, variations: tuple[Variation, ...],
-                  seed: int) -> list[dict]:
+                  seed: int, sensor_path: str | None = None) -> list[dict]:
     """Co-simulate `runs` with one FMU instance (reset between runs); one dict per run: run, the
     drawn values and CAMPAIGN_METRICS. A unit variation sets the drawn unit's coefficients and settings
-    first; the recording's parameters and the other variations apply over its settings."""
+    first; the recording's parameters and the other variations apply over its settings. `sensor_path`: each run
+    is a closed loop through that virtual-sensor FMU (run_closed_loop_partition)."""
+    if sensor_path is not None:
+        return run_closed_loop_partition(runs, fmu_path, data_path, variations, seed, sensor_path)
     from fmu.cosim import fmu_runner
     from fmu.packer import fmu_aux_columns
     data = _recording(data_path)
@@ -260,10 +325,10 @@ def partitions(runs: int, workers: int) -> list[range]:
     return [range(a, b) for a, b in zip(bounds, bounds[1:]) if b > a]
 
 
-def result_bytes(runs: int, variations: tuple[Variation, ...]) -> int:
+def result_bytes(runs: int, variations: tuple[Variation, ...], sensor: bool = False) -> int:
     """Memory [bytes] the campaign's result table takes: ROW_VALUE_BYTES per value of a row (the run,
-    each variation's value and, for noise, its sigma, CAMPAIGN_METRICS)."""
-    return runs * ROW_VALUE_BYTES * (1 + 2 * len(variations) + len(CAMPAIGN_METRICS))
+    each variation's value and, for noise, its sigma, CAMPAIGN_METRICS; `sensor`: a closed loop's drawn seed)."""
+    return runs * ROW_VALUE_BYTES * (1 + int(sensor) + 2 * len(variations) + len(CAMPAIGN_METRICS))
 
 
 def available_memory() -> int | None:
@@ -274,33 +339,56 @@ def available_memory() -> int | None:
         return None
 
 
-def check_size(runs: int, variations: tuple[Variation, ...], free: int | None) -> None:
+def check_size(runs: int, variations: tuple[Variation, ...], free: int | None, sensor: bool = False) -> None:
     """CampaignError with the estimate when the result table would take more than half of `free`
     [bytes] (issue 31: --runs 1000000000 had built every run index first, 4.3 GB in 12 s)."""
-    need = result_bytes(runs, variations)
+    need = result_bytes(runs, variations, sensor)
     if free is not None and need > free // 2:
         raise CampaignError(f"--runs {runs}: the results would take about {need / 1e9:.3g} GB of memory "
                             f"({ROW_VALUE_BYTES} bytes per value, {need // runs} per run), more than half of the "
                             f"{free / 1e9:.3g} GB free; run the campaign in parts with fewer runs and other --seed values")
 
 
+def check_closed_loop(sensor_path: str, data: ImuData, variations: tuple[Variation, ...]) -> None:
+    """CampaignError (one line) unless the closed loop can run: an ImuSensor FMU, a recording with the truth it
+    takes, no variation it cannot make (input noise, the unit)."""
+    from training.sensor.closed_loop import check_sensor_fmu, missing_truth
+    try:
+        check_sensor_fmu(sensor_path)
+    except ImuFusionError as e:
+        raise CampaignError(f"--sensor: {e}") from None
+    missing = missing_truth(data)
+    if missing:
+        raise CampaignError(f"{data.name}: --sensor drives the virtual sensor with the recording's truth, and it lacks "
+                            f"{', '.join(missing)}")
+    for v in variations:
+        if v.name in NOISE_INPUTS or v.name == UNIT:
+            what = ("the virtual sensor makes the noise: vary its figures (gyr_noise_density_x, ...) or its seed"
+                    if v.name in NOISE_INPUTS else "the virtual sensor models the one unit whose model it was built from")
+            raise CampaignError(f"--vary {v.text()!r} with --sensor: {what}")
+
+
 def campaign_runs(fmu_path: str | Path, data_path: str | Path, runs: int, variations: tuple[Variation, ...],
                   seed: int = 0, workers: int | None = None, scheduler: str | None = None,
-                  progress: bool = True) -> list[dict]:
-    """Every run's result (run_partition), sorted by run, computed on Dask (training.fleet.engine)."""
+                  progress: bool = True, sensor_path: str | Path | None = None) -> list[dict]:
+    """Every run's result (run_partition), sorted by run, computed on Dask (training.fleet.engine). `sensor_path`:
+    every run a closed loop through that virtual-sensor FMU."""
     from training.fleet.engine import dask_client, default_workers, run_tasks
     if runs < 1:
         raise CampaignError(f"--runs must be ≥ 1, got {runs}")
-    check_size(runs, variations, available_memory())
+    check_size(runs, variations, available_memory(), sensor_path is not None)
     fmu_path, data_path = str(Path(fmu_path).resolve()), str(Path(data_path).resolve())
     data = _recording(data_path)  # a bad recording fails here, once, with its one-line error
     if all(getattr(data, f"ref_{kind}") is None for kind in ("q", "gyr", "acc", "mag")):
         raise CampaignError(f"{data_path}: no reference (ref_q or ref_gyr/ref_acc/ref_mag columns): the campaign "
                             "measures each run's errors against it")
+    if sensor_path is not None:
+        sensor_path = str(Path(sensor_path).resolve())
+        check_closed_loop(sensor_path, data, variations)
     results = []
     with dask_client(workers, scheduler) as client:
         parts = partitions(runs, workers or len(client.scheduler_info().get("workers", {})) or default_workers())
         for _, rows in run_tasks(client, run_partition, parts, "partitions", progress, "partition", fmu_path=fmu_path,
-                                 data_path=data_path, variations=variations, seed=seed):
+                                 data_path=data_path, variations=variations, seed=seed, sensor_path=sensor_path):
             results.extend(rows)
     return sorted(results, key=lambda row: row["run"])

@@ -66,13 +66,15 @@ def _histograms(runs: list[dict], rows: list[dict], path: Path) -> Path:
 
 
 def write_campaign_report(runs: list[dict], variations: tuple[Variation, ...], fmu_path, data_path, seed: int,
-                          out_dir: str | Path) -> Path:
-    """Write the campaign's files into out_dir; returns the path of campaign.md."""
+                          out_dir: str | Path, sensor_path=None) -> Path:
+    """Write the campaign's files into out_dir; returns the path of campaign.md. `sensor_path`: the virtual-sensor
+    FMU of a closed-loop campaign (campaign --sensor)."""
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     rows = percentile_rows(runs)
     (out_dir / OUTPUT_FILES[0]).write_text(json.dumps(
-        {"fmu": str(fmu_path), "data": str(data_path), "seed": seed, "runs": len(runs),
+        {"fmu": str(fmu_path), "data": str(data_path), "sensor": None if sensor_path is None else str(sensor_path),
+         "seed": seed, "runs": len(runs),
          "variations": [v.text() for v in variations], "percentiles": rows, "results": runs}, indent=1) + "\n")
     with open(out_dir / OUTPUT_FILES[1], "w", newline="") as f:
         writer = csv.DictWriter(f, fieldnames=list(runs[0]))
@@ -81,6 +83,10 @@ def write_campaign_report(runs: list[dict], variations: tuple[Variation, ...], f
     plot = _histograms(runs, rows, out_dir / OUTPUT_FILES[2])
     lines = [f"# Campaign: {len(runs)} runs of {Path(fmu_path).name} on {Path(data_path).name}", "",
              f"Seed {seed}; variations: " + (", ".join(f"`{v.text()}`" for v in variations) or "none") + ".", "",
+             *([] if sensor_path is None else [
+                 f"Closed loop: the recording's truth through the virtual sensor {Path(sensor_path).name}, its outputs "
+                 f"through {Path(fmu_path).name} (the sensor's noise seed: each run's own draw, column `seed`, unless "
+                 "varied).", ""]),
              "| error | runs | " + " | ".join(f"{p} %" for p in PERCENTILES) + " | max |",
              "|---|---|" + "---|" * (len(PERCENTILES) + 1)]
     lines += [f"| {r['metric']} | {r['runs']} | " + " | ".join(f"{r[f'p{p}']:.4g}" for p in PERCENTILES)
