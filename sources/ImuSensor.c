@@ -9,8 +9,8 @@
 
 #include "ImuMath.h"
 
-/** Fixed-point iterations of the ELM and correction-term inverses, and when they stop early: the last
- *  step below IMU_SENSOR_TOLERANCE of the value (relative, plus the same absolute). */
+/** Iterations of the ELM (fixed point) and correction-term (Newton) inverses, and when they stop early: the
+ *  last step or residual below IMU_SENSOR_TOLERANCE of the value (relative, plus the same absolute). */
 #define IMU_SENSOR_ITERATIONS 60
 #define IMU_SENSOR_TOLERANCE 1e-13
 /** Stream of the noise generator (any odd selector; the seed is the parameter). */
@@ -160,29 +160,99 @@ static void ImuSensorElmInverse(const ImuElm *elm, double f[3])
     }
 }
 
-/** @brief The triads x[9] before the correction terms whose corrected values are x (in place), by the
- *         fixed point x <- x + (target - (x - T(signals(x)))) on a copy of the terms' state; the state
- *         then advances with the solution, as the corrector's does with its input. */
+/** @brief Solve a x = b (n <= 9 unknowns, a row-major n x n, both overwritten) by Gaussian elimination with
+ *         partial pivoting; 0 when a is singular (x untouched). */
+static int ImuSensorSolve(int n, double a[81], double b[9], double x[9])
+{
+    int i, j, k;
+    for (k = 0; k < n; k++) {
+        int pivot = k;
+        for (i = k + 1; i < n; i++) {
+            if (fabs(a[i * n + k]) > fabs(a[pivot * n + k])) {
+                pivot = i;
+            }
+        }
+        if (!(fabs(a[pivot * n + k]) > 0.0)) {
+            return 0;
+        }
+        if (pivot != k) {
+            for (j = 0; j < n; j++) {
+                const double swap = a[k * n + j];
+                a[k * n + j] = a[pivot * n + j];
+                a[pivot * n + j] = swap;
+            }
+            {
+                const double swap = b[k];
+                b[k] = b[pivot];
+                b[pivot] = swap;
+            }
+        }
+        for (i = k + 1; i < n; i++) {
+            const double f = a[i * n + k] / a[k * n + k];
+            for (j = k; j < n; j++) {
+                a[i * n + j] -= f * a[k * n + j];
+            }
+            b[i] -= f * b[k];
+        }
+    }
+    for (i = n - 1; i >= 0; i--) {
+        double sum = b[i];
+        for (j = i + 1; j < n; j++) {
+            sum -= a[i * n + j] * x[j];
+        }
+        x[i] = sum / a[i * n + i];
+    }
+    return 1;
+}
+
+/** @brief What the correction terms make of the triads x[9] before them at time t (the corrector's
+ *         ImuTermsSignals then ImuTermsApply), on a copy of the terms' state. */
+static void ImuSensorTermsForward(const ImuSensor *s, double t, double temperature,
+                                  const double aux[IMU_TERMS_AUX_COUNT], const double x[9], double y[9])
+{
+    double signals[IMU_TERM_SIGNAL_COUNT];
+    ImuTermsState copy = s->terms;
+    ImuTermsSignals(&copy, t, x, temperature, aux, signals);
+    memcpy(y, x, 9 * sizeof x[0]);
+    (void)ImuTermsApply(&s->coefficients.terms, signals, y);
+}
+
+/** @brief The triads x[9] before the correction terms whose corrected values are x (in place), by Newton's
+ *         method on the terms' forward map with a forward-difference Jacobian (the terms are products of at
+ *         most two signals, and a time-derivative signal can weigh more than the triad itself: a plain
+ *         fixed point would diverge for a lag term longer than the sample interval); the terms' state then
+ *         advances with the solution, as the corrector's does with its input. */
 static void ImuSensorTermsInverse(ImuSensor *s, double t, double temperature, const double aux[IMU_TERMS_AUX_COUNT],
                                   double x[9])
 {
-    double target[9], trial[9], step[9], signals[IMU_TERM_SIGNAL_COUNT];
-    int k, i;
+    double target[9], y[9], probe[9], moved[9], jacobian[81], residual[9], step[9], signals[IMU_TERM_SIGNAL_COUNT];
+    int k, i, j;
     if (s->coefficients.terms.count == 0) {
         return; /* as the corrector: a model without terms computes no signals */
     }
     memcpy(target, x, sizeof target);
     for (k = 0; k < IMU_SENSOR_ITERATIONS; k++) {
-        ImuTermsState copy = s->terms;
-        ImuTermsSignals(&copy, t, x, temperature, aux, signals);
-        memcpy(trial, x, sizeof trial);
-        (void)ImuTermsApply(&s->coefficients.terms, signals, trial);
+        ImuSensorTermsForward(s, t, temperature, aux, x, y);
         for (i = 0; i < 9; i++) {
-            step[i] = target[i] - trial[i];
-            x[i] += step[i];
+            residual[i] = target[i] - y[i];
         }
-        if (ImuSensorConverged(step, x, 9)) {
+        if (ImuSensorConverged(residual, target, 9) || !ImuAllFinite(residual, 9)) {
             break;
+        }
+        for (j = 0; j < 9; j++) {
+            const double delta = 1e-6 * (1.0 + fabs(x[j]));
+            memcpy(probe, x, sizeof probe);
+            probe[j] += delta;
+            ImuSensorTermsForward(s, t, temperature, aux, probe, moved);
+            for (i = 0; i < 9; i++) {
+                jacobian[i * 9 + j] = (moved[i] - y[i]) / delta;
+            }
+        }
+        if (!ImuSensorSolve(9, jacobian, residual, step)) {
+            break;
+        }
+        for (i = 0; i < 9; i++) {
+            x[i] += step[i];
         }
     }
     ImuTermsSignals(&s->terms, t, x, temperature, aux, signals);

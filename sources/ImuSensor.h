@@ -6,14 +6,20 @@
  * The ImuFusion chain (ImuPipeline.h) maps a raw sample to the corrected one: gain/bias(T), PSO-BP
  * bias, time alignment, correction terms, magnetometer particle filter and ELM, mounting. The virtual
  * sensor runs the same trained stages backwards on the same coefficients and settings, each by the
- * stage's own code: mounting by the inverse permutation; the ELM and the correction terms by a
- * fixed-point iteration of their forward maps (contractions: their corrections are small against the
- * signal); the time alignment by ImuAlign with the lags negated (a triad that lags true time is
- * delayed; one that leads is extrapolated as ImuAlign extrapolates); the PSO-BP bias added back; the
- * gain/bias(T) model, affine in the triad at a given temperature, inverted exactly from three probes
- * of ImuThermalApply. The particle filter is an online estimator of what the calibration left: the
- * virtual sensor applies no further hard/soft iron (the trained one is the magnetometer's B(T), A).
- * The online bias learning is not inverted: a freshly calibrated unit has learnt nothing.
+ * stage's own code:
+ *  - mounting by the inverse permutation;
+ *  - the ELM by a fixed-point iteration of its forward map (a contraction: its correction is small
+ *    against the field);
+ *  - the correction terms by Newton's method on their forward map (not a fixed point: a lag term's
+ *    time derivative can outweigh the triad it corrects);
+ *  - the time alignment by ImuAlign with the lags negated (a triad that lags true time is delayed; one
+ *    that leads is extrapolated as ImuAlign extrapolates);
+ *  - the PSO-BP bias added back;
+ *  - the gain/bias(T) model, affine in the triad at a given temperature, inverted exactly from three
+ *    probes of ImuThermalApply.
+ * The particle filter is an online estimator of what the calibration left: the virtual sensor applies
+ * no further hard/soft iron (the trained one is the magnetometer's B(T), A). The online bias learning
+ * is not inverted: a freshly calibrated unit has learnt nothing.
  *
  * Noise (in sensor axes, units of the triad, per axis): white noise of density N [u/sqrt(Hz)] (sigma
  * N / sqrt(h) per sample of interval h), a bias random walk K [u/sqrt(s)] (increments K sqrt(h) N(0, 1),

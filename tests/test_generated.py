@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from contract.generate import stale
+from contract.generate import REGIONS, stale
 from contract.variables import VARIABLES
 
 #: The value references published so far, one 'name vr' per line: an FMU user's saved setups and
@@ -30,9 +30,12 @@ def test_no_published_value_reference_changes():
 def test_a_stale_region_is_found(tmp_path):
     """stale() reads the files: a region edited by hand is reported (the check can fail)."""
     root = Path(__file__).resolve().parent.parent
-    for path in ("sources/ImuLayout.h", "sources/config.h", "README.md", "docs/fmu.md"):
+    for path in REGIONS:
         (tmp_path / path).parent.mkdir(parents=True, exist_ok=True)
         (tmp_path / path).write_text((root / path).read_text())
     edited = (tmp_path / "sources/config.h").read_text().replace("vr_gyr_y = 1", "vr_gyr_y = 0")
     (tmp_path / "sources/config.h").write_text(edited)
     assert stale(tmp_path) == ["sources/config.h"]
+    sensor = (tmp_path / "sources/sensor/config.h").read_text().replace("vr_gyr_x = 18", "vr_gyr_x = 17")
+    (tmp_path / "sources/sensor/config.h").write_text(sensor)
+    assert stale(tmp_path) == ["sources/config.h", "sources/sensor/config.h"]
