@@ -16,7 +16,7 @@ from test_elm import small_fitter, synthetic
 from test_psobp import random_model
 from training.models import elm
 from training.runtime import run_batch
-from training.sensor.build import noise_plan
+from training.sensor.build import anticausal_terms, noise_plan
 
 #: The chain's inverses: the gain/bias(T) model exactly (three probes, a 3 x 3 solve), the ELM and the terms to
 #: IMU_SENSOR_TOLERANCE = 1e-13 relative; then the forward chain's rounding. 1e-9 of a unit is far below any noise.
@@ -202,3 +202,11 @@ def test_the_noise_plan_takes_supported_figures_and_names_the_others():
     assert "gyr bias_instability x: needs 300 s of still data; the longest still stretch is 1.5 s" in plan.unsupported
     assert any(line.startswith("acc:") for line in plan.unsupported)
     assert noise_plan(None).parameters == {} and "no noise characterisation" in noise_plan(None).unsupported[0]
+
+
+def test_a_term_that_delays_a_triad_longer_than_half_a_sample_is_named():
+    """The corrector's c · dx/dt with c > 0 delays the triad; its inverse (pole (c/h)/(1 - c/h) at interval h)
+    diverges from c = h/2 on: at 100 Hz 0.015 s is named, 0.004 s and any advance (c < 0) are not."""
+    terms = [{"target": "gyr_y", "a": "d_gyr_y", "b": None, "coefficient": c} for c in (0.015, 0.004, -0.015)]
+    lines = anticausal_terms(terms, 100.0)
+    assert len(lines) == 1 and "0.015 s delays the triad" in lines[0]

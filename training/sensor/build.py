@@ -20,6 +20,7 @@ class SensorNoisePlan:
     parameters: dict[str, float] = field(default_factory=dict)
     unsupported: list[str] = field(default_factory=list)   # "gyr random_walk x: <why>"
     source: str = ""
+    warnings: list[str] = field(default_factory=list)      # stages the sensor cannot run backwards faithfully
 
 
 def noise_plan(noise: dict | None) -> SensorNoisePlan:
@@ -52,6 +53,22 @@ def noise_plan(noise: dict | None) -> SensorNoisePlan:
     return plan
 
 
+def anticausal_terms(terms: list[dict], rate_hz: float | None) -> list[str]:
+    """The correction terms on a time derivative whose inverse is unstable: the corrector subtracts c · dx/dt
+    with c > 0 (it delays the triad by c seconds), so the sensor would have to lead true time by c; its
+    discrete inverse at the sampling interval h is stable only while c < h / 2 (pole c/h / (1 - c/h))."""
+    h = 1.0 / rate_hz if rate_hz else None
+    lines = []
+    for term in terms:
+        derivative = any(str(term.get(k) or "").startswith("d_") for k in ("a", "b"))
+        if derivative and term.get("b") is None and float(term["coefficient"]) > 0.0 and (h is None or
+                                                                                          term["coefficient"] >= h / 2):
+            lines.append(f"term {term['target']} <- {term['a']} x {term['coefficient']:.4g} s delays the triad: the "
+                         "virtual sensor would have to lead true time (its inverse diverges); set that term's "
+                         "coefficient to 0 in model.json for the sensor, or accept a diverging output")
+    return lines
+
+
 def field_parameters(chain: dict[str, float]) -> dict[str, float]:
     """The earth field the model was trained in (its declination, field_norm, field_dip settings)."""
     return {"declination": chain["declination"], "field_norm": chain["field_norm"], "field_dip": chain["field_dip"]}
@@ -72,6 +89,7 @@ def build_sensor_fmu(model_path: str | Path, out_path: str | Path, fmi_version: 
     parameters = {**field_parameters(chain), **plan.parameters, **(overrides or {})}
     plan.unsupported = [u for u in plan.unsupported if not _overridden(u, overrides or {})]
     rates = [d["rate_hz"] for d in artefact.training_data if isinstance(d.get("rate_hz"), (int, float))]
+    plan.warnings = anticausal_terms(artefact.terms, max(rates) if rates else None)
     path = pack_sensor_fmu(coefficients_array(artefact), chain, parameters, out_path, fmi_version,
                            provenance=f"Model {Path(model_path).name}", rate_hz=max(rates) if rates else None)
     return path, plan
