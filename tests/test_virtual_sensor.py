@@ -210,3 +210,12 @@ def test_a_term_that_delays_a_triad_longer_than_half_a_sample_is_named():
     terms = [{"target": "gyr_y", "a": "d_gyr_y", "b": None, "coefficient": c} for c in (0.015, 0.004, -0.015)]
     lines = anticausal_terms(terms, 100.0)
     assert len(lines) == 1 and "0.015 s delays the triad" in lines[0]
+
+
+def test_the_plan_takes_the_quantisation_out_of_the_white_noise_it_adds_back():
+    """Measured white noise holds the LSB's rounding (σ² = lsb²/12 per sample); the sensor rounds itself, so its
+    density parameter is √(N² − lsb²/(12 fs)): 2e-4 rad/s/√Hz with a 1e-3 rad/s LSB at 100 Hz -> 1.979e-4."""
+    figure = {"value": 2e-4, "ci": [0.0, 0.0], "unit": "rad/s/√Hz", "supported": True, "why": ""}
+    axis = {"noise_density": figure}
+    block = {"rate_hz": 100.0, "triads": {"gyr": {"lsb": 1e-3, "axes": [axis, axis, axis]}}}
+    assert noise_plan(block).parameters["gyr_noise_density_y"] == pytest.approx(np.sqrt(4e-8 - 1e-6 / 1200.0), rel=1e-12)

@@ -26,7 +26,7 @@ class SensorNoisePlan:
 def noise_plan(noise: dict | None) -> SensorNoisePlan:
     """The sensor's noise parameters from a model's "noise" block (format imufusion-noise/1): each figure the
     data support, 0 for each they do not (listed in `unsupported` with the reason), the LSB where the data
-    show one. None (a model trained before the block existed): nothing, every figure unsupported."""
+    show one (the white noise density then without the quantisation's share). None (a model trained before the block existed): nothing, every figure unsupported."""
     plan = SensorNoisePlan()
     if not noise:
         plan.unsupported.append("the model has no noise characterisation (train it again with this version): "
@@ -34,6 +34,7 @@ def noise_plan(noise: dict | None) -> SensorNoisePlan:
         return plan
     plan.source = str(noise.get("source", ""))
     triads = noise.get("triads", {})
+    rate = noise.get("rate_hz")
     for triad, *_ in TRIADS:
         entry = triads.get(triad)
         if entry is None:
@@ -50,7 +51,20 @@ def noise_plan(noise: dict | None) -> SensorNoisePlan:
         lsb = entry.get("lsb")
         if isinstance(lsb, (int, float)) and math.isfinite(lsb) and lsb > 0:
             plan.parameters[f"{triad}_lsb"] = float(lsb)
+            _without_quantisation(plan.parameters, triad, float(lsb), rate)
     return plan
+
+
+def _without_quantisation(parameters: dict[str, float], triad: str, lsb: float, rate_hz) -> None:
+    """The measured white noise holds the quantisation's (σ² = lsb²/12 per sample, density² = lsb²/(12 fs)); the
+    sensor rounds to the LSB itself, so its white-noise density parameters are the rest (else counted twice)."""
+    if not isinstance(rate_hz, (int, float)) or not rate_hz > 0:
+        return
+    quantisation = lsb * lsb / (12.0 * rate_hz)
+    for a in range(3):
+        name = noise_parameter_name(triad, "noise_density", a)
+        if name in parameters:
+            parameters[name] = math.sqrt(max(parameters[name] ** 2 - quantisation, 0.0))
 
 
 def anticausal_terms(terms: list[dict], rate_hz: float | None) -> list[str]:
