@@ -7,7 +7,7 @@ that are otherwise written by hand:
   the slot of every value reference in those arrays (model.c's variable lookup); the value references
   of the coefficient parameters, whose blocks go to sources/ImuLayout.h (contract/coefficient_parameters.py);
 - sources/sensor/config.h: the same for the virtual sensor's table (contract/sensor_variables.py);
-- README.md: the variable table; docs/fmu.md: the parameters' types, ranges and defaults, and the
+- README.md: the variable table; docs/virtual_sensor.md: the sensor's; docs/fmu.md: the parameters' types, ranges and defaults, and the
   coefficient parameters.
 
 A region runs from a line holding `generated:begin NAME` to one holding `generated:end NAME`
@@ -155,10 +155,10 @@ def sensor_setting_ranges() -> str:
     return "\n".join(lines)
 
 
-def markdown_table() -> str:
-    """The variable table as Markdown (README.md)."""
+def markdown_table(table: tuple[Variable, ...] = VARIABLES) -> str:
+    """A variable table as Markdown (README.md: ImuFusion's; docs/virtual_sensor.md: the sensor's)."""
     lines = ["| variable | causality | unit | description |", "|---|---|---|---|"]
-    for v in VARIABLES:
+    for v in table:
         unit = v.unit or "1"
         if v.display_unit:
             unit += f" (shown in {v.display_unit})"
@@ -198,6 +198,7 @@ REGIONS: dict[str, dict[str, Callable[[], str]]] = {
                                                        ("SENSOR_INPUT_VRS", "SENSOR_OUTPUT_VRS")),
         "setting-ranges": sensor_setting_ranges},
     "README.md": {"variables": markdown_table},
+    "docs/virtual_sensor.md": {"sensor-variables": lambda: markdown_table(SENSOR_VARIABLES)},
     "docs/fmu.md": {"parameter-ranges": ranges_markdown, "coefficient-parameters": coefficient_parameters_markdown},
 }
 
