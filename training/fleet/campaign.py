@@ -364,7 +364,8 @@ def check_closed_loop(sensor_path: str, data: ImuData, variations: tuple[Variati
     for v in variations:
         if v.name in NOISE_INPUTS or v.name == UNIT:
             what = ("the virtual sensor makes the noise: vary its figures (gyr_noise_density_x, ...) or its seed"
-                    if v.name in NOISE_INPUTS else "the virtual sensor models the one unit whose model it was built from")
+                    if v.name in NOISE_INPUTS else
+                    "the virtual sensor models the one unit whose model it was built from")
             raise CampaignError(f"--vary {v.text()!r} with --sensor: {what}")
 
 
