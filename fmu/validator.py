@@ -271,6 +271,19 @@ VALIDATION_CHECKS = ("archive", "fmpy model description", "description matches s
                      "fmutool -check", "smoke co-simulation", "description matches binary", "reference result")
 
 
+#: The checks of a virtual-sensor FMU (`_sensor_checks`), in the order they run.
+SENSOR_VALIDATION_CHECKS = ("archive", "fmpy model description", "description matches sources", "binaries",
+                            "fmutool -check", "smoke co-simulation", "description matches binary")
+
+
+def validation_checks(path: str | Path) -> tuple[str, ...]:
+    """The checks `validate_fmu` runs on the FMU at path: the virtual sensor's or ImuFusion's."""
+    try:
+        return SENSOR_VALIDATION_CHECKS if model_identifier_of(path) == SENSOR_MODEL_NAME else VALIDATION_CHECKS
+    except Exception:  # an unreadable archive: the archive check reports it
+        return VALIDATION_CHECKS
+
+
 def _sensor_checks(path: Path, counted) -> list[str]:
     """The checks of the virtual-sensor FMU after fmpy's validation (fmu.sensor_validation: its description
     against its variable table and sources, then as for ImuFusion: binaries, fmutool, a smoke co-simulation

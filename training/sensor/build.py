@@ -113,3 +113,24 @@ def _overridden(unsupported: str, overrides: dict[str, float]) -> bool:
     """Whether the unsupported figure named by the line (`triad figure axis: why`) was set by the user."""
     words = unsupported.split(":")[0].split()
     return len(words) == 3 and noise_parameter_name(words[0], words[1], AXES.index(words[2])) in overrides
+
+
+def noise_summary_lines(plan: SensorNoisePlan, overrides: dict[str, float]) -> list[str]:
+    """What the sensor's noise is, per triad and axis with units: each figure from the data, set by the user, or
+    (loudly) not characterised and 0; then the stages the sensor cannot run backwards faithfully."""
+    lines = [f"noise from: {plan.source or 'nothing (no noise block in the model)'}"]
+    for triad, unit, units, *_ in TRIADS:
+        for (figure, _), figure_unit in zip(FIGURES, units):
+            values = []
+            for a in range(3):
+                name = noise_parameter_name(triad, figure, a)
+                value = overrides.get(name, plan.parameters.get(name))
+                tag = " (set)" if name in overrides else ""
+                values.append(f"{value:.3g}{tag}" if value is not None else "0 (NOT characterised)")
+            lines.append(f"  {triad} {figure:16s} x / y / z: {' / '.join(values)} {figure_unit}")
+    if plan.unsupported:
+        lines.append(f"WARNING: {len(plan.unsupported)} noise figure(s) the data could not support are 0 in the sensor "
+                     "(it is quieter than the unit there); set them with --set NAME=VALUE:")
+        lines += [f"  - {line}" for line in plan.unsupported]
+    lines += [f"WARNING: {line}" for line in plan.warnings]
+    return lines
