@@ -55,8 +55,8 @@ ALIGNMENT_STEPS = 1
 #: What the ImuFusion FMU's raw inputs hold in its first step, before the sensor has stepped: NaN, no sample yet
 #: (every sensor absent: its outputs are NaN and its state untouched). Ecos's connections would carry the sensor's
 #: outputs after initialisation, zeros, which the ImuFusion FMU takes for a sample: that zero accelerometer
-#: sample turned the first attitude by 35° and left a transient of up to 0.008° over 5 s on eval_rotations
-#: (noise off). Both masters therefore set NaN on the connected inputs for the first step.
+#: sample turned the first attitude by 35° and left an attitude error of up to 0.008° over the first 10 s on
+#: eval_rotations (noise off). Both masters therefore set NaN on the connected inputs for the first step.
 FIRST_RAW = float("nan")
 #: A fixed-step master needs evenly spaced samples: the largest relative deviation of a step from the
 #: recording's median step that still counts as the same step (a 100 Hz clock written as decimal seconds
