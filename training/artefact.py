@@ -90,6 +90,8 @@ class ModelArtefact:
     'meaning': free text}. A term on signal aux_k needs entry k.
     methods: the source-method forms selected by `train --method` (training.models.methods.METHODS:
     method -> form); empty when train chose every stage itself.
+    noise: the noise characterisation of the calibration's still data (training.noise, format
+    imufusion-noise/1; written as "noise" when present), None when not characterised.
     """
 
     seed: int
@@ -103,6 +105,7 @@ class ModelArtefact:
     methods: dict[str, str] = field(default_factory=dict)
     elm: ElmModel | None = None
     psobp: PsoBpModel | None = None
+    noise: dict | None = None
     units: dict[str, str] = field(default_factory=lambda: dict(UNITS))
     libraries: dict[str, str] = field(default_factory=library_versions)
     created: str = field(default_factory=utc_now)
@@ -112,15 +115,18 @@ class ModelArtefact:
 
     def to_json_dict(self) -> dict:
         """The JSON document as plain Python objects."""
-        return {"format": self.format, "format_version": self.format_version,
-                "model_type": self.model_type, "created": self.created, "seed": self.seed,
-                "units": dict(self.units), "libraries": dict(self.libraries),
-                "training_data": list(self.training_data),
-                "thermal": {k: _thermal_to_json(self.thermal[k]) for k in TRIAD_ORDER},
-                "fit_stats": dict(self.fit_stats), "settings": dict(self.settings),
-                "notes": list(self.notes), "terms": [dict(t) for t in self.terms],
-                "aux_inputs": [dict(a) for a in self.aux_inputs], "methods": dict(self.methods),
-                "stages": self.stages_to_json()}
+        doc = {"format": self.format, "format_version": self.format_version,
+               "model_type": self.model_type, "created": self.created, "seed": self.seed,
+               "units": dict(self.units), "libraries": dict(self.libraries),
+               "training_data": list(self.training_data),
+               "thermal": {k: _thermal_to_json(self.thermal[k]) for k in TRIAD_ORDER},
+               "fit_stats": dict(self.fit_stats), "settings": dict(self.settings),
+               "notes": list(self.notes), "terms": [dict(t) for t in self.terms],
+               "aux_inputs": [dict(a) for a in self.aux_inputs], "methods": dict(self.methods),
+               "stages": self.stages_to_json()}
+        if self.noise is not None:
+            doc["noise"] = self.noise
+        return doc
 
     def stages_to_json(self) -> dict:
         """The trained neural stages by name, each as its model stores itself."""
@@ -316,6 +322,7 @@ def load_artefact(path) -> ModelArtefact:
         aux_inputs=_aux_inputs_from_json(doc.get("aux_inputs", []), doc.get("terms", []), path),
         methods=_methods_from_json(doc.get("methods", {}), path),
         **_stages_from_json(doc.get("stages", {}), path),
+        noise=doc.get("noise") if isinstance(doc.get("noise"), dict) else None,
         units=doc["units"], libraries=libraries_from_json(doc["libraries"]), created=doc["created"],
         format=doc["format"], format_version=FORMAT_VERSION, model_type=doc["model_type"])
 

@@ -295,6 +295,20 @@ def cmd_diagnose(args) -> None:
     print(f"wrote {Path(args.out) / 'diagnosis.json'}, report.md and model.json")
 
 
+def cmd_noise(args) -> None:
+    """imufmu noise DATA... --out DIR: noise.json, imu.yaml, allan_<triad>.png, noise.md."""
+    from training.data.outputs import staged_output
+    from training.noise.report import noise_to_folder, summary_lines
+    paths = [_existing_file(p, "data file") for p in args.data]
+    with staged_output("noise", args.out, args.force, inputs=paths) as out:
+        done = noise_to_folder(paths, out.path, progress=True)
+        written = [out.final(p) for p in (done.json, done.yaml, *done.plots, done.markdown)]
+    print("\n".join(summary_lines(done.result.block)))
+    for note in done.result.notes:
+        print(f"note: {note}")
+    print("wrote " + ", ".join(str(p) for p in written))
+
+
 def cmd_bench(args) -> None:
     """imufmu bench broad|broad-trained [--trials ...] --out DIR | imufmu bench speed --out DIR |
     imufmu bench methods DATA... [--eval EVAL...] [--seed N] --out DIR."""
@@ -352,6 +366,7 @@ EXAMPLES = {
     "compare-thermal": "imufmu compare-thermal data/thermal_plateaus.csv.gz --out thermal --runs 10",
     "diagnose": "imufmu diagnose data/calibration.csv.gz --model model/model.json --out diagnosis",
     "bench": "imufmu bench broad --trials 01 02 --out bench",
+    "noise": "imufmu noise ../shared/data/pan_thermal/pan_etu_cold_chamber.csv.gz --out noise",
     "pipeline": "imufmu pipeline --out out --seed 0",
 }
 
@@ -529,6 +544,12 @@ def build_parser() -> argparse.ArgumentParser:
     _add_out(s, "report folder (diagnosis.json, report.md, model.json)")
     s.add_argument("--seed", type=int, default=0)
     s.set_defaults(func=cmd_diagnose)
+    s = _add_verb(sub, "noise", "noise characterisation by Allan deviation: N, B, K per axis with CIs, imu.yaml "
+                                "(docs/noise.md)")
+    s.add_argument("data", nargs="+", help="imu-csv/1 recordings: a static log (sidecar reference 'static') is used "
+                   "whole, any other recording by its rests")
+    _add_out(s, "output folder (noise.json, imu.yaml, allan_<triad>.png, noise.md)")
+    s.set_defaults(func=cmd_noise)
     s = _add_verb(sub, "bench", "benchmarks: BROAD attitude accuracy (filters, or trained FMU), runtime speed, or "
                                 "each source method's forms beside the product's on your data")
     s.add_argument("what", choices=("broad", "broad-trained", "speed", "methods"))

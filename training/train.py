@@ -736,12 +736,16 @@ def train_to_folder(paths: list[Path], out_dir: str | Path, seed: int = 0, degre
                     prior_path: str | Path | None = None, name: str | None = None,
                     methods: dict[str, str] | None = None) -> TrainedFolder:
     """`imufmu train`: read the recordings at `paths`, `train` on them (under the fleet prior of
-    `prior_path`, a fleet.json, if given), write OUT/model.json, the FMU parameter values OUT/calibration.ssv
+    `prior_path`, a fleet.json, if given), write OUT/model.json (with the noise characterisation of the
+    recordings' still data under "noise", training.noise), OUT/imu.yaml (Kalibr), the FMU parameter values OUT/calibration.ssv
     (its set named `name`: the unit's, default out_dir's name — pass the final one when out_dir is a
     staging folder) and the calibration report OUT/calibration.md; progress: the stages' progress bars;
     methods: train's `methods` (`--method`)."""
     from fmu.calibration_file import FILE_NAME as CALIBRATION_FILE, write_calibration
     from training.data.io import read_imu_csv
+    from training.noise.characterise import characterise
+    from training.noise.kalibr import write_imu_yaml
+    from training.noise.report import YAML_NAME as IMU_YAML
     from training.reports.calibration_report import summary_text, write_calibration_report
     datasets = [read_imu_csv(p) for p in paths]
     from training.models.fleet_elm import load_fleet_elm
@@ -749,8 +753,10 @@ def train_to_folder(paths: list[Path], out_dir: str | Path, seed: int = 0, degre
     fleet_elm = load_fleet_elm(prior_path) if prior_path is not None else None
     artefact = train(datasets, seed=seed, degree=degree, allow_identity=allow_identity, progress=progress,
                      prior=prior, fleet_elm=fleet_elm, methods=methods)
+    artefact.noise = characterise(datasets).block
     model = Path(out_dir) / "model.json"
     artefact.save(model)
+    write_imu_yaml(artefact.noise, Path(out_dir) / IMU_YAML)
     calibration = write_calibration(Path(out_dir) / CALIBRATION_FILE, coefficients_array(artefact),
                                     settings_dict(artefact), artefact.aux_inputs,
                                     name=name or Path(out_dir).resolve().name,

@@ -72,6 +72,11 @@ _FLEET_PRIOR_SMALL = ("benchmarks/fleet_prior.py", "--fleet-units", "5", "--unit
 _FLEET_USE_HEADER = ("| unit | use rate after 10 min [°/s], full | # s + prior | prior ÷ full (bound ≤ #) | full, no learning "
                      "| # s + prior, no learning | prior ÷ full, no learning |")
 
+#: The table of benchmarks/noise_recovery.py (docs/noise.md).
+_NOISE_RECOVERY_HEADER = ("| grade | triad | data | N error [%] min … max | B error [%] min … max "
+                          "| K error [%] min … max | unsupported N / B / K | K truth inside its 68 % CI "
+                          "| within bounds (N, K 10 %, B 25 %) |")
+
 #: The table of benchmarks/unit_switch.py.
 _UNIT_SWITCH = ("| FMI | units | switches | median per switch, ms | 95th percentile, ms | largest, ms | "
                 "units bit-equal to their compiled FMU |")
@@ -290,6 +295,16 @@ GENERATORS = (
         small=_call("from training.bench.bench import trial_paths; from training.bench.methods_bench import bench_methods; "
                     "bench_methods(trial_paths(['01']), '{tmp}', trial_paths(['04']), samples=6000)"),
         trains=True, needs=("broad",)),
+    TableGenerator(
+        "OMP_NUM_THREADS=1 .venv/bin/python benchmarks/noise_recovery.py",
+        (_NOISE_RECOVERY_HEADER,),
+        small=("benchmarks/noise_recovery.py", "--hours", "0.25", "--minutes", "2", "--seeds", "0", "--grades",
+               "mems_grade")),
+    TableGenerator(
+        "OMP_NUM_THREADS=1 .venv/bin/python -m training.noise.report ../shared/data/pan_thermal/pan_etu_cold_chamber.csv.gz",
+        ("| figure | x | y | z |",),
+        small=("-m", "training.noise.report", str(SHARED / "pan_thermal" / "pan_etu_cold_chamber.csv.gz")),
+        needs=("pan_thermal/pan_etu_cold_chamber.csv.gz",)),
 )
 
 

@@ -158,6 +158,9 @@ def summary_text(artefact: ModelArtefact, datasets: list[ImuData]) -> str:
                  for k, what in (("mag", "field"), ("acc", "specific-force")) if f"{k}_raw" in row]
         if parts:
             lines.append(f"{row['name']}: " + ", ".join(parts))
+    if artefact.noise is not None:
+        from training.noise.report import summary_lines
+        lines += summary_lines(artefact.noise, compact=True) + ["  (per axis with CIs: model.json 'noise', imu.yaml)"]
     shown = []
     for name, (unit, factor) in SETTINGS_SHOWN.items():
         if name in artefact.settings:

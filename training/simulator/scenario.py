@@ -186,7 +186,8 @@ def _sensor_from_table(t: TomlTable) -> SensorModel:
 def _triad(t: TomlTable, triad: str) -> TriadErrors:
     """Generic triad errors; key names carry the unit (dps, ms2, ut). Errors default to 0,
     lsb and range are required. temp_rate_{u}_per_c_per_min: bias per temperature rate;
-    bias_drift_{u}_per_min: bias drift with time; g_sensitivity_dps_per_ms2 (3, 3): gyroscope only."""
+    bias_drift_{u}_per_min: bias drift with time; g_sensitivity_dps_per_ms2 (3, 3): gyroscope only;
+    bias_instability_{u}: flicker-like bias instability B [u] (training.simulator.sensors.flicker_bias)."""
     u, si = TRIAD_UNITS[triad]
     zero = [0.0, 0.0, 0.0]
     temp_rate = t.array(f"temp_rate_{u}_per_c_per_min", (3,), default=zero) * si * 60.0  # -> per (°C/s)
@@ -203,6 +204,7 @@ def _triad(t: TomlTable, triad: str) -> TriadErrors:
         temp_rate=temp_rate,
         noise_density=t.number(f"noise_density_{u}_per_sqrt_hz", default=0.0, low=0.0) * si,
         bias_walk=t.number(f"bias_walk_{u}_per_sqrt_s", default=0.0, low=0.0) * si,
+        bias_instability=t.number(f"bias_instability_{u}", default=0.0, low=0.0) * si,
         lsb=t.number(f"lsb_{u}", positive=True) * si,
         full_scale=t.number(f"range_{u}", positive=True) * si,
         g_sensitivity=g_sensitivity,
