@@ -137,20 +137,23 @@ def cmd_fleet_train(args) -> int:
 
 
 def cmd_campaign(args) -> int:
-    """imufmu campaign FMU DATA --runs N --vary NAME=DIST ... --out DIR [--workers K | --scheduler ADDRESS]:
-    exit status 0 when every run gave its errors, EXIT_PARTIAL when some failed, 1 when all did."""
+    """imufmu campaign FMU DATA --runs N --vary NAME=DIST ... --out DIR [--workers K | --scheduler ADDRESS]
+    [--sensor ImuSensor.fmu]: exit status 0 when every run gave its errors, EXIT_PARTIAL when some failed, 1 when
+    all did."""
     from training.completeness import EXIT_PARTIAL
     from training.fleet.campaign import campaign_runs, parse_variation
     from training.fleet.campaign_report import failed_runs, write_campaign_report
     from training.data.outputs import staged_output
-    variations = tuple(parse_variation(v) for v in args.vary or [])
+    variations = tuple(parse_variation(v, sensor=args.sensor is not None) for v in args.vary or [])
     fmu = _existing_file(args.fmu, "FMU")
     data = _existing_file(args.data, "data file")
-    with staged_output("campaign", args.out, args.force, inputs=[fmu, data]) as out:
+    sensor = _existing_file(args.sensor, "sensor FMU") if args.sensor is not None else None
+    with staged_output("campaign", args.out, args.force, inputs=[fmu, data, *([sensor] if sensor else [])]) as out:
         runs = campaign_runs(fmu, data, args.runs, variations, seed=args.seed, workers=args.workers,
-                             scheduler=args.scheduler)
-        md = out.final(write_campaign_report(runs, variations, fmu, data, args.seed, out.path))
-    print(f"ran {len(runs)} co-simulations of {fmu} on {data}; wrote {md}")
+                             scheduler=args.scheduler, sensor_path=sensor)
+        md = out.final(write_campaign_report(runs, variations, fmu, data, args.seed, out.path, sensor_path=sensor))
+    loop = f" in a closed loop with the virtual sensor {sensor}" if sensor else ""
+    print(f"ran {len(runs)} co-simulations of {fmu} on {data}{loop}; wrote {md}")
     failed = failed_runs(runs)
     if failed:
         status = 1 if len(failed) == len(runs) else EXIT_PARTIAL
@@ -158,6 +161,20 @@ def cmd_campaign(args) -> int:
               f"{failed[0]['failed']}); exit status {status}", file=sys.stderr)
         return status
     return 0
+
+
+def cmd_closed_loop(args) -> None:
+    """imufmu closed-loop --sensor S.fmu --fusion F.fmu DATA --out DIR [--seed N] [--importer ecospy|fmpy]."""
+    from training.data.outputs import staged_output
+    from training.sensor.closed_loop import closed_loop_to_folder
+    sensor = _existing_file(args.sensor, "sensor FMU")
+    fusion = _existing_file(args.fusion, "ImuFusion FMU")
+    data = _existing_file(args.data, "data file")
+    with staged_output("closed-loop", args.out, args.force, inputs=[sensor, fusion, data]) as out:
+        _, paths, lines = closed_loop_to_folder(sensor, fusion, data, out.path, seed=args.seed, importer=args.importer)
+        written = [out.final(p) for p in paths]
+    print("\n".join(lines))
+    print("wrote " + ", ".join(str(p) for p in written))
 
 
 def cmd_train(args) -> int:
@@ -359,6 +376,8 @@ EXAMPLES = {
     "fleet": "imufmu fleet train fleet --out fleet_models --workers 2",
     "campaign": "imufmu campaign ImuFusion.fmu data/eval_handheld.csv.gz --runs 1000 --vary noise_gyr=uniform(0,0.01) "
                 "--vary declination=normal(0.05,0.01) --out campaign",
+    "closed-loop": "imufmu closed-loop --sensor ImuSensor.fmu --fusion out/ImuFusion.fmu out/data/eval_handheld.csv.gz "
+                   "--out loop --seed 1",
     "build-fmu": "imufmu build-fmu --model model/model.json --out ImuFusion.fmu --fmi 3",
     "prebuild": "imufmu prebuild --force",
     "validate": "imufmu validate ImuFusion.fmu",
@@ -497,8 +516,24 @@ def build_parser() -> argparse.ArgumentParser:
                         "Repeatable")
     _add_out(s, "output folder: campaign.md, campaign.json, runs.csv, campaign.png")
     s.add_argument("--seed", type=int, default=0)
+    s.add_argument("--sensor", default=None, metavar="ImuSensor.fmu",
+                   help="close the loop: each run drives this virtual-sensor FMU with the recording's truth and FMU "
+                        "with its outputs; the sensor's noise seed is each run's own draw (column seed) unless --vary "
+                        "seed=choice(...); its parameters (gyr_noise_density_x, ...) may be varied")
     _add_dask_options(s)
     s.set_defaults(func=cmd_campaign)
+    s = _add_verb(sub, "closed-loop", "a recording's truth -> the virtual-sensor FMU -> the ImuFusion FMU in one "
+                                      "co-simulation (docs/virtual_sensor.md): errors against truth")
+    s.add_argument("data", help="imu-csv/1 recording with truth (ref_gyr, ref_acc, ref_q; ref_mag used when present)")
+    s.add_argument("--sensor", required=True, metavar="ImuSensor.fmu", help="the virtual-sensor FMU")
+    s.add_argument("--fusion", required=True, metavar="ImuFusion.fmu", help="the ImuFusion FMU")
+    _add_out(s, "output folder: outputs.csv (aligned to the samples), closed_loop.png (attitude error), "
+                "closed_loop.json")
+    s.add_argument("--seed", type=int, default=0, help="the sensor's noise seed (default 0)")
+    s.add_argument("--importer", choices=("ecospy", "fmpy"), default="ecospy",
+                   help="the co-simulation master: ecospy (Ecos, fixed step; default) or fmpy (the recording's own "
+                        "times, gaps allowed)")
+    s.set_defaults(func=cmd_closed_loop)
     s = _add_verb(sub, "build-fmu", "write the trained model into the FMU sources and build it")
     s.add_argument("--model", help="model.json from 'imufmu train' (without it: the generic FMU, no calibration "
                                    "compiled in, for units' calibration.ssv files)")
