@@ -81,8 +81,21 @@ _NOISE_RECOVERY_HEADER = ("| grade | triad | data | N error [%] min … max | B 
 _UNIT_SWITCH = ("| FMI | units | switches | median per switch, ms | 95th percentile, ms | largest, ms | "
                 "units bit-equal to their compiled FMU |")
 
+#: The tables of training/sensor/closed_loop_bench.py (docs/virtual_sensor.md, "Closed loop").
+_CLOSED_LOOP_HEADERS = (
+    "| outputs shifted by [steps] | corrected rate error RMS [°/s], noise off |",
+    "| recording | error | main job: the recording through ImuFusion | closed loop: its truth through ImuSensor and "
+    "ImuFusion (ecospy, seed 0) | closed ÷ main |",
+    "| recording | samples | ecospy [s] | fmpy [s] | ecospy = fmpy on Ecos's grid | largest metric difference, fmpy "
+    "on the recording's times |")
+
 GENERATORS = (
     TableGenerator("python -m training.models.methods", (METHODS_HEADER,), small=("-m", "training.models.methods")),
+    TableGenerator(
+        "python -m training.sensor.closed_loop_bench out", _CLOSED_LOOP_HEADERS,
+        why_not_small="it reads an `imufmu pipeline --out out` folder (26 s) and runs its three evaluation recordings "
+                      "(13 300-29 680 samples) through two FMUs in both importers (~25 s); tests/test_closed_loop.py "
+                      "runs the same functions on a small model and a 15 s recording"),
     TableGenerator(
         "python benchmarks/unit_switch.py --units 200 --compiled 3 --repeats 3", (_UNIT_SWITCH,),
         small=("benchmarks/unit_switch.py", "--units", "2", "--compiled", "0", "--repeats", "1"), trains=True),
