@@ -230,6 +230,33 @@ def cmd_build_fmu(args) -> None:
           "; generic: no calibration compiled in, run it with --calibration UNIT.ssv)"))
 
 
+def _sensor_parameter(text: str) -> tuple[str, float]:
+    """Parse NAME=VALUE for build-sensor-fmu --set (a virtual-sensor parameter, contract/sensor_variables.py)."""
+    from contract.sensor_variables import sensor_parameters
+    name, sep, value = text.partition("=")
+    known = [v.name for v in sensor_parameters()]
+    if not sep or name not in known:
+        raise argparse.ArgumentTypeError(f"'{text}' is not NAME=VALUE with NAME a virtual-sensor parameter "
+                                         f"(e.g. {', '.join(known[6:9])}, ...; docs/virtual_sensor.md)")
+    try:
+        return name, float(value)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"'{text}': {value!r} is not a number") from None
+
+
+def cmd_build_sensor_fmu(args) -> None:
+    """imufmu build-sensor-fmu --model model.json --out ImuSensor.fmu [--fmi 3] [--set NAME=VALUE ...]."""
+    from training.data.outputs import FILE, staged_output
+    from training.sensor.build import build_sensor_fmu, noise_summary_lines
+    model = _existing_file(args.model, "model artefact")
+    overrides = dict(args.set or [])
+    with staged_output("build-sensor-fmu", args.out, args.force, FILE, inputs=[args.model]) as out:
+        built, plan = build_sensor_fmu(model, out.path, fmi_version=args.fmi, overrides=overrides)
+        path = out.final(built)
+    print("\n".join(noise_summary_lines(plan, overrides)))
+    print(f"wrote {path} (virtual sensor, FMI {args.fmi}.0 co-simulation; validate it with imufmu validate {path})")
+
+
 def cmd_prebuild(args) -> None:
     """imufmu prebuild [--out DIR]: the runtime library and the generic FMUs, so that train and run need no compiler."""
     from training.data.outputs import staged_output
@@ -243,12 +270,13 @@ def cmd_prebuild(args) -> None:
 
 
 def cmd_validate(args) -> None:
-    """imufmu validate FILE.fmu: exit 1 when there is any problem."""
-    from fmu.validator import VALIDATION_CHECKS, validate_fmu
+    """imufmu validate FILE.fmu (ImuFusion or virtual-sensor FMU): exit 1 when there is any problem."""
+    from fmu.validator import validate_fmu, validation_checks
     checks: list[tuple[str, int]] = []
-    problems = validate_fmu(_existing_file(args.fmu, "FMU"), checks)
+    path = _existing_file(args.fmu, "FMU")
+    problems = validate_fmu(path, checks)
     results = dict(checks)
-    for name in VALIDATION_CHECKS:
+    for name in validation_checks(path):
         found = results.get(name)
         print(f"check {name}: " + ("not run (an earlier check failed)" if found is None
                                    else "ok" if found == 0 else f"FAILED ({found} problem(s))"))
@@ -379,6 +407,7 @@ EXAMPLES = {
     "closed-loop": "imufmu closed-loop --sensor ImuSensor.fmu --fusion out/ImuFusion.fmu out/data/eval_handheld.csv.gz "
                    "--out loop --seed 1",
     "build-fmu": "imufmu build-fmu --model model/model.json --out ImuFusion.fmu --fmi 3",
+    "build-sensor-fmu": "imufmu build-sensor-fmu --model model/model.json --out ImuSensor.fmu --set gyr_random_walk_x=3e-6",
     "prebuild": "imufmu prebuild --force",
     "validate": "imufmu validate ImuFusion.fmu",
     "run": "imufmu run ImuFusion.fmu data/eval_handheld.csv.gz --out outputs.csv --param declination=0.05",
@@ -543,6 +572,15 @@ def build_parser() -> argparse.ArgumentParser:
                    help="embed a unit's calibration.ssv as parameter set LABEL (repeatable; FMI-LS-REF layout, "
                         "extra/org.fmi-standard.fmi-ls-ref/)")
     s.set_defaults(func=cmd_build_fmu)
+    s = _add_verb(sub, "build-sensor-fmu", "the virtual-sensor FMU of a trained model: true motion in, what this "
+                                           "unit outputs out (docs/virtual_sensor.md)")
+    s.add_argument("--model", required=True, help="model.json from 'imufmu train'")
+    _add_out(s, "FMU file to write")
+    s.add_argument("--fmi", type=int, choices=(2, 3), default=2, help="FMI version (default 2)")
+    s.add_argument("--set", type=_sensor_parameter, action="append", metavar="NAME=VALUE",
+                   help="a sensor parameter's start value, e.g. a data-sheet noise figure the data could not support "
+                        "(repeatable; units: docs/virtual_sensor.md)")
+    s.set_defaults(func=cmd_build_sensor_fmu)
     s = _add_verb(sub, "prebuild", "compile the runtime library and the generic FMUs once: train and run then need no "
                                    "C compiler (docs/fmu.md)")
     _add_out(s, "folder to write (the checkout's own, found without a setting; another one is used through env "
