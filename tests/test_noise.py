@@ -145,3 +145,17 @@ def test_imu_yaml_has_kalibr_keys_with_the_worst_supported_axis(half_hour):
     assert "gyroscope_random_walk" not in doc and "accelerometer_random_walk" not in doc
     assert "accelerometer_noise_density" in doc and "gyroscope_noise_density" in doc
     assert "# gyroscope_random_walk omitted: no axis supports it (" in imu_yaml_text(short)
+
+
+def test_a_gauss_markov_bump_is_named_and_white_noise_is_not():
+    # a first-order Gauss–Markov process (τc = 2 s, σ = 1e-3) on white noise: its Allan bump peaks near
+    # 1.9 τc at 0.62 σ, 2.5x the white line there; the three-term model bends its floor and walk around
+    # it and then misses the data by > 20 % from τ ≈ 25 s on, which the note names
+    from scipy.signal import lfilter
+    n, tau_c, sigma = int(1800 * RATE_HZ), 2.0, 1e-3
+    a = np.exp(-1.0 / (RATE_HZ * tau_c))
+    bump = lfilter([sigma * np.sqrt(1 - a * a)], [1.0, -a], np.random.default_rng(9).standard_normal((n, 3)), axis=0)
+    white = _noise(1800.0, N_TRUE, seed=8)
+    notes = characterise([_static({"gyr": white + bump})]).notes
+    assert len(notes) == 3 and all("correlated component" in note for note in notes), notes
+    assert characterise([_static({"gyr": white})]).notes == []
