@@ -180,3 +180,27 @@ def test_what_a_closed_loop_cannot_do_is_refused(loop, tmp_path):
             campaign_runs(fusion, data, 1, (parse_variation(text),), workers=1, progress=False, sensor_path=sensor)
     with pytest.raises(CampaignError, match="needs --sensor"):
         parse_variation("gyr_noise_density_x=uniform(0,1e-4)")
+
+
+def test_the_cli_prints_the_errors_with_units_and_writes_outputs_and_plot(loop, ecos_run, tmp_path, capsys):
+    sensor, fusion, data, _ = loop
+    out = tmp_path / "loop"
+    assert main(["closed-loop", "--sensor", str(sensor), "--fusion", str(fusion), str(data), "--out", str(out),
+                 "--seed", "1"]) == 0
+    printed = capsys.readouterr().out
+    assert "co-simulated by ecospy; outputs aligned 1 step back" in printed
+    assert "| corrected rate error RMS [°/s] |" in printed and "| heading error RMS [°] |" in printed
+    assert sorted(p.name for p in out.iterdir() if not p.name.startswith(".")) == sorted(cl.OUTPUT_FILES)
+    written = np.loadtxt(out / "outputs.csv", delimiter=",", skiprows=1)
+    np.testing.assert_array_equal(written[:, 1:], ecos_run.outputs)  # the same ecospy run, seed 1, to the bit
+
+
+def test_the_cli_refuses_in_one_line(loop, tmp_path, capsys):
+    sensor, fusion, data, _ = loop
+    _one_line_error(capsys, ["closed-loop", "--sensor", str(fusion), "--fusion", str(fusion), str(data), "--out",
+                             str(tmp_path / "a")], "not a virtual-sensor FMU")
+    _one_line_error(capsys, ["campaign", str(fusion), str(data), "--runs", "1", "--sensor", str(fusion), "--out",
+                             str(tmp_path / "b"), "--workers", "1"], "not a virtual-sensor FMU")
+    _one_line_error(capsys, ["campaign", str(fusion), str(data), "--runs", "1", "--sensor", str(sensor), "--vary",
+                             "noise_gyr=uniform(0,0.01)", "--out", str(tmp_path / "c"), "--workers", "1"],
+                    "the virtual sensor makes the noise")
