@@ -85,7 +85,7 @@ def check_sensor_fmu(path: str | Path) -> Path:
     identifier = _model_identifier(path)
     if identifier != SENSOR_MODEL_NAME:
         raise ClosedLoopError(f"{path}: not a virtual-sensor FMU (its model is '{identifier}', the sensor's is "
-                              f"'{SENSOR_MODEL_NAME}': build one with training.sensor.build.build_sensor_fmu)")
+                              f"'{SENSOR_MODEL_NAME}': imufmu build-sensor-fmu builds one)")
     return path
 
 
