@@ -166,6 +166,9 @@ def run_main_job(out_dir: Path, seed: int = 0, calibration: str = DEFAULT_CALIBR
     from training.reports.report import write_report
     from training.simulator import load_scenario, simulate
     from training.train import train
+    from training.noise.characterise import characterise
+    from training.noise.kalibr import write_imu_yaml
+    from training.noise.report import YAML_NAME as IMU_YAML
 
     out_dir = Path(out_dir)
     timings: dict[str, float] = {}
@@ -183,8 +186,10 @@ def run_main_job(out_dir: Path, seed: int = 0, calibration: str = DEFAULT_CALIBR
     lap("simulate")
     print("[2/5] training the gain/bias temperature model")
     artefact = train([cal], seed=seed)
+    artefact.noise = characterise([cal]).block   # as `imufmu train` does: the virtual sensor's noise figures
     model_path = out_dir / "model" / "model.json"
     artefact.save(model_path)
+    write_imu_yaml(artefact.noise, model_path.parent / IMU_YAML)
     lap("train")
     print("[3/5] building the FMU")
     coefficients = coefficients_array(artefact)
