@@ -16,7 +16,7 @@ from test_elm import small_fitter, synthetic
 from test_psobp import random_model
 from training.models import elm
 from training.runtime import run_batch
-from training.sensor.build import anticausal_terms, noise_plan
+from training.sensor.build import anticausal_terms, leading_triads, noise_plan
 
 #: The chain's inverses: the gain/bias(T) model exactly (three probes, a 3 x 3 solve), the ELM and the terms to
 #: IMU_SENSOR_TOLERANCE = 1e-13 relative; then the forward chain's rounding. 1e-9 of a unit is far below any noise.
@@ -219,3 +219,34 @@ def test_the_plan_takes_the_quantisation_out_of_the_white_noise_it_adds_back():
     axis = {"noise_density": figure}
     block = {"rate_hz": 100.0, "triads": {"gyr": {"lsb": 1e-3, "axes": [axis, axis, axis]}}}
     assert noise_plan(block).parameters["gyr_noise_density_y"] == pytest.approx(np.sqrt(4e-8 - 1e-6 / 1200.0), rel=1e-12)
+
+
+def test_the_flicker_bias_matches_the_simulators_and_its_floor(lagged):
+    """B = 1e-3 rad/s alone, 2 h at 10 Hz, seeds 0-3: the C sensor's overlapping Allan deviation at τ = 10, 31.6,
+    100 s (mean over the seeds) and the simulator's flicker_bias (training/simulator/sensors.py, the same
+    construction, numpy's generator) both lie on the floor √(2 ln2/π)·B and agree. One seed's deviation at
+    100 s has ~50 degrees of freedom (±10 %); four seeds ±5 %, the ratio of the two ±7 %: bound 15 % (2σ)."""
+    import allantools
+    from training.simulator.sensors import flicker_bias
+    rate, n, b = 10.0, 72000, 1e-3
+    t = np.arange(n) / rate
+    taus = np.array([10.0, 31.6, 100.0])
+    c_dev, py_dev = [], []
+    for seed in range(4):
+        raw = run_named(lagged, t, {"true_temp": np.full(n, 25.0)}, ["gyr_x"],
+                        {"seed": seed, "gyr_bias_instability_x": b})[:, 0]
+        c_dev.append(allantools.oadev(raw, rate=rate, data_type="freq", taus=taus)[1])
+        py = flicker_bias(n, rate, b, np.random.default_rng(seed), axes=1)[:, 0]
+        py_dev.append(allantools.oadev(py, rate=rate, data_type="freq", taus=taus)[1])
+    floor = np.sqrt(2.0 * np.log(2.0) / np.pi) * b
+    c_mean, py_mean = np.mean(c_dev, axis=0), np.mean(py_dev, axis=0)
+    assert np.all(np.abs(c_mean / floor - 1.0) < 0.15) and np.all(np.abs(py_mean / floor - 1.0) < 0.15)
+    assert np.all(np.abs(c_mean / py_mean - 1.0) < 0.15)
+
+
+def test_a_leading_triad_is_named_and_the_outputs_before_the_first_sample_are_nan(lagged):
+    assert leading_triads({"lag_gyr": -0.015, "lag_acc": 0.0, "lag_mag": 0.02}) == [
+        "lag_gyr = -0.015 s: the gyr leads true time; the sensor extrapolates the truth that far (exact only where it "
+        "changes linearly)"]
+    with initialised_fmu(lagged, instance_name="ImuSensor") as fmu:
+        assert all(np.isnan(v) for v in Stepper(fmu, [], RAW).get_outputs())

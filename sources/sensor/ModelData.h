@@ -21,7 +21,7 @@ typedef enum {
 /** Every value of the model and the virtual sensor that produces the outputs. */
 typedef struct {
     double inputs[SENSOR_INPUT_COUNT];     /* true motion as set: rad/s, m/s^2, 1, uT, degC, auxiliary inputs */
-    double outputs[SENSOR_OUTPUT_COUNT];   /* the raw sample of the last consumed true sample */
+    double outputs[SENSOR_OUTPUT_COUNT];   /* the raw sample of the last consumed true sample (NaN before one) */
     double settings[SENSOR_SETTING_COUNT]; /* parameters in user units (SensorSetting order) */
     int issues;                            /* ModelIssue bits of the last step */
     int initialised;                       /* 1 once the parameters are applied: they are locked */

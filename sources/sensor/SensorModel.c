@@ -34,7 +34,11 @@ const char *ModelGuid(void) {
 }
 
 void ModelDataStart(ModelData *m) {
+    int i;
     memset(m, 0, sizeof *m);
+    for (i = 0; i < SENSOR_OUTPUT_COUNT; i++) {
+        m->outputs[i] = NAN; /* no sample yet: an importer that passes them on gives ImuFusion an absent sensor */
+    }
     memcpy(m->settings, settingDefaults, sizeof m->settings);
     m->inputs[SensorInTrueAccelZ] = -9.80665; /* at rest and level */
     m->inputs[SensorInTrueQW] = 1.0;

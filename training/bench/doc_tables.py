@@ -89,8 +89,18 @@ _CLOSED_LOOP_HEADERS = (
     "| recording | samples | ecospy [s] | fmpy [s] | ecospy = fmpy on Ecos's grid | largest metric difference, fmpy "
     "on the recording's times |")
 
+#: The table of benchmarks/virtual_sensor.py (docs/virtual_sensor.md: the sensor's recording against the unit's).
+_VIRTUAL_SENSOR = ("| axis | residual mean, unit (± 95 %) | residual mean, virtual (± 95 %) | both within their 95 % | "
+                   "Allan τ: 95 % intervals overlap | virtual in unit's 95 % · unit in virtual's | σ_A(1 s) unit / "
+                   "virtual | min σ_A unit / virtual |")
+
 GENERATORS = (
     TableGenerator("python -m training.models.methods", (METHODS_HEADER,), small=("-m", "training.models.methods")),
+    TableGenerator(
+        "python benchmarks/virtual_sensor.py", (_VIRTUAL_SENSOR,),
+        why_not_small="it needs the main job's trained model (`imufmu pipeline`, 26 s of training) and an hour of the "
+                      "unit simulated at rest; tests/test_virtual_sensor.py pins its parts small (noise figures, the "
+                      "flicker against the simulator's, the exact inverse)"),
     TableGenerator(
         "python -m training.sensor.closed_loop_bench out", _CLOSED_LOOP_HEADERS,
         why_not_small="it reads an `imufmu pipeline --out out` folder (26 s) and runs its three evaluation recordings "

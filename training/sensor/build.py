@@ -83,6 +83,13 @@ def anticausal_terms(terms: list[dict], rate_hz: float | None) -> list[str]:
     return lines
 
 
+def leading_triads(chain: dict[str, float]) -> list[str]:
+    """The triads whose input leads true time (lag_* < 0): the sensor would need the future truth, so it
+    extrapolates (ImuAlign's linear extrapolation), exact only for a triad that changes linearly."""
+    return [f"{name} = {chain[name]:.4g} s: the {name[4:]} leads true time; the sensor extrapolates the truth that far "
+            "(exact only where it changes linearly)" for name in ("lag_gyr", "lag_acc", "lag_mag") if chain.get(name, 0.0) < 0.0]
+
+
 def field_parameters(chain: dict[str, float]) -> dict[str, float]:
     """The earth field the model was trained in (its declination, field_norm, field_dip settings)."""
     return {"declination": chain["declination"], "field_norm": chain["field_norm"], "field_dip": chain["field_dip"]}
@@ -103,7 +110,7 @@ def build_sensor_fmu(model_path: str | Path, out_path: str | Path, fmi_version: 
     parameters = {**field_parameters(chain), **plan.parameters, **(overrides or {})}
     plan.unsupported = [u for u in plan.unsupported if not _overridden(u, overrides or {})]
     rates = [d["rate_hz"] for d in artefact.training_data if isinstance(d.get("rate_hz"), (int, float))]
-    plan.warnings = anticausal_terms(artefact.terms, max(rates) if rates else None)
+    plan.warnings = anticausal_terms(artefact.terms, max(rates) if rates else None) + leading_triads(chain)
     path = pack_sensor_fmu(coefficients_array(artefact), chain, parameters, out_path, fmi_version,
                            provenance=f"Model {Path(model_path).name}", rate_hz=max(rates) if rates else None)
     return path, plan
