@@ -7,6 +7,7 @@ from __future__ import annotations
 import numpy as np
 
 from contract.layout import SETTINGS
+from contract.variables import BODY_FRAME
 
 #: The mounting settings, in body-axis order.
 MOUNT_SETTINGS = ("mount_x", "mount_y", "mount_z")
@@ -35,6 +36,33 @@ def mounting_problem(codes) -> str | None:
         return (f"mount_x, mount_y, mount_z = {tuple(int(c) for c in codes)} mirror the axes (left-handed); "
                 "flip the sign of one of them")
     return None
+
+
+def frame_text(codes) -> str:
+    """The body frame of the mounting `codes` in one line: 'body axes = sensor axes turned by mount_x..z =
+    1, -2, -3 (body x = +x, y = -y, z = -z of the sensor: 180° about x)'; identity: 'body axes = sensor axes
+    (mount_x..z = 1, 2, 3)'."""
+    codes = tuple(int(c) for c in codes)
+    if codes == IDENTITY:
+        return "body axes = sensor axes (mount_x..z = 1, 2, 3)"
+    axes = ", ".join(f"{body} = {'+' if c > 0 else '-'}{'xyz'[abs(c) - 1]}" for body, c in zip("xyz", codes))
+    angle, axis = _rotation(codes)
+    return (f"{BODY_FRAME} = {', '.join(map(str, codes))} (body {axes} of the sensor: "
+            f"{angle:.0f}° about sensor [{', '.join(f'{v:.3g}' for v in axis)}])")
+
+
+def _rotation(codes) -> tuple[float, np.ndarray]:
+    """(angle [deg], unit axis (3,) in sensor axes) of the turn that carries the sensor axes onto the body
+    axes of `codes` (the rotation whose matrix is Mᵀ: body axis i = Mᵀ e_i in sensor coordinates)."""
+    r = mount_matrix(codes).T
+    angle = float(np.degrees(np.arccos(np.clip((np.trace(r) - 1.0) / 2.0, -1.0, 1.0))))
+    if angle > 179.0:  # 180°: the axis is the column of (R + I) / 2 with the largest norm
+        b = (r + np.eye(3)) / 2.0
+        axis = b[:, int(np.argmax(np.linalg.norm(b, axis=0)))]
+    else:
+        axis = np.array([r[2, 1] - r[1, 2], r[0, 2] - r[2, 0], r[1, 0] - r[0, 1]])
+    axis = axis / np.linalg.norm(axis)
+    return angle, axis + 0.0  # no -0
 
 
 def settings_codes(settings: dict[str, float]) -> tuple[int, int, int]:

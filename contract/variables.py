@@ -48,7 +48,11 @@ class Variable:
     range: SettingRange | None = None
 
 
-_NED = "body -> magnetic NED, ZYX Euler angles"
+#: The body frame of every output (issue 35): the phrase contract.mounting.frame_text, `imufmu run`,
+#: its CSV header and the calibration summary use too.
+BODY_FRAME = "body axes = sensor axes turned by mount_x..z"
+_NED = f"body -> magnetic NED, ZYX Euler angles; {BODY_FRAME}"
+_BODY = f"({BODY_FRAME})"
 
 
 def _input(name: str, vr: int, unit: str | None, description: str, start: float) -> Variable:
@@ -74,33 +78,33 @@ def _parameter(name: str, vr: int, default: float, declared: SettingRange, descr
 
 
 _LAYOUT_2: tuple[Variable, ...] = (
-    _input("gyr_x", 0, "rad/s", "Raw angular rate about body x (sensor axes)", 0.0),
-    _input("gyr_y", 1, "rad/s", "Raw angular rate about body y (sensor axes)", 0.0),
-    _input("gyr_z", 2, "rad/s", "Raw angular rate about body z (sensor axes)", 0.0),
-    _input("acc_x", 3, "m/s2", "Raw specific force along body x", 0.0),
-    _input("acc_y", 4, "m/s2", "Raw specific force along body y", 0.0),
-    _input("acc_z", 5, "m/s2", "Raw specific force along body z (about -9.81 at rest, level)", -9.80665),
-    _input("mag_x", 6, "uT", "Raw magnetic field along body x", 20.0),
-    _input("mag_y", 7, "uT", "Raw magnetic field along body y", 0.0),
-    _input("mag_z", 8, "uT", "Raw magnetic field along body z", 40.0),
+    _input("gyr_x", 0, "rad/s", "Raw angular rate about sensor x", 0.0),
+    _input("gyr_y", 1, "rad/s", "Raw angular rate about sensor y", 0.0),
+    _input("gyr_z", 2, "rad/s", "Raw angular rate about sensor z", 0.0),
+    _input("acc_x", 3, "m/s2", "Raw specific force along sensor x", 0.0),
+    _input("acc_y", 4, "m/s2", "Raw specific force along sensor y", 0.0),
+    _input("acc_z", 5, "m/s2", "Raw specific force along sensor z (about -9.81 at rest with z down, +9.81 with z up)", -9.80665),
+    _input("mag_x", 6, "uT", "Raw magnetic field along sensor x", 20.0),
+    _input("mag_y", 7, "uT", "Raw magnetic field along sensor y", 0.0),
+    _input("mag_z", 8, "uT", "Raw magnetic field along sensor z", 40.0),
     _input("temp", 9, "degC", "Sensor temperature (NaN if unknown)", 25.0),
-    _output("rate_x", 10, "rad/s", "Corrected angular rate about body x"),
-    _output("rate_y", 11, "rad/s", "Corrected angular rate about body y"),
-    _output("rate_z", 12, "rad/s", "Corrected angular rate about body z"),
-    _output("accel_x", 13, "m/s2", "Corrected specific force along body x"),
-    _output("accel_y", 14, "m/s2", "Corrected specific force along body y"),
-    _output("accel_z", 15, "m/s2", "Corrected specific force along body z"),
-    _output("field_x", 16, "uT", "Corrected magnetic field along body x"),
-    _output("field_y", 17, "uT", "Corrected magnetic field along body y"),
-    _output("field_z", 18, "uT", "Corrected magnetic field along body z"),
+    _output("rate_x", 10, "rad/s", f"Corrected angular rate about body x {_BODY}"),
+    _output("rate_y", 11, "rad/s", f"Corrected angular rate about body y {_BODY}"),
+    _output("rate_z", 12, "rad/s", f"Corrected angular rate about body z {_BODY}"),
+    _output("accel_x", 13, "m/s2", f"Corrected specific force along body x {_BODY}"),
+    _output("accel_y", 14, "m/s2", f"Corrected specific force along body y {_BODY}"),
+    _output("accel_z", 15, "m/s2", f"Corrected specific force along body z {_BODY}"),
+    _output("field_x", 16, "uT", f"Corrected magnetic field along body x {_BODY}"),
+    _output("field_y", 17, "uT", f"Corrected magnetic field along body y {_BODY}"),
+    _output("field_z", 18, "uT", f"Corrected magnetic field along body z {_BODY}"),
     _output("roll", 19, "rad", f"Roll angle phi ({_NED})", "deg"),
     _output("pitch", 20, "rad", f"Pitch angle theta ({_NED})", "deg"),
     _output("yaw", 21, "rad", f"Yaw angle psi relative to magnetic north ({_NED})", "deg"),
-    _output("heading", 22, "rad", "True heading = yaw + declination", "deg"),
-    _output("q_w", 23, "1", "Attitude quaternion w, Hamilton, body -> magnetic NED"),
-    _output("q_x", 24, "1", "Attitude quaternion x, Hamilton, body -> magnetic NED"),
-    _output("q_y", 25, "1", "Attitude quaternion y, Hamilton, body -> magnetic NED"),
-    _output("q_z", 26, "1", "Attitude quaternion z, Hamilton, body -> magnetic NED"),
+    _output("heading", 22, "rad", f"True heading = yaw + declination, of body x {_BODY}", "deg"),
+    _output("q_w", 23, "1", f"Attitude quaternion w, Hamilton, body -> magnetic NED {_BODY}"),
+    _output("q_x", 24, "1", f"Attitude quaternion x, Hamilton, body -> magnetic NED {_BODY}"),
+    _output("q_y", 25, "1", f"Attitude quaternion y, Hamilton, body -> magnetic NED {_BODY}"),
+    _output("q_z", 26, "1", f"Attitude quaternion z, Hamilton, body -> magnetic NED {_BODY}"),
     _output("gain_roll", 27, "1", "Adaptive fusion gain of the roll angle (0 = gyro only, 1 = accelerometer only)"),
     _output("gain_pitch", 28, "1", "Adaptive fusion gain of the pitch angle (0 = gyro only, 1 = accelerometer only)"),
     _output("gain_yaw", 29, "1", "Adaptive fusion gain of the yaw angle (0 = gyro only, 1 = magnetometer only)"),
@@ -222,7 +226,9 @@ _MOUNTING: tuple[Variable, ...] = tuple(
     _parameter(f"mount_{axis}", 78 + k, float(k + 1), MOUNT_AXIS,
                f"The sensor axis that is body {axis} (FRD: x forward, y right, z down), "
                "with its sign: 1 = +x, 2 = +y, 3 = +z, -1 = -x, -2 = -y, -3 = -z; the three must name different "
-               "axes and stay right-handed. A board with z up and x forward: 1, -2, -3")
+               f"axes and stay right-handed. A board with z up and x forward: 1, -2, -3. {BODY_FRAME[0].upper()}"
+               f"{BODY_FRAME[1:]}: the corrected rate, specific force and field, roll, pitch, yaw, heading and "
+               "q_* are in the body axes, q_sensor_* gives the attitude of the sensor axes")
     for k, axis in enumerate("xyz"))
 
 
@@ -292,6 +298,13 @@ _BIAS_LEARNING: tuple[Variable, ...] = (
 )
 
 
+#: The attitude of the sensor axes (issue 35 item 3): for a user whose reference is in the sensor's axes.
+_SENSOR_ATTITUDE: tuple[Variable, ...] = tuple(
+    _output(f"q_sensor_{c}", 94 + k, "1", f"Attitude quaternion {c} of the SENSOR axes, Hamilton, sensor -> magnetic "
+            "NED: q_* composed with the mounting's turn, q * q(sensor -> body); equals q_* when mount_x..z = 1, 2, 3")
+    for k, c in enumerate("wxyz"))
+
+
 def aux_description(k: int, entry: dict | None) -> str:
     """Description of input aux_k (k from 1): the recording column, unit and meaning a model's
     aux_inputs entry maps to it, or that the model leaves it unused."""
@@ -316,7 +329,7 @@ def variable_table(aux_inputs: Sequence[dict] = ()) -> tuple[Variable, ...]:
         raise ValueError(f"{len(aux_inputs)} auxiliary inputs mapped, the FMU has {len(AUX_INPUTS)}")
     return (_LAYOUT_2 + _aux_inputs(aux_inputs) + _LAGS + _LAYOUT_4_OUTPUTS + _MOUNTING + _FILTER_FROM_DATA
             + _SOURCE_FORMS + _OUTSIDE_RANGE
-            + _BIAS_LEARNING)
+            + _BIAS_LEARNING + _SENSOR_ATTITUDE)
 
 
 VARIABLES: tuple[Variable, ...] = variable_table()

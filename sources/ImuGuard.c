@@ -34,17 +34,18 @@ static int ImuGuardAllNan(const double *x, int n)
     return 1;
 }
 
-void ImuGuardInitialOutputs(double declination, double out[IMU_OUTPUT_COUNT])
+void ImuGuardInitialOutputs(double declination, const ImuMount *mount, double out[IMU_OUTPUT_COUNT])
 {
     int i;
     for (i = 0; i < IMU_OUTPUT_COUNT; i++) {
         out[i] = 0.0;
     }
     out[ImuOutQW] = 1.0;
+    ImuMountQuaternion(mount, &out[ImuOutQSensorW]);
     out[ImuOutHeading] = declination;
 }
 
-void ImuGuardReset(ImuGuard *g, double declination)
+void ImuGuardReset(ImuGuard *g, double declination, const ImuMount *mount)
 {
     int i;
     memset(g, 0, sizeof *g);
@@ -52,7 +53,7 @@ void ImuGuardReset(ImuGuard *g, double declination)
     for (i = 0; i < IMU_TERMS_AUX_COUNT; i++) {
         g->lastValidAux[i] = NAN;
     }
-    ImuGuardInitialOutputs(declination, g->held);
+    ImuGuardInitialOutputs(declination, mount, g->held);
 }
 
 int ImuGuardAbsent(const ImuGuard *g)

@@ -70,10 +70,11 @@ typedef struct {
     int present;                        /* IMU_GUARD_SENSORS bits of the sensors that delivered a valid sample */
 } ImuGuard;
 
-/** @brief Outputs before the first sample: level, north-facing, zero signals, heading = declination [rad]. */
-IMU_HIDDEN void ImuGuardInitialOutputs(double declination, double out[IMU_OUTPUT_COUNT]);
-/** @brief Back to no sample seen; the held outputs become the initial ones (declination [rad]). */
-IMU_HIDDEN void ImuGuardReset(ImuGuard *g, double declination);
+/** @brief Outputs before the first sample: level, north-facing, zero signals, heading = declination [rad];
+ *         the sensor axes' attitude is the mounting's turn (mount: the body axes, ImuMount.h). */
+IMU_HIDDEN void ImuGuardInitialOutputs(double declination, const ImuMount *mount, double out[IMU_OUTPUT_COUNT]);
+/** @brief Back to no sample seen; the held outputs become the initial ones (declination [rad], mount). */
+IMU_HIDDEN void ImuGuardReset(ImuGuard *g, double declination, const ImuMount *mount);
 /**
  * @brief Consume one raw sample (rad/s, m/s^2, uT, degC, auxiliary inputs) through the guard and
  *        the pipeline p into out (ImuLayout.h units).

@@ -72,6 +72,10 @@ typedef enum {
     ImuOutCalibrationValid,  /* 1 */
     ImuOutMagDisturbed,      /* 1 */
     ImuOutBiasLearningShift, /* rad/s */
+    ImuOutQSensorW,          /* 1 */
+    ImuOutQSensorX,          /* 1 */
+    ImuOutQSensorY,          /* 1 */
+    ImuOutQSensorZ,          /* 1 */
     IMU_OUTPUT_COUNT
 } ImuOutput;
 /* generated:end outputs */

@@ -5,6 +5,7 @@
 #include <math.h>
 #include <string.h>
 #include "ImuMount.h"
+#include "ImuMath.h"
 
 /** @brief Sign [+-1] of the permutation axis[3] of {0, 1, 2}: +1 for an even permutation. */
 static double ImuMountParity(const int axis[3])
@@ -62,6 +63,16 @@ void ImuMountVector(const ImuMount *m, double v[3])
     for (i = 0; i < 3; i++) {
         v[i] = m->sign[i] * sensor[m->axis[i]];
     }
+}
+
+void ImuMountQuaternion(const ImuMount *m, double q[4])
+{
+    double r[9] = {0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0};
+    int i;
+    for (i = 0; i < 3; i++) {
+        r[3 * i + m->axis[i]] = m->sign[i]; /* row i of M: body axis i = sign * sensor axis */
+    }
+    ImuQuaternionFromMatrix(r, q);
 }
 
 void ImuMountVectorInverse(const ImuMount *m, double v[3])

@@ -10,7 +10,9 @@
  * the axes right-handed (a proper rotation): a mirror would turn every attitude inside out.
  * The calibration (thermal, terms, particle filter, ELM) acts in the sensor's axes; the
  * mounting turns its result into the body axes, in which the attitude is estimated and every
- * vector output is given. Identity (1, 2, 3) passes every value unchanged, bit for bit.
+ * vector output is given (body axes = sensor axes turned by mount_x..z); the outputs q_sensor_* give
+ * the attitude of the sensor axes, q_body * ImuMountQuaternion. Identity (1, 2, 3) passes every value
+ * unchanged, bit for bit.
  */
 #ifndef IMU_MOUNT_H
 #define IMU_MOUNT_H
@@ -34,6 +36,9 @@ IMU_HIDDEN int ImuMountValid(const ImuMount *m);
 IMU_HIDDEN void ImuMountVector(const ImuMount *m, double v[3]);
 /** @brief Turn the body-axes vector v[3] (any unit) back into sensor axes, in place (the inverse of ImuMountVector). */
 IMU_HIDDEN void ImuMountVectorInverse(const ImuMount *m, double v[3]);
+/** @brief The unit quaternion [w, x, y, z] of the turn from sensor to body axes: its rotation matrix is M
+ *         (v_body = M v_sensor), so q_sensor = q_body * q turns a body -> nav attitude into sensor -> nav. */
+IMU_HIDDEN void ImuMountQuaternion(const ImuMount *m, double q[4]);
 /** @brief Permute the diagonal d[3] of a sensor-axes matrix into body axes, in place (no signs:
  *         the diagonal of M D M^T for a signed permutation M). */
 IMU_HIDDEN void ImuMountDiagonal(const ImuMount *m, double d[3]);

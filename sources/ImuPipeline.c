@@ -8,6 +8,7 @@
 #include <string.h>
 #include "ImuPipeline.h"
 #include "ImuMath.h"
+#include "ImuQuaternion.h"
 
 /** @brief Unpack a flat coefficient array; 0, -1 on bad size/version, or -(2 + b) when block b (in
  *         IMU_COEFFICIENT_BLOCKS order: 1..3 the thermal blocks, 4 terms, 5 elm, 6 psobp) is invalid. */
@@ -329,6 +330,14 @@ static void ImuPipelineMount(const ImuMount *m, double out[IMU_OUTPUT_COUNT])
     ImuMountDiagonal(m, &out[ImuOutSoftIronXx]);
 }
 
+/** @brief out[q_sensor] = out[q] * q(sensor -> body): the attitude of the sensor axes (sensor -> NED). */
+static void ImuPipelineSensorAttitude(const ImuMount *m, double out[IMU_OUTPUT_COUNT])
+{
+    double turn[4];
+    ImuMountQuaternion(m, turn);
+    ImuQuaternionMultiply(&out[ImuOutQW], turn, &out[ImuOutQSensorW]);
+}
+
 /** @brief The field the attitude filter may use: out[field], or NaN while the particle filter has not
  *         settled after a change (its estimate is still wide). */
 static const double *ImuPipelineHeadingField(const ImuPipeline *p, const double out[IMU_OUTPUT_COUNT])
@@ -369,6 +378,7 @@ void ImuPipelineUpdate(ImuPipeline *p, double t, double dt, double nominalStep, 
     ImuAttitudeGetEuler(&p->attitude, &out[ImuOutRoll]);
     out[ImuOutHeading] = ImuWrapAngle(out[ImuOutYaw] + p->settings.declination);
     ImuAttitudeGetQuaternion(&p->attitude, &out[ImuOutQW]);
+    ImuPipelineSensorAttitude(&p->settings.mount, out);
     ImuAttitudeGetGains(&p->attitude, &out[ImuOutGainRoll]);
     out[ImuOutMagDisturbed] = ImuAttitudeMagDisturbed(&p->attitude) ? 1.0 : 0.0;
 }

@@ -61,7 +61,7 @@ int ImuRuntimeInitialise(ImuRuntime *r, const double *coefficients, size_t nCoef
     const int result = ImuRuntimeArrays(&c, &s, coefficients, nCoefficients, settings, nSettings, message);
     if (result == ImuRuntimeOk) {
         ImuPipelineInitialise(&r->pipeline, &s, &c);
-        ImuGuardReset(&r->guard, s.declination);
+        ImuGuardReset(&r->guard, s.declination, &s.mount);
     }
     return result;
 }

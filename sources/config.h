@@ -107,10 +107,14 @@ typedef enum {
     vr_bias_learning = 90,
     vr_bias_learning_rate = 91,
     vr_bias_learning_limit = 92,
-    vr_bias_learning_shift = 93
+    vr_bias_learning_shift = 93,
+    vr_q_sensor_w = 94,
+    vr_q_sensor_x = 95,
+    vr_q_sensor_y = 96,
+    vr_q_sensor_z = 97
 } ValueReference;
 
-#define VR_COUNT 94
+#define VR_COUNT 98
 
 /** Parameters of type Boolean (FMI 3: Boolean). */
 #define VR_IS_BOOLEAN(vr) ((vr) == vr_enable_thermal || (vr) == vr_enable_elm || (vr) == vr_enable_pf || (vr) == vr_enable_psobp || (vr) == vr_pf_rao_blackwell || (vr) == vr_pf_hold_prior || (vr) == vr_gyro_hold || (vr) == vr_mag_heading || (vr) == vr_motion_bias || (vr) == vr_pf_additions || (vr) == vr_psobp_clamp || (vr) == vr_thermal_continuation || (vr) == vr_bias_learning)
@@ -212,12 +216,16 @@ typedef enum {
     {'s', ImuSetBiasLearning}, \
     {'s', ImuSetBiasLearningRate}, \
     {'s', ImuSetBiasLearningLimit}, \
-    {'o', ImuOutBiasLearningShift} \
+    {'o', ImuOutBiasLearningShift}, \
+    {'o', ImuOutQSensorW}, \
+    {'o', ImuOutQSensorX}, \
+    {'o', ImuOutQSensorY}, \
+    {'o', ImuOutQSensorZ} \
 }
 /** The value references of the inputs, in ImuInput order. */
 #define IMU_INPUT_VRS {vr_gyr_x, vr_gyr_y, vr_gyr_z, vr_acc_x, vr_acc_y, vr_acc_z, vr_mag_x, vr_mag_y, vr_mag_z, vr_temp, vr_aux_1, vr_aux_2, vr_aux_3, vr_aux_4}
 /** The value references of the outputs, in ImuOutput order. */
-#define IMU_OUTPUT_VRS {vr_rate_x, vr_rate_y, vr_rate_z, vr_accel_x, vr_accel_y, vr_accel_z, vr_field_x, vr_field_y, vr_field_z, vr_roll, vr_pitch, vr_yaw, vr_heading, vr_q_w, vr_q_x, vr_q_y, vr_q_z, vr_gain_roll, vr_gain_pitch, vr_gain_yaw, vr_hard_iron_x, vr_hard_iron_y, vr_hard_iron_z, vr_soft_iron_xx, vr_soft_iron_yy, vr_soft_iron_zz, vr_pf_neff, vr_calibration_valid, vr_mag_disturbed, vr_bias_learning_shift}
+#define IMU_OUTPUT_VRS {vr_rate_x, vr_rate_y, vr_rate_z, vr_accel_x, vr_accel_y, vr_accel_z, vr_field_x, vr_field_y, vr_field_z, vr_roll, vr_pitch, vr_yaw, vr_heading, vr_q_w, vr_q_x, vr_q_y, vr_q_z, vr_gain_roll, vr_gain_pitch, vr_gain_yaw, vr_hard_iron_x, vr_hard_iron_y, vr_hard_iron_z, vr_soft_iron_xx, vr_soft_iron_yy, vr_soft_iron_zz, vr_pf_neff, vr_calibration_valid, vr_mag_disturbed, vr_bias_learning_shift, vr_q_sensor_w, vr_q_sensor_x, vr_q_sensor_y, vr_q_sensor_z}
 /* generated:end value-references */
 
 /* generated:begin coefficient-parameters (python -m contract.generate, from contract/coefficient_parameters.py; do not edit) */

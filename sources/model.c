@@ -41,7 +41,11 @@ const char *ModelGuid(void) {
 
 /** @brief Outputs before the first sample: level, north-facing, zero signals, heading = declination [rad]. */
 static void setInitialOutputs(ModelData *m) {
-    ImuGuardInitialOutputs(m->settings[ImuSetDeclination], m->outputs);
+    ImuMount mount;
+    if (ImuMountFromCodes(&mount, &m->settings[ImuSetMountX]) != 0) {
+        ImuMountIdentity(&mount); /* initialisation refuses the codes; until then the identity */
+    }
+    ImuGuardInitialOutputs(m->settings[ImuSetDeclination], &mount, m->outputs);
     m->outputs[ImuOutCalibrationValid] = 1.0; /* no model has been evaluated outside its range */
 }
 
@@ -57,8 +61,12 @@ void ModelDataStart(ModelData *m) {
     memcpy(m->inputs, startInputs, sizeof startInputs);
     memcpy(m->settings, IMU_SETTING_DEFAULTS, sizeof m->settings);
     memcpy(m->coefficients, IMU_COEFFICIENT_DATA, sizeof m->coefficients);
-    ImuGuardReset(&m->runtime.guard, m->settings[ImuSetDeclination]);
     setInitialOutputs(m);
+    {
+        ImuMount identity;
+        ImuMountIdentity(&identity); /* the default settings' mounting */
+        ImuGuardReset(&m->runtime.guard, m->settings[ImuSetDeclination], &identity);
+    }
 }
 
 /** @brief 1 if vr is an FMI 2 coefficient parameter (VR_COEFFICIENTS + its index in the coefficient array). */

@@ -3,6 +3,7 @@ permutation (sources/ImuMount.h, training/mounting.py), set by `train` when the 
 from __future__ import annotations
 
 import argparse
+import json
 import re
 import itertools
 from dataclasses import replace
@@ -11,13 +12,14 @@ import numpy as np
 import pytest
 
 from contract import layout
-from contract.mounting import IDENTITY, MOUNT_SETTINGS, Z_UP, mount_matrix, mounting_problem
+from contract.errors import DataError, ModelError
+from contract.mounting import IDENTITY, MOUNT_SETTINGS, Z_UP, frame_text, mount_matrix, mounting_problem
 from training.bench.bench import run_xio_fusion
 from training.cli import _param
 from training.data.io import read_imu_csv
 from training.evaluate import compute_metrics, tilt_from_level, tilt_heading_between
 from training.main_job import SCENARIO_DIR
-from training.mounting import body_attitude, body_references, recommended_mounting
+from training.mounting import body_attitude, body_references, recommended_mounting, sensor_attitude
 from training.runtime import run_batch
 from training.simulator import load_scenario, simulate
 from training.train import train
@@ -27,6 +29,7 @@ SCENARIO = SCENARIO_DIR / "eval_handheld.toml"
 #: Fusion's (its README settings, training.bench.bench.run_xio_fusion) within 1° median on its own log.
 XIO_INCLINATION_MEDIAN_DEG = 1.0
 _Q = slice(layout.OUTPUTS.index("q_w"), layout.OUTPUTS.index("q_w") + 4)
+_Q_SENSOR = slice(layout.OUTPUTS.index("q_sensor_w"), layout.OUTPUTS.index("q_sensor_w") + 4)
 _ROLL = layout.OUTPUTS.index("roll")
 CODES = (-3, -2, -1, 1, 2, 3)
 
@@ -77,9 +80,26 @@ def test_exactly_the_24_rotations_are_accepted_in_c_and_python():
 @pytest.mark.parametrize("codes", [c for c in itertools.product(CODES, repeat=3) if mounting_problem(c) is None])
 def test_a_mounted_sensor_gives_what_the_body_sensor_gives(handheld, codes):
     """Every output of a sensor mounted by `codes` and told so equals the output of a sensor on the
-    body axes, bit for bit: the runtime turns the triads by M, then everything runs in body axes."""
+    body axes, bit for bit: the runtime turns the triads by M, then everything runs in body axes. All but
+    q_sensor_*, the attitude of the sensor axes, which differ by the mounting's turn (next test)."""
     part = handheld.slice(slice(0, 2000))
-    np.testing.assert_array_equal(_run(_turned_sensor(part, codes), codes), _run(part))
+    body = [k for k, name in enumerate(layout.OUTPUTS) if not name.startswith("q_sensor_")]
+    np.testing.assert_array_equal(_run(_turned_sensor(part, codes), codes)[:, body], _run(part)[:, body])
+
+
+def test_q_sensor_is_the_attitude_of_the_sensor_axes(handheld):
+    """Issue 35 item 3: q_sensor_* = q_* ⊗ q(sensor -> body) (training.mounting.sensor_attitude): equal to q_*
+    bit for bit at the identity; for each of the 24 mountings, the sensor turned and told so gives as q_sensor_*
+    the body run's attitude turned into its sensor axes (1e-15: the C and numpy products round differently),
+    which is what its sensor-axes reference ref_q is compared with."""
+    part = handheld.slice(slice(0, 2000))
+    body = _run(part)
+    np.testing.assert_array_equal(body[:, _Q_SENSOR], body[:, _Q])
+    for codes in (c for c in itertools.product(CODES, repeat=3) if mounting_problem(c) is None):
+        out = _run(_turned_sensor(part, codes), codes)
+        expected = sensor_attitude(body[:, _Q], codes)
+        assert np.max(1.0 - np.abs(np.sum(out[:, _Q_SENSOR] * expected, axis=1))) < 1e-15, codes
+        np.testing.assert_allclose(np.linalg.norm(out[:, _Q_SENSOR], axis=1), 1.0, atol=1e-15)
 
 
 def test_mounted_references_give_the_metrics_of_the_body_sensor(handheld):
@@ -98,9 +118,49 @@ def test_train_mounts_a_z_up_board_without_reference_and_says_so(handheld):
     assert len(notes) == 1 and "+z" in notes[0] and "1, -2, -3" in notes[0]
 
 
-def test_train_keeps_the_axes_an_attitude_reference_defines(handheld):
+def test_a_reference_does_not_change_the_rule(handheld):
+    """Issue 35 item 1: one rule with or without an attitude reference. The z-up board with its reference
+    kept gets the mounting it gets without (it had the identity: the same sensor, two output frames)."""
+    turned = _turned_sensor(handheld, Z_UP)
+    with_ref, blind = [], []
+    assert recommended_mounting([turned], with_ref) == _mounted(Z_UP)
+    assert recommended_mounting([replace(turned, ref_q=None, ref_gyr=None, ref_acc=None, ref_mag=None)],
+                                blind) == _mounted(Z_UP)
+    assert with_ref == blind
+
+
+def test_a_declared_mounting_wins_over_the_data(handheld):
+    """Issue 35 item 1: the sidecar's "mounting" or train --mounting decide; the argument over the sidecar;
+    sidecars that disagree, or codes that are no rotation, are refused with what declared them."""
+    turned = _turned_sensor(handheld, Z_UP)
+    declared = replace(turned, meta={**turned.meta, "mounting": [2, 1, -3]})
     notes: list[str] = []
-    assert recommended_mounting([_turned_sensor(handheld, Z_UP)], notes) == {} and notes == []
+    assert recommended_mounting([declared], notes) == _mounted((2, 1, -3))
+    assert len(notes) == 1 and "declared by the sidecar 'mounting' of" in notes[0] and "2, 1, -3" in notes[0]
+    assert recommended_mounting([declared], [], declared=(1, -2, -3)) == _mounted(Z_UP)
+    assert recommended_mounting([handheld], [], declared=(2, -1, 3)) == _mounted((2, -1, 3))
+    other = replace(handheld, meta={**handheld.meta, "mounting": [1, 2, 3]}, name="other")
+    with pytest.raises(ModelError, match="sidecars declare different mountings"):
+        recommended_mounting([declared, other], [])
+    with pytest.raises(ModelError, match="train --mounting: .*left-handed"):
+        recommended_mounting([handheld], [], declared=(1, 2, -3))
+
+
+def test_a_sidecar_mounting_is_checked_when_read(handheld, tmp_path):
+    from training.data.io import write_imu_csv
+    path = tmp_path / "board.csv"
+    write_imu_csv(replace(handheld.slice(slice(0, 50)), meta={**handheld.meta, "mounting": [1, -2, -3]}), path)
+    assert read_imu_csv(path).meta["mounting"] == [1, -2, -3]
+    side = path.with_suffix(".json")
+    side.write_text(json.dumps({**json.loads(side.read_text()), "mounting": [1, 1, 3]}))
+    with pytest.raises(DataError, match="sidecar 'mounting' .* name a sensor axis twice"):
+        read_imu_csv(path)
+
+
+def test_the_frame_is_named_in_one_line():
+    assert frame_text(IDENTITY) == "body axes = sensor axes (mount_x..z = 1, 2, 3)"
+    assert frame_text(Z_UP).startswith("body axes = sensor axes turned by mount_x..z = 1, -2, -3 (")
+    assert "180° about sensor [1, 0, 0]" in frame_text(Z_UP) and "90° about sensor [0, 0, 1]" in frame_text((2, -1, 3))
 
 
 def test_train_keeps_a_z_down_board_silently_and_reports_any_other_direction(handheld):

@@ -4,11 +4,19 @@ at rest and level the specific force reads −g on body z. The runtime calibrate
 axes, then turns the result into the body axes, where it estimates the attitude and gives every
 vector output.
 
-`train` sets the mounting when the data tell and nothing else defines the body axes: with no
-attitude reference (which defines them), a board that at rest reads the specific force along +z
-(its z axis points up) is mounted as (1, −2, −3), a 180° turn about x that keeps x forward. Any
-other direction of gravity at rest is reported, not guessed: which way is forward is not in the
-data.
+One rule decides the body axes (issue 35), whatever references the calibration recordings carry:
+
+1. a declaration, when there is one: `train --mounting 1,-2,-3`, else the sidecar key
+   `"mounting": [1, -2, -3]` (codes as mount_x, mount_y, mount_z; the recordings that declare one
+   must agree);
+2. else the data: a board that at rest reads the specific force along +z (its z axis points up) is
+   mounted as (1, −2, −3), a 180° turn about x that keeps x forward; along −z, the sensor axes are
+   the body axes. Any other direction of gravity at rest is reported, not guessed: which way is
+   forward is not in the data.
+
+An attitude reference (ref_q) does not decide: it is in the sensor axes, as every data set publishes
+it, and is expressed in the body axes (body_references) wherever it is compared with the outputs.
+So the same sensor trained on the same motions with and without its reference gets the same frame.
 """
 from __future__ import annotations
 
@@ -16,7 +24,8 @@ from dataclasses import replace
 
 import numpy as np
 
-from contract.mounting import IDENTITY, MOUNT_SETTINGS, Z_UP, mount_matrix
+from contract.errors import ModelError
+from contract.mounting import IDENTITY, MOUNT_SETTINGS, Z_UP, frame_text, mount_matrix, mounting_problem
 from training.data.dataset import ImuData
 from training.data.earth import STANDARD_GRAVITY, local_gravity
 from training.frames import quat_from_matrix, quat_multiply
@@ -56,6 +65,13 @@ def body_attitude(q_sensor: np.ndarray, codes) -> np.ndarray:
     return quat_multiply(q_sensor, np.tile(q_body_to_sensor, (len(q_sensor), 1)))
 
 
+def sensor_attitude(q_body: np.ndarray, codes) -> np.ndarray:
+    """(N, 4) body -> nav quaternions of the mounting `codes` as sensor -> nav: q ⊗ q(M) (sensor -> nav =
+    body -> nav · sensor -> body); the inverse of body_attitude, what the FMU's q_sensor_* outputs give."""
+    q_sensor_to_body = quat_from_matrix(mount_matrix(codes))
+    return quat_multiply(np.asarray(q_body, float), np.tile(q_sensor_to_body, (len(q_body), 1)))
+
+
 def _static_directions(data: ImuData) -> np.ndarray:
     """(K, 3) unit vectors of the specific force at the quasi-static samples of a recording."""
     acc, gyr = np.asarray(data.acc, float), np.asarray(data.gyr, float)
@@ -85,11 +101,37 @@ def gravity_axis(data: ImuData) -> tuple[str, float] | None:
     return ("+" if median[axis] > 0 else "-") + "xyz"[axis], angle
 
 
-def recommended_mounting(datasets: list[ImuData], notes: list[str]) -> dict[str, float]:
-    """mount_x, mount_y, mount_z from the calibration recordings (see the module docstring), with a
-    note for every mounting set and every direction of gravity train does not act on."""
-    if any(d.ref_q is not None for d in datasets):
-        return {}  # the attitude reference defines the body axes: identity
+def declared_mounting(datasets: list[ImuData], declared=None) -> tuple[tuple[int, int, int], str] | None:
+    """(codes, where they were declared) of the mounting declared by `train --mounting` (`declared`, codes)
+    or, without it, by the sidecars' "mounting" key; None when nothing declares one. ModelError when the
+    codes are no mounting or two sidecars declare different ones."""
+    if declared is not None:
+        codes, source = tuple(declared), "train --mounting"
+    else:
+        found = {d.name: tuple(d.meta["mounting"]) for d in datasets if d.meta.get("mounting") is not None}
+        if not found:
+            return None
+        if len(set(found.values())) > 1:
+            raise ModelError("train: the sidecars declare different mountings ("
+                             + "; ".join(f"{name}: {list(c)}" for name, c in found.items())
+                             + "): one sensor, one mounting; pass train --mounting to say which")
+        codes, source = next(iter(found.values())), "the sidecar 'mounting' of " + ", ".join(found)
+    problem = mounting_problem(codes)
+    if problem is not None:
+        raise ModelError(f"train: the mounting declared by {source}: {problem}")
+    return tuple(int(c) for c in codes), source
+
+
+def recommended_mounting(datasets: list[ImuData], notes: list[str], declared=None) -> dict[str, float]:
+    """mount_x, mount_y, mount_z from a declaration (`declared`: train --mounting's codes; the sidecars'
+    "mounting") or else from the direction of gravity at rest in the calibration recordings, by the same
+    rule whether or not they carry a reference (see the module docstring); a note for every mounting set
+    and every direction of gravity train does not act on."""
+    found = declared_mounting(datasets, declared)
+    if found is not None:
+        codes, source = found
+        notes.append(f"mounting: declared by {source}: {frame_text(codes)}")
+        return dict(zip(MOUNT_SETTINGS, map(float, codes)))
     told = {d.name: axis for d in datasets if (axis := gravity_axis(d)) is not None}
     text = ", ".join(f"sensor {axis} ({angle:.0f}° off it) in {name}" for name, (axis, angle) in told.items())
     clear = all(angle <= AXIS_TOLERANCE_DEG for _, angle in told.values())
@@ -97,10 +139,11 @@ def recommended_mounting(datasets: list[ImuData], notes: list[str]) -> dict[str,
     if clear and axes == {"+z"}:
         notes.append(f"mounting: at rest the specific force points along the sensor's +z axis ({text}): the board's z axis "
                      "points up; mount_x, mount_y, mount_z = 1, -2, -3 (body = x, -y, -z, a 180° turn about x) so "
-                     "that the attitude is in FRD/NED; set them with --param if x is not forward")
+                     "that the attitude is in FRD/NED; declare it (sidecar \"mounting\", train --mounting) if x is "
+                     "not forward")
         return dict(zip(MOUNT_SETTINGS, map(float, Z_UP)))
     if told and not (clear and axes == {"-z"}):
         notes.append(f"mounting: at rest the specific force points along {text}, not along sensor -z (z down) "
-                     "throughout; body axes = sensor axes kept: set mount_x, mount_y, mount_z (docs/fmu.md, "
-                     "Mounting) if the board is mounted another way")
+                     "throughout; body axes = sensor axes kept: declare the mounting (sidecar \"mounting\", "
+                     "train --mounting; docs/fmu.md, Frames) if the board is mounted another way")
     return {}

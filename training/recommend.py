@@ -4,8 +4,9 @@ The sidecars (or the IGRF field at their site) give the earth field; the calibra
 gives its noise density, the bias the calibration leaves and the rest-detection threshold; the
 calibrated accelerometer at rest the norm error its filter must not take for linear acceleration; the
 calibrated field gives the particle filter's noise and thresholds (training.models.pf_settings); the
-self-calibration's field norm and dip stand in when the sidecars say nothing; the direction of
-gravity at rest gives the mounting (training.mounting).
+self-calibration's field norm and dip stand in when the sidecars say nothing; a declared mounting,
+else the direction of gravity at rest, gives the mounting (training.mounting: one rule, with or
+without a reference).
 """
 from __future__ import annotations
 
@@ -191,9 +192,11 @@ def _pf_settings(datasets: list[ImuData], model: ThermalModel, field_norm: float
 
 
 def recommended_settings(datasets: list[ImuData], refs: dict[str, TriadReference],
-                         thermal: dict[str, ThermalModel], selfcal, notes: list[str]) -> dict[str, float]:
+                         thermal: dict[str, ThermalModel], selfcal, notes: list[str],
+                         mounting=None) -> dict[str, float]:
     """FMU parameter values from the sidecars, the calibration and the sensor at rest (defaults
-    otherwise); appends a note for each value left at its default or taken from inconsistent data."""
+    otherwise); appends a note for each value left at its default or taken from inconsistent data.
+    mounting: the codes `train --mounting` declared (training.mounting.recommended_mounting), or None."""
     settings = settings_defaults()
     settings.update(_field_settings(datasets, selfcal, notes))
     recordings = _rest_masks(refs, selfcal)
@@ -209,7 +212,7 @@ def recommended_settings(datasets: list[ImuData], refs: dict[str, TriadReference
     settings.update(mag_heading_setting(datasets, thermal["mag"], settings, notes))
     settings.update(acc_norm_tolerance_setting(datasets, thermal["acc"], notes))
     settings.update(_pf_settings(datasets, thermal["mag"], settings["field_norm"], notes))
-    settings.update(recommended_mounting(datasets, notes))
+    settings.update(recommended_mounting(datasets, notes, mounting))
     return held_in_range(settings, notes)
 
 

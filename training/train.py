@@ -589,7 +589,7 @@ def _moved(report: dict) -> bool:
 def train(datasets: list[ImuData], seed: int = 0, degree: int | str = AUTO,
           progress: bool = True, allow_identity: bool = False,
           prior: dict[str, TriadPrior] | None = None, fleet_elm: ElmModel | None = None,
-          methods: dict[str, str] | None = None) -> ModelArtefact:
+          methods: dict[str, str] | None = None, mounting=None) -> ModelArtefact:
     """Fit the gain/bias temperature model of every triad and return the model artefact.
 
     When a triad's reference is derived from an attitude reference (ref_q only), the recordings are
@@ -610,29 +610,32 @@ def train(datasets: list[ImuData], seed: int = 0, degree: int | str = AUTO,
     ELM (training.models.fleet_elm), which the unit gets instead of its own when it leaves less on
     the unit's held-out data. methods: source-method forms selected by `train --method`
     (training.models.methods: method -> form), their stages switched on and their settings written.
+    mounting: the codes (mount_x, mount_y, mount_z) `train --mounting` declares; without them the sidecars'
+    "mounting", else the data decide, whatever references the recordings carry (training.mounting).
     Deterministic given `seed`. Raises ModelError when `datasets` is empty,
     and when no triad can be calibrated unless allow_identity (then an identity model is returned).
     """
-    artefact = _fit(datasets, seed, degree, progress, allow_identity, prior, fleet_elm, methods or {})
+    artefact = _fit(datasets, seed, degree, progress, allow_identity, prior, fleet_elm, methods or {}, mounting=mounting)
     derived = tuple(t for t in TRIAD_ORDER if artefact.fit_stats.get(t, {}).get("reference") == "attitude")
     if not derived:
         return artefact
     try:
-        blind = _fit(datasets, seed, degree, progress, allow_identity, prior, fleet_elm, methods or {}, withheld=derived)
+        blind = _fit(datasets, seed, degree, progress, allow_identity, prior, fleet_elm, methods or {}, withheld=derived,
+                     mounting=mounting)
     except ModelError:
         return artefact
     kept, notes = triads_the_reference_improves(artefact, blind, datasets)
     if kept != derived:
         withheld = tuple(t for t in derived if t not in kept)
         artefact = blind if not kept else _fit(datasets, seed, degree, progress, allow_identity, prior, fleet_elm, methods or {},
-                                               withheld=withheld)
+                                               withheld=withheld, mounting=mounting)
     artefact.notes[0:0] = notes
     return artefact
 
 
 def _fit(datasets: list[ImuData], seed: int, degree: int | str, progress: bool, allow_identity: bool,
          prior: dict[str, TriadPrior] | None, fleet_elm: ElmModel | None, methods: dict[str, str],
-         withheld: tuple[str, ...] = ()) -> ModelArtefact:
+         withheld: tuple[str, ...] = (), mounting=None) -> ModelArtefact:
     """train's fit of every triad from the references the recordings offer (arguments as train's),
     except the `withheld` triads, which are self-calibrated as if no recording had a reference for
     them; the filter settings are chosen by replaying the recordings."""
@@ -677,7 +680,7 @@ def _fit(datasets: list[ImuData], seed: int, degree: int | str, progress: bool, 
         if thermal[triad].enabled:
             stats.setdefault(triad, {}).update(scale_factors=[float(v) for v in scale_factors(thermal[triad])],
                                                scale_factor_convention=SCALE_FACTOR_CONVENTION)
-    settings = recommended_settings(datasets, refs, thermal, selfcal, notes)
+    settings = recommended_settings(datasets, refs, thermal, selfcal, notes, mounting)
     if prior and "mag" in prior and "posterior_sigma" in stats.get("mag", {}):
         settings.update(_prior_pf_spreads(prior["mag"], stats["mag"], notes))
     notes += fit_warnings(thermal, settings, {t: refs[t].source for t in TRIAD_ORDER})
@@ -734,13 +737,13 @@ class TrainedFolder:
 def train_to_folder(paths: list[Path], out_dir: str | Path, seed: int = 0, degree: int | str = AUTO,
                     allow_identity: bool = False, progress: bool = True,
                     prior_path: str | Path | None = None, name: str | None = None,
-                    methods: dict[str, str] | None = None) -> TrainedFolder:
+                    methods: dict[str, str] | None = None, mounting=None) -> TrainedFolder:
     """`imufmu train`: read the recordings at `paths`, `train` on them (under the fleet prior of
     `prior_path`, a fleet.json, if given), write OUT/model.json (with the noise characterisation of the
     recordings' still data under "noise", training.noise), OUT/imu.yaml (Kalibr), the FMU parameter values OUT/calibration.ssv
     (its set named `name`: the unit's, default out_dir's name — pass the final one when out_dir is a
     staging folder) and the calibration report OUT/calibration.md; progress: the stages' progress bars;
-    methods: train's `methods` (`--method`)."""
+    methods: train's `methods` (`--method`); mounting: train's `mounting` (`--mounting`)."""
     from fmu.calibration_file import FILE_NAME as CALIBRATION_FILE, write_calibration
     from training.data.io import read_imu_csv
     from training.noise.characterise import characterise
@@ -752,7 +755,7 @@ def train_to_folder(paths: list[Path], out_dir: str | Path, seed: int = 0, degre
     prior = load_prior(prior_path) if prior_path is not None else None
     fleet_elm = load_fleet_elm(prior_path) if prior_path is not None else None
     artefact = train(datasets, seed=seed, degree=degree, allow_identity=allow_identity, progress=progress,
-                     prior=prior, fleet_elm=fleet_elm, methods=methods)
+                     prior=prior, fleet_elm=fleet_elm, methods=methods, mounting=mounting)
     artefact.noise = characterise(datasets).block
     model = Path(out_dir) / "model.json"
     artefact.save(model)

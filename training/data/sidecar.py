@@ -12,6 +12,7 @@ from pathlib import Path
 
 from contract.errors import DataError
 from contract.layout import SETTING_RANGES
+from contract.mounting import mounting_problem
 from contract.schema import number_text
 from training.data.earth import GRAVITY_RANGE_MPS2, SITE_ALTITUDE_M
 
@@ -100,6 +101,18 @@ def _site_problem(site) -> str | None:
     return None
 
 
+def _mounting_problem(codes) -> str | None:
+    """Why 'mounting' is not the codes [mount_x, mount_y, mount_z] of a mounting (contract.mounting), or
+    None (absent or null: not declared; train then decides from the data, training.mounting)."""
+    if codes is None:
+        return None
+    if not isinstance(codes, list) or len(codes) != 3 or not all(_is_number(c) for c in codes):
+        return (f"sidecar 'mounting' is {codes!r}, expected [mount_x, mount_y, mount_z], three signed sensor axes "
+                "such as [1, -2, -3]")
+    problem = mounting_problem(codes)
+    return None if problem is None else f"sidecar 'mounting' {codes}: {problem}"
+
+
 def check_sidecar(side: Path, meta: dict) -> None:
     """DataError naming the sidecar file and the first field of the wrong type or out of range."""
     reference = meta.get("reference")
@@ -109,6 +122,7 @@ def check_sidecar(side: Path, meta: dict) -> None:
         if not isinstance(meta.get(key, ""), (str, type(None))):
             raise DataError(side, f"sidecar '{key}' is {type(meta[key]).__name__}, expected text")
     problem = (_rate_problem(meta.get("rate_hz")) or _earth_field_problem(meta.get("earth_field"))
-               or _gravity_problem(meta.get("gravity_mps2")) or _site_problem(meta.get("site")))
+               or _gravity_problem(meta.get("gravity_mps2")) or _site_problem(meta.get("site"))
+               or _mounting_problem(meta.get("mounting")))
     if problem:
         raise DataError(side, problem)
