@@ -135,17 +135,24 @@ def _coefficient_references(fmi_version: int, scalar_base: int, block_base: int)
     return {cp.scalar_name(b, j): scalar_base + b.offset + j for b in cp.BLOCKS for j in range(b.size)}
 
 
-def table_variables(fmi_version: int) -> dict[str, dict]:
-    """name -> expected ATTRIBUTES from the variable table (FMI 3 adds `time`). Parameter start
-    values are left out: the build overrides them with the model's settings."""
+def table_attributes(table, fmi_version: int) -> dict[str, dict]:
+    """name -> expected ATTRIBUTES of every variable of a variable table (FMI 3 adds `time`); parameter start
+    values are left out (the build overrides them). Used for ImuFusion's table and the virtual sensor's."""
     expected = {"time": dict(_TIME)} if fmi_version == 3 else {}
-    for v in VARIABLES:
+    for v in table:
         attributes = {"valueReference": v.value_reference, "causality": v.causality, "variability": v.variability,
                       "type": v.type, "unit": (v.unit or "1") if v.type == "Real" else None,
                       "min": _typed(v.min, v.type), "max": _typed(v.max, v.type)}
         if v.causality != "parameter":
             attributes["start"] = v.start
         expected[v.name] = attributes
+    return expected
+
+
+def table_variables(fmi_version: int) -> dict[str, dict]:
+    """name -> expected ATTRIBUTES from the variable table (FMI 3 adds `time`). Parameter start
+    values are left out: the build overrides them with the model's settings."""
+    expected = table_attributes(VARIABLES, fmi_version)
     for name, vr in _coefficient_references(fmi_version, cp.FMI2_COEFFICIENT_VR, cp.FMI3_BLOCK_VR).items():
         expected[name] = {"valueReference": vr, "causality": "parameter", "variability": "fixed", "type": "Real",
                           "unit": None, "min": None, "max": None}

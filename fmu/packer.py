@@ -241,6 +241,12 @@ def pack_fmu(coefficients: np.ndarray, settings: dict, out_path: str | Path, ref
                                    files[REFERENCE_OUTPUT]))
     if fmi_version == 3:
         files[BUILD_DESCRIPTION] = build_description_xml(c_files)
+    return stage_and_pack(sources, files, out_path)
+
+
+def stage_and_pack(sources: list[Path], files: dict[str, str | bytes], out_path: Path) -> Path:
+    """Copy `sources` into a staging folder's sources/, write `files` (archive member -> text or bytes), compile
+    the binaries and zip the folder into out_path (through a .partial file, so a failed build leaves none)."""
     with tempfile.TemporaryDirectory(prefix="imufusion-fmu-") as tmp:
         stage = Path(tmp)
         (stage / "sources").mkdir()

@@ -3,8 +3,6 @@ backwards (sources/ImuSensor.c) plus the noise as parameters, packed from the sa
 ImuFusion FMU with the sensor's model files (sources/sensor/) staged in place of ImuFusion's."""
 from __future__ import annotations
 
-import shutil
-import tempfile
 from pathlib import Path
 
 import numpy as np
@@ -15,7 +13,7 @@ from fmu.build_description import BUILD_DESCRIPTION, build_description_xml
 from fmu.compiler import SOURCE_DIR, check_fmi_version, fmu_source_files
 from fmu.header import HEADER_NAME, c_double, coefficient_header
 from fmu.model_description import DEFAULT_EXPERIMENT, description_xml
-from fmu.packer import _zip_directory, compile_binaries, model_guid
+from fmu.packer import model_guid, stage_and_pack
 from fmu.provenance import build_time
 
 #: The sensor's own model files, staged in place of the ImuFusion files of the same name (model.c: the
@@ -89,17 +87,4 @@ def pack_sensor_fmu(coefficients: np.ndarray, chain_settings: dict, parameters: 
              f"sources/{SENSOR_HEADER}": sensor_header(values)}
     if fmi_version == 3:
         files[BUILD_DESCRIPTION] = build_description_xml(c_files, MODEL_NAME)
-    with tempfile.TemporaryDirectory(prefix="imusensor-fmu-") as tmp:
-        stage = Path(tmp)
-        (stage / "sources").mkdir()
-        for path in sources:
-            shutil.copyfile(path, stage / "sources" / path.name)
-        for name, content in files.items():
-            (stage / name).parent.mkdir(parents=True, exist_ok=True)
-            (stage / name).write_text(content)
-        compile_binaries(stage, out_path)
-        out_path.parent.mkdir(parents=True, exist_ok=True)
-        partial = out_path.with_name(out_path.name + ".partial")
-        _zip_directory(stage, partial)
-        partial.replace(out_path)
-    return out_path
+    return stage_and_pack(sources, files, out_path)

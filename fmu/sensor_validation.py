@@ -12,8 +12,8 @@ from contract.errors import ImuFusionError, one_line
 from contract.sensor_variables import SENSOR_VARIABLES
 from fmu.archive import read_description
 from fmu.cosim import initialised_fmu, run_named
-from fmu.description_check import (CONFIG_MEMBER, _start_problems, _TIME, _typed, compare, config_variables,
-                                   described_variables)
+from fmu.description_check import (CONFIG_MEMBER, _start_problems, compare, config_variables, described_variables,
+                                   table_attributes)
 
 #: How a problem line names the sensor's variable table.
 TABLE = "the sensor's variable table (contract/sensor_variables.py)"
@@ -21,19 +21,6 @@ TABLE = "the sensor's variable table (contract/sensor_variables.py)"
 RAW_OUTPUTS = tuple(v.name for v in SENSOR_VARIABLES if v.causality == "output")
 #: Smoke run: 1 s at 100 Hz at rest.
 _SMOKE_SAMPLES, _SMOKE_RATE_HZ = 100, 100.0
-
-
-def _table(fmi_version: int) -> dict[str, dict]:
-    """name -> expected attributes from the sensor's variable table (parameter starts are the build's)."""
-    expected = {"time": dict(_TIME)} if fmi_version == 3 else {}
-    for v in SENSOR_VARIABLES:
-        attributes = {"valueReference": v.value_reference, "causality": v.causality, "variability": v.variability,
-                      "type": v.type, "unit": (v.unit or "1") if v.type == "Real" else None,
-                      "min": _typed(v.min, v.type), "max": _typed(v.max, v.type)}
-        if v.causality != "parameter":
-            attributes["start"] = v.start
-        expected[v.name] = attributes
-    return expected
 
 
 def sensor_description_problems(path: str | Path) -> list[str]:
@@ -46,7 +33,7 @@ def sensor_description_problems(path: str | Path) -> list[str]:
         return [f"{path}: cannot read the FMU's sources to check its model description ({one_line(str(e))})"]
     fmi_version = 3 if description.fmiVersion.startswith("3") else 2
     return compare(described_variables(description),
-                   {TABLE: _table(fmi_version), CONFIG_MEMBER: config_variables(config, fmi_version)})
+                   {TABLE: table_attributes(SENSOR_VARIABLES, fmi_version), CONFIG_MEMBER: config_variables(config, fmi_version)})
 
 
 def sensor_smoke_problems(path: str | Path) -> list[str]:

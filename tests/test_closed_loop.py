@@ -150,11 +150,11 @@ def _one_line_error(capsys, argv, text):
 
 def test_a_sensor_fmu_that_is_not_one_is_refused_in_one_line(loop, capsys):
     sensor, fusion, data, tmp = loop
-    with pytest.raises(cl.ClosedLoopError, match="not a virtual-sensor FMU"):
+    with pytest.raises(cl.ClosedLoopError, match="not an ImuSensor FMU"):
         cl.closed_loop(fusion, fusion, data)
     with pytest.raises(cl.ClosedLoopError, match="not an ImuFusion FMU"):
         cl.closed_loop(sensor, sensor, data)
-    with pytest.raises(CampaignError, match="--sensor: .*not a virtual-sensor FMU"):
+    with pytest.raises(CampaignError, match="--sensor: .*not an ImuSensor FMU"):
         campaign_runs(fusion, data, 1, (), workers=1, progress=False, sensor_path=fusion)
 
 
@@ -198,9 +198,9 @@ def test_the_cli_prints_the_errors_with_units_and_writes_outputs_and_plot(loop, 
 def test_the_cli_refuses_in_one_line(loop, tmp_path, capsys):
     sensor, fusion, data, _ = loop
     _one_line_error(capsys, ["closed-loop", "--sensor", str(fusion), "--fusion", str(fusion), str(data), "--out",
-                             str(tmp_path / "a")], "not a virtual-sensor FMU")
+                             str(tmp_path / "a")], "not an ImuSensor FMU")
     _one_line_error(capsys, ["campaign", str(fusion), str(data), "--runs", "1", "--sensor", str(fusion), "--out",
-                             str(tmp_path / "b"), "--workers", "1"], "not a virtual-sensor FMU")
+                             str(tmp_path / "b"), "--workers", "1"], "not an ImuSensor FMU")
     _one_line_error(capsys, ["campaign", str(fusion), str(data), "--runs", "1", "--sensor", str(sensor), "--vary",
                              "noise_gyr=uniform(0,0.01)", "--out", str(tmp_path / "c"), "--workers", "1"],
                     "the virtual sensor makes the noise")

@@ -436,6 +436,12 @@ def _add_out(s: argparse.ArgumentParser, help_text: str, default: str | None = N
                         "output is kept and the verb stops")
 
 
+def _add_fmu_out(s: argparse.ArgumentParser) -> None:
+    """--out FILE.fmu (and --force) and --fmi 2|3 of the verbs that build an FMU."""
+    _add_out(s, "FMU file to write")
+    s.add_argument("--fmi", type=int, choices=(2, 3), default=2, help="FMI version (default 2)")
+
+
 def _add_dask_options(s: argparse.ArgumentParser) -> None:
     """--workers K | --scheduler ADDRESS: where a distributed verb runs (training.fleet.engine)."""
     from training.fleet.engine import ADDRESS_FORM, CONNECT_TIMEOUT_S
@@ -566,8 +572,7 @@ def build_parser() -> argparse.ArgumentParser:
     s = _add_verb(sub, "build-fmu", "write the trained model into the FMU sources and build it")
     s.add_argument("--model", help="model.json from 'imufmu train' (without it: the generic FMU, no calibration "
                                    "compiled in, for units' calibration.ssv files)")
-    _add_out(s, "FMU file to write")
-    s.add_argument("--fmi", type=int, choices=(2, 3), default=2, help="FMI version (default 2)")
+    _add_fmu_out(s)
     s.add_argument("--variant", type=_variant, action="append", metavar="LABEL=UNIT.ssv",
                    help="embed a unit's calibration.ssv as parameter set LABEL (repeatable; FMI-LS-REF layout, "
                         "extra/org.fmi-standard.fmi-ls-ref/)")
@@ -575,8 +580,7 @@ def build_parser() -> argparse.ArgumentParser:
     s = _add_verb(sub, "build-sensor-fmu", "the virtual-sensor FMU of a trained model: true motion in, what this "
                                            "unit outputs out (docs/virtual_sensor.md)")
     s.add_argument("--model", required=True, help="model.json from 'imufmu train'")
-    _add_out(s, "FMU file to write")
-    s.add_argument("--fmi", type=int, choices=(2, 3), default=2, help="FMI version (default 2)")
+    _add_fmu_out(s)
     s.add_argument("--set", type=_sensor_parameter, action="append", metavar="NAME=VALUE",
                    help="a sensor parameter's start value, e.g. a data-sheet noise figure the data could not support "
                         "(repeatable; units: docs/virtual_sensor.md)")

@@ -77,28 +77,25 @@ def _model_identifier(path: str | Path) -> str:
     return read_description(path).coSimulation.modelIdentifier
 
 
-def check_sensor_fmu(path: str | Path) -> Path:
-    """`path` when it is an ImuSensor FMU (imufmu build-sensor-fmu); ClosedLoopError naming what it is otherwise."""
+def _check_fmu(path: str | Path, identifier: str, what: str, how: str) -> Path:
+    """`path` when it is an FMU of model `identifier`; ClosedLoopError naming what it is otherwise."""
     path = Path(path)
     if not path.is_file():
-        raise ClosedLoopError(f"sensor FMU '{path}' not found")
-    identifier = _model_identifier(path)
-    if identifier != SENSOR_MODEL_NAME:
-        raise ClosedLoopError(f"{path}: not a virtual-sensor FMU (its model is '{identifier}', the sensor's is "
-                              f"'{SENSOR_MODEL_NAME}': imufmu build-sensor-fmu builds one)")
+        raise ClosedLoopError(f"{what} '{path}' not found")
+    found = _model_identifier(path)
+    if found != identifier:
+        raise ClosedLoopError(f"{path}: not an {identifier} FMU (its model is '{found}'; {how} builds one)")
     return path
+
+
+def check_sensor_fmu(path: str | Path) -> Path:
+    """`path` when it is an ImuSensor FMU (imufmu build-sensor-fmu); ClosedLoopError naming what it is otherwise."""
+    return _check_fmu(path, SENSOR_MODEL_NAME, "sensor FMU", "imufmu build-sensor-fmu")
 
 
 def check_fusion_fmu(path: str | Path) -> Path:
     """`path` when it is an ImuFusion FMU; ClosedLoopError naming what it is otherwise."""
-    path = Path(path)
-    if not path.is_file():
-        raise ClosedLoopError(f"ImuFusion FMU '{path}' not found")
-    identifier = _model_identifier(path)
-    if identifier != FUSION_MODEL_NAME:
-        raise ClosedLoopError(f"{path}: not an ImuFusion FMU (its model is '{identifier}'; imufmu build-fmu builds "
-                              "one)")
-    return path
+    return _check_fmu(path, FUSION_MODEL_NAME, "ImuFusion FMU", "imufmu build-fmu")
 
 
 #: The truth columns the closed loop needs: ref_gyr, ref_acc (the sensor's true motion) and ref_q (its attitude:
