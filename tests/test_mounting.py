@@ -206,3 +206,25 @@ def test_an_fmu_with_a_mounting_validates_and_runs_as_the_batch_runtime(handheld
     assert validate_fmu(path) == []
     part = handheld.slice(slice(0, 500))
     np.testing.assert_array_equal(run_fmu(path, part.t - part.t[0], part.inputs()), _run(part, codes))
+
+
+def test_the_calibration_summary_opens_with_the_frame(handheld):
+    """Issue 35 item 2: the summary `train` prints says first which body frame the FMU reports in and what
+    decided it (a declaration or the data)."""
+    from contract.layout import TRIAD_ORDER, settings_defaults
+    from training.artefact import ModelArtefact
+    from training.models.thermal import ThermalModel
+    from training.reports.calibration_report import summary_text
+    part = handheld.slice(slice(0, 3000))
+    cases = ((_turned_sensor(part, Z_UP), None, "decided from the data: at rest gravity reads along sensor +z"),
+             (part, (2, 1, -3), "declared by train --mounting"),
+             (part, None, "decided from the data: at rest gravity reads along sensor -z"))
+    for data, declared, source in cases:
+        notes: list[str] = []
+        settings = {**settings_defaults(), **recommended_mounting([data], notes, declared)}
+        artefact = ModelArtefact(seed=0, thermal={k: ThermalModel.identity(enabled=False) for k in TRIAD_ORDER},
+                                 settings=settings, notes=notes)
+        head = summary_text(artefact, []).splitlines()
+        codes = tuple(int(settings[name]) for name in MOUNT_SETTINGS)
+        assert head[1].startswith(f"frame: {frame_text(codes)} (") and source in head[1], head[1]
+        assert "q_sensor_*" in head[2]

@@ -147,3 +147,24 @@ def recommended_mounting(datasets: list[ImuData], notes: list[str], declared=Non
                      "throughout; body axes = sensor axes kept: declare the mounting (sidecar \"mounting\", "
                      "train --mounting; docs/fmu.md, Frames) if the board is mounted another way")
     return {}
+
+
+def frame_lines(settings: dict[str, float], notes: list[str]) -> list[str]:
+    """The first lines of the calibration summary (issue 35): the body frame of the trained model's outputs
+    (its settings' mount_x..z) and what decided it (its 'mounting:' note: a declaration or the data)."""
+    from contract.mounting import settings_codes
+    codes = settings_codes(settings)
+    told = next((n[len("mounting: "):] for n in notes if n.startswith("mounting: ")), None)
+    if told is not None and told.startswith("declared by "):
+        source = told.split(": ", 1)[0]
+    elif told is not None and codes == Z_UP:
+        source = ("decided from the data: at rest gravity reads along sensor +z (z up), the same rule with or "
+                  "without a reference")
+    elif told is not None:
+        source = "the data do not tell (gravity at rest not along sensor -z throughout): sensor axes kept"
+    else:
+        source = ("decided from the data: at rest gravity reads along sensor -z (z down) or no rest was seen, "
+                  "the same rule with or without a reference")
+    return [f"frame: {frame_text(codes)} ({source}; declare it with train --mounting or the sidecar's \"mounting\")",
+            "  the FMU's rate_*, accel_*, field_*, roll, pitch, yaw, heading and q_* are in these body axes "
+            "(NED); q_sensor_* is the attitude of the sensor axes"]

@@ -147,8 +147,10 @@ def norm_spreads(artefact: ModelArtefact, datasets: list[ImuData]) -> list[dict]
 
 def summary_text(artefact: ModelArtefact, datasets: list[ImuData]) -> str:
     """The calibration summary `train` prints (plain text)."""
+    from training.mounting import frame_lines
     lines = [f"calibration of {', '.join(d.name for d in datasets)} "
              f"({sum(len(d) for d in datasets)} samples, seed {artefact.seed})"]
+    lines += frame_lines(artefact.settings, artefact.notes)  # issue 35: the frame first
     lines += [n for n in artefact.notes if n.startswith(REFERENCE_DECISIONS)]
     lines += incomplete_lines(artefact) + _protocol_lines(artefact)
     for triad in TRIAD_ORDER:
