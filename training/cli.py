@@ -75,6 +75,21 @@ def _param(text: str) -> tuple[str, float]:
     return name.strip(), number
 
 
+def _mounting(text: str) -> tuple[int, int, int]:
+    """--mounting X,Y,Z: the codes mount_x, mount_y, mount_z of a mounting (contract.mounting)."""
+    from contract.mounting import mounting_problem
+    try:
+        codes = tuple(int(c) for c in text.split(","))
+    except ValueError:
+        codes = ()
+    if len(codes) != 3:
+        raise argparse.ArgumentTypeError(f"expected three signed sensor axes such as 1,-2,-3, got '{text}'")
+    problem = mounting_problem(codes)
+    if problem:
+        raise argparse.ArgumentTypeError(problem)
+    return codes
+
+
 def _degree(text: str):
     """--degree: 'auto' or an integer 0..3 (training.models.degree.parse_degree)."""
     from training.models.degree import parse_degree
@@ -187,7 +202,8 @@ def cmd_train(args) -> int:
     with staged_output("train", args.out, args.force, inputs=[*args.data, *([args.prior] if args.prior else [])]) as out:
         done = train_to_folder([_existing_file(p, "data file") for p in args.data], out.path, seed=args.seed,
                                degree=args.degree, allow_identity=args.allow_identity, prior_path=args.prior,
-                               name=Path(args.out).resolve().name, methods=dict(args.method or []))
+                               name=Path(args.out).resolve().name, methods=dict(args.method or []),
+                               mounting=args.mounting)
     for note in done.notes:
         print(f"note: {note}")
     print()
@@ -290,23 +306,24 @@ def cmd_validate(args) -> None:
 
 def cmd_run(args) -> None:
     """imufmu run FILE.fmu DATA --out OUT.csv [--param NAME=VALUE ...] [--calibration UNIT.ssv | --variant LABEL]."""
-    from training.main_job import run_recording
+    from training.main_job import outputs_sidecar, run_recording
     from training.data.outputs import FILE, staged_output
     if args.calibration and args.variant:
         raise ImuFusionError("give --calibration or --variant, not both")
     calibration = _existing_file(args.calibration, "calibration file") if args.calibration else None
-    with staged_output("run", args.out, args.force, FILE,
+    with staged_output("run", args.out, args.force, FILE, names=[outputs_sidecar(args.out).name],
                        inputs=[args.fmu, args.data, *([args.calibration] if args.calibration else [])]) as out:
         done = run_recording(_existing_file(args.fmu, "FMU"), _existing_file(args.data, "data file"), out.path,
                              dict(args.param or []), calibration, args.variant)
     if calibration is not None or args.variant:
         print(f"calibration: {calibration or f'the FMU parameter set {args.variant!r}'} (coefficients, settings and "
               "auxiliary inputs in place of the FMU's own)")
+    print("\n".join(done.frame))
     for message in done.log:
         print(f"FMU: {message}")
     for note in done.notes:
         print(f"note: {note}")
-    print(f"wrote {out.final(done.path)} ({done.samples} samples)")
+    print(f"wrote {out.final(done.path)} ({done.samples} samples) and {out.final(done.sidecar)} (the outputs' frame)")
 
 
 def cmd_compare_thermal(args) -> None:
@@ -528,6 +545,10 @@ def build_parser() -> argparse.ArgumentParser:
                    help="run a method in a chosen form, its stage switched on (repeatable): " + "; ".join(
                        f"{name}={'|'.join(forms)}" for name, forms in METHODS.items())
                    + " (the first form of each: as its source describes it; docs/methods.md)")
+    s.add_argument("--mounting", type=_mounting, metavar="X,Y,Z",
+                   help="declare the body axes: mount_x, mount_y, mount_z, the sensor axis each FRD body axis is "
+                        "(1 = +x ... -3 = -z; a z-up board with x forward: 1,-2,-3); over any sidecar's \"mounting\". "
+                        "Without it, the data decide by one rule with or without a reference (docs/fmu.md, Frames)")
     s.set_defaults(func=cmd_train)
     _add_import_verb(sub)
     s = _add_verb(sub, "fleet", "calibrate every unit of a fleet on Dask and describe the population")

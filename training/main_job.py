@@ -118,6 +118,14 @@ def write_outputs_csv(path: Path, t: np.ndarray, out: np.ndarray) -> Path:
     return path
 
 
+def outputs_sidecar(path: str | Path) -> Path:
+    """The sidecar JSON of an outputs CSV (the frame of its outputs): 'OUT.csv[.gz]' -> 'OUT.json' ('OUT.json.json'
+    for an outputs file named OUT.json)."""
+    from training.data.io import sidecar_path
+    side = sidecar_path(path)
+    return side if side != Path(path) else Path(path).with_name(Path(path).name + ".json")
+
+
 @dataclass
 class RecordingRun:
     """What `run_recording` wrote and what `imufmu run` prints."""
@@ -126,6 +134,8 @@ class RecordingRun:
     samples: int
     log: list[str]         # the FMU's log messages
     notes: list[str]       # training.reports.run_summary.run_notes of the outputs
+    frame: list[str] = field(default_factory=list)  # training.reports.run_summary.frame_lines of the run
+    sidecar: Path | None = None  # the outputs' sidecar JSON (their frame, training.reports.run_summary.frame_record)
 
 
 def run_recording(fmu_path: Path, data_path: Path, out_csv: str | Path,
@@ -137,13 +147,14 @@ def run_recording(fmu_path: Path, data_path: Path, out_csv: str | Path,
     a calibration.ssv (fmu.calibration_file) whose coefficients, settings and auxiliary-input map
     replace the FMU's own (the sidecar's parameters and `overrides` still apply over its settings); `variant`:
     the same from the parameter set of that label embedded in the FMU (fmu.references)."""
-    from fmu.archive import read_description
+    from contract.mounting import MOUNT_SETTINGS, settings_codes
+    from fmu.archive import declared_mounting, read_description
     from fmu.cosim import run_fmu
     from fmu.packer import fmu_aux_columns
     from fmu.calibration_file import read_calibration
     from fmu.references import read_embedded
     from training.data.io import read_imu_csv
-    from training.reports.run_summary import run_notes
+    from training.reports.run_summary import frame_lines, frame_record, run_notes
     data = read_imu_csv(data_path)
     read_description(fmu_path)  # the archive checks (fmu.archive) before any member is read
     coefficients, settings, aux = (read_calibration(calibration) if calibration is not None
@@ -152,7 +163,12 @@ def run_recording(fmu_path: Path, data_path: Path, out_csv: str | Path,
     inputs = data.inputs(aux_columns=[a["column"] for a in aux] if aux else fmu_aux_columns(fmu_path))
     log: list[str] = []
     out = run_fmu(fmu_path, data.t, inputs, parameters=params, progress=True, log=log, coefficients=coefficients)
-    return RecordingRun(write_outputs_csv(out_csv, data.t, out), len(data), log, run_notes(out))
+    codes = settings_codes({**dict(zip(MOUNT_SETTINGS, declared_mounting(fmu_path))), **params})
+    path = write_outputs_csv(out_csv, data.t, out)
+    sidecar = outputs_sidecar(path)
+    sidecar.write_text(json.dumps(frame_record(codes, Path(fmu_path).name, Path(data_path).name), indent=1,
+                                  ensure_ascii=False) + "\n", encoding="utf-8")
+    return RecordingRun(path, len(data), log, run_notes(out), frame_lines(codes), sidecar)
 
 
 def run_main_job(out_dir: Path, seed: int = 0, calibration: str = DEFAULT_CALIBRATION,
