@@ -18,6 +18,7 @@ import re
 from dataclasses import dataclass
 from pathlib import Path
 
+from training.bench.frame_agreement import TABLE_HEADER as FRAME_AGREEMENT_HEADER
 from training.bench.methods_bench import TABLE_HEADER as METHODS_BENCH_HEADER
 from training.models.methods import TABLE_HEADER as METHODS_HEADER
 
@@ -213,6 +214,10 @@ GENERATORS = (
         ("| FMU run | mount_x, mount_y, mount_z | median roll [°] | tilt from level − x-io Fusion's, median / p90 [°] "
          "| inclination error against x-io Fusion, median / p90 [°] |",),
         small=("benchmarks/xio_mounting.py",), trains=True, needs=("xio_handheld/xio_handheld.csv.gz",)),
+    TableGenerator(
+        "OMP_NUM_THREADS=1 .venv/bin/python benchmarks/frame_agreement.py", (FRAME_AGREEMENT_HEADER,),
+        small=("benchmarks/frame_agreement.py", "--trials", "01", "--seconds", "60", "--train-seconds", "40"),
+        trains=True, needs=("broad",)),
     TableGenerator(
         "OMP_NUM_THREADS=1 .venv/bin/python benchmarks/state_cost.py",
         ("| FMU | state [KiB] | doStep [µs] | get + free [µs] | set [µs] | serialize [µs] | deserialize + free [µs] "

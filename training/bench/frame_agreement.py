@@ -36,7 +36,10 @@ Q = [OUTPUTS.index(n) for n in ("q_w", "q_x", "q_y", "q_z")]
 Q_SENSOR = [OUTPUTS.index(n) for n in ("q_sensor_w", "q_sensor_x", "q_sensor_y", "q_sensor_z")]
 #: The table's header (tests/test_doc_tables.py finds it in docs/fmu.md).
 TABLE_HEADER = ("| trial | rests | with vs without ref_q: worst rest (median over the rest) [°] | largest at any rest "
-                "sample [°] | q_sensor_* vs ref_q, BROAD total RMSE [°]: with / without ref_q |")
+                "sample [°] | old rule (with ref_q at mount 1, 2, 3) vs without: smallest rest [°] | q_sensor_* vs "
+                "ref_q, BROAD total RMSE [°]: with / without ref_q |")
+#: The mounting the old rule gave a model trained with ref_q (issue 35: 'ref_q present => identity').
+OLD_RULE = dict(zip(MOUNT_SETTINGS, (1.0, 2.0, 3.0)))
 
 
 def without_reference(data: ImuData) -> ImuData:
@@ -52,32 +55,35 @@ def angle_deg(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 @dataclass(frozen=True)
 class TrialAgreement:
-    """One trial: its rests' worst median angle and largest sample angle between the two FMUs [°], and
-    BROAD's total error [°] of each FMU's q_sensor_* against the trial's reference (label -> °)."""
+    """One trial: its rests' worst median angle and largest sample angle between the two FMUs [°], the
+    smallest rest median between the FMU trained with ref_q run at the old rule's identity mounting and the
+    one trained without [°], and BROAD's total error [°] of each FMU's q_sensor_* against the trial's
+    reference (label -> °)."""
 
     trial: str
     rests: int
     worst_rest_deg: float
     worst_sample_deg: float
+    old_rule_deg: float
     sensor_total_deg: dict[str, float]
 
     def row(self) -> str:
         sensor = " / ".join(f"{self.sensor_total_deg[label]:.2f}" for label in TRAININGS)
         return (f"| {self.trial} | {self.rests} | {self.worst_rest_deg:.3f} | {self.worst_sample_deg:.3f} "
-                f"| {sensor} |")
+                f"| {self.old_rule_deg:.1f} | {sensor} |")
 
 
-def train_pair(folder: Path, seconds: float | None = None, seed: int = 0, shared: Path | None = None) -> dict[str, Path]:
+def train_pair(folder: Path, seconds: float | None = None, seed: int = 0, broad: Path | None = None) -> dict[str, Path]:
     """Train TRAINING with and without the reference (the latter from copies written without the reference
     columns, read back as a user's files are) and build each model's FMU in `folder`; `seconds`: only each
-    recording's first seconds. Returns label -> FMU path."""
+    recording's first seconds; broad: the BROAD folder (training.bench.bench.broad_dir). Returns label -> FMU path."""
     from training.artefact import settings_dict
-    from training.bench.doc_tables import SHARED
+    from training.bench.bench import broad_dir
     from training.fmu_build import build_fmu_from_model
     from training.train import train
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
-    originals = [(shared or SHARED) / "broad" / f"{name}.csv.gz" for name in TRAINING]
+    originals = [broad_dir(broad) / f"{name}.csv.gz" for name in TRAINING]
     fmus = {}
     for label, keep in TRAININGS.items():
         datasets = []
@@ -109,35 +115,35 @@ def trial_agreement(fmus: dict[str, Path], path: Path, seconds: float | None = N
         data = data.slice(slice(0, int(np.searchsorted(data.t, data.t[0] + seconds))))
     outs = {label: run_fmu(fmu, data.t - data.t[0], data.inputs(), parameters=recording_parameters(data))
             for label, fmu in fmus.items()}
+    old = run_fmu(fmus[next(iter(TRAININGS))], data.t - data.t[0], data.inputs(), parameters={**recording_parameters(data), **OLD_RULE})
     a, b = (outs[label][:, Q] for label in TRAININGS)
-    angles = angle_deg(a, b)
+    angles, old_angles = angle_deg(a, b), angle_deg(old[:, Q], b)
     rests = [w for w in detect_rest(data).windows if w.kind == "rest"]
     medians = [float(np.median(angles[w.start:w.stop])) for w in rests]
     largest = [float(np.max(angles[w.start:w.stop])) for w in rests]
+    old_medians = [float(np.median(old_angles[w.start:w.stop])) for w in rests]
     sensor = {label: broad_errors(out[:, Q_SENSOR], data)["total"] for label, out in outs.items()}
     return TrialAgreement(Path(path).name.split(".")[0], len(rests), max(medians, default=float("nan")),
-                          max(largest, default=float("nan")), sensor)
+                          max(largest, default=float("nan")), min(old_medians, default=float("nan")), sensor)
 
 
 def frame_agreement(folder: Path, trials: list[str] | None = None, seconds: float | None = None,
-                    train_seconds: float | None = None, shared: Path | None = None) -> list[TrialAgreement]:
+                    train_seconds: float | None = None, broad: Path | None = None) -> list[TrialAgreement]:
     """The acceptance table's rows: the FMU pair trained in `folder` (train_pair) run over `trials` (name
     prefixes such as '01'; all BROAD trials when None), each cut to its first `seconds` when given."""
-    from training.bench.doc_tables import SHARED
-    broad = (shared or SHARED) / "broad"
-    paths = sorted(broad.glob("*.csv.gz"))
-    if trials is not None:
-        paths = [p for p in paths if p.name.split("_")[0] in trials]
-    fmus = train_pair(folder, seconds=train_seconds, shared=shared)
+    from training.bench.bench import trial_paths
+    paths = trial_paths(trials, broad)
+    fmus = train_pair(folder, seconds=train_seconds, broad=broad)
     return [trial_agreement(fmus, p, seconds) for p in paths]
 
 
 def print_table(rows: list[TrialAgreement]) -> None:
     """The table of docs/fmu.md (Frames) and its summary line."""
     print(TABLE_HEADER)
-    print("|---|---|---|---|---|")
+    print("|---|---|---|---|---|---|")
     for r in rows:
         print(r.row())
     worst = max(r.worst_rest_deg for r in rows)
     print(f"\n{len(rows)} trials, {sum(r.rests for r in rows)} rests: worst rest {worst:.3f}° "
-          f"(bound {AGREEMENT_DEG:g}°), largest rest sample {max(r.worst_sample_deg for r in rows):.3f}°")
+          f"(bound {AGREEMENT_DEG:g}°), largest rest sample {max(r.worst_sample_deg for r in rows):.3f}°; the old rule: "
+          f"at least {min(r.old_rule_deg for r in rows):.1f}° at every rest")
