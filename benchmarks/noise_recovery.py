@@ -67,12 +67,13 @@ def grades() -> dict[str, dict[str, TriadErrors]]:
     }
 
 
-def simulate_static(errors: dict[str, TriadErrors], seconds: float, seed: int) -> ImuData:
+def simulate_static(errors: dict[str, TriadErrors], seconds: float, seed: int, grade: int = 0) -> ImuData:
     """A static recording (sidecar reference 'static') of `seconds` at RATE_HZ: gyro at zero rate,
-    accelerometer level ([0, 0, −g]), no magnetometer; each triad from its own seeded streams."""
+    accelerometer level ([0, 0, −g]), no magnetometer; each triad from its own streams of (seed, grade),
+    so that no two grades share their random numbers."""
     n = int(round(seconds * RATE_HZ))
     truth = {"gyr": np.zeros((n, 3)), "acc": np.tile([0.0, 0.0, -9.80665], (n, 1))}
-    root = np.random.SeedSequence(seed)
+    root = np.random.SeedSequence([seed, grade])
     streams = root.spawn(2)
     out = {}
     for i, triad in enumerate(("gyr", "acc")):
@@ -119,7 +120,7 @@ def main(argv: list[str] | None = None) -> int:
     start = time.perf_counter()
     for g in chosen:
         for seed in args.seeds:
-            data = simulate_static(all_grades[g], args.hours * 3600.0, seed)
+            data = simulate_static(all_grades[g], args.hours * 3600.0, seed, list(all_grades).index(g))
             for seconds, label in durations:
                 part = data if seconds >= len(data) / RATE_HZ else data.slice(np.arange(int(seconds * RATE_HZ)))
                 block = characterise([part]).block

@@ -159,3 +159,25 @@ def test_a_gauss_markov_bump_is_named_and_white_noise_is_not():
     notes = characterise([_static({"gyr": white + bump})]).notes
     assert len(notes) == 3 and all("correlated component" in note for note in notes), notes
     assert characterise([_static({"gyr": white})]).notes == []
+
+
+def test_ten_minutes_of_a_floor_and_the_start_of_a_walk_do_not_support_k():
+    # benchmarks/noise_recovery.py's mems_grade gyro, seed 1, first 10 min: the x axis bottoms out at
+    # τ ≈ 20 s and rises to its longest τ, 67 s; the fit, seeing the floor and the walk's start over less
+    # than a decade, drops the floor and reads K 2.6x the truth. The curve's rise after its bottom spans
+    # a factor ~3 < RANDOM_WALK_FROM_BOTTOM: K is flagged, not reported
+    from training.main_job import SCENARIO_DIR
+    from training.simulator.scenario import read_toml, sensor_from_raw
+    from training.simulator.sensors import flicker_stream
+    from dataclasses import replace
+    mems = sensor_from_raw(read_toml(SCENARIO_DIR / "sensors" / "mems_grade.toml"), SCENARIO_DIR / "s.toml").gyr
+    zero = {f: np.zeros(3) for f in ("bias", "bias_t1", "bias_t2", "scale", "scale_t1", "scale_t2", "temp_rate")}
+    gyro = replace(mems, **zero, misalignment=np.zeros((3, 3)), bias_instability=np.deg2rad(0.002))
+    n = int(3 * 3600 * RATE_HZ)  # the benchmark draws 3 h (the white noise follows the walk's n draws)
+    root = np.random.SeedSequence([1, 0])
+    x = gyro.apply(np.zeros((n, 3)), np.full(n, 25.0), np.zeros(n), RATE_HZ, np.random.default_rng(root.spawn(2)[0]),
+                   flicker_rng=flicker_stream(root, 0))[:int(600 * RATE_HZ)]
+    block = characterise([_static({"gyr": x})]).block
+    k = block["triads"]["gyr"]["axes"][0]["random_walk"]
+    assert not k["supported"] and "bottom" in k["why"], k
+    assert all(not a["random_walk"]["supported"] for a in block["triads"]["gyr"]["axes"])
