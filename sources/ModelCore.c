@@ -208,3 +208,44 @@ ModelStatus ModelCheckSerialized(const ModelInstance *mi, const char *function, 
     }
     return problem == NULL ? ModelOk : ModelFail(mi, function, problem);
 }
+
+/* ---- typed access shared by the models (through their hooks) --------------------------------- */
+
+ModelStatus ModelBadReference(const ModelInstance *mi, const char *function, unsigned int vr, const char *type) {
+    if (ModelVariableType(vr) == 0) {
+        ModelLog(mi, ModelError, LogStatusError, "%s: unknown value reference %u", function, vr);
+    } else {
+        ModelLog(mi, ModelError, LogStatusError, "%s: value reference %u is not a %s variable", function, vr, type);
+    }
+    return ModelError;
+}
+
+ModelStatus ModelGetBoolean(const ModelInstance *mi, const char *function, unsigned int vr, int *value) {
+    if (ModelVariableType(vr) != 'B') {
+        return ModelBadReference(mi, function, vr, "Boolean");
+    }
+    *value = ModelParameterValue(&mi->state.model, vr) != 0.0;
+    return ModelOk;
+}
+
+ModelStatus ModelSetBoolean(ModelInstance *mi, const char *function, unsigned int vr, int value) {
+    if (ModelVariableType(vr) != 'B') {
+        return ModelBadReference(mi, function, vr, "Boolean");
+    }
+    return ModelSetParameter(mi, function, vr, value ? 1.0 : 0.0);
+}
+
+ModelStatus ModelGetInteger(const ModelInstance *mi, const char *function, unsigned int vr, int *value) {
+    if (ModelVariableType(vr) != 'I') {
+        return ModelBadReference(mi, function, vr, "Integer/Int32");
+    }
+    *value = (int)ModelParameterValue(&mi->state.model, vr);
+    return ModelOk;
+}
+
+ModelStatus ModelSetInteger(ModelInstance *mi, const char *function, unsigned int vr, int value) {
+    if (ModelVariableType(vr) != 'I') {
+        return ModelBadReference(mi, function, vr, "Integer/Int32");
+    }
+    return ModelSetParameter(mi, function, vr, (double)value);
+}

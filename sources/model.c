@@ -88,15 +88,13 @@ static char locate(unsigned int vr, int *index) {
     return variableSlots[vr].causality;
 }
 
-/** @brief Index of the parameter vr in the settings array (vr must be a parameter). */
-static int settingIndex(unsigned int vr) {
+double ModelParameterValue(const ModelData *m, unsigned int vr) {
     int index;
     (void)locate(vr, &index);
-    return index;
+    return m->settings[index];
 }
 
-/** @brief Kind of variable vr: 'R' Real, 'B' Boolean, 'I' Integer, 0 unknown. */
-static char variableType(unsigned int vr) {
+char ModelVariableType(unsigned int vr) {
     if (isCoefficient(vr)) {
         return 'R';
     }
@@ -109,18 +107,7 @@ static char variableType(unsigned int vr) {
     return VR_IS_INTEGER(vr) ? 'I' : 'R';
 }
 
-/** @brief Log "function: problem (value reference vr)" and return ModelError. */
-static ModelStatus badReference(const ModelInstance *mi, const char *function, unsigned int vr, const char *type) {
-    if (variableType(vr) == 0) {
-        ModelLog(mi, ModelError, LogStatusError, "%s: unknown value reference %u", function, vr);
-    } else {
-        ModelLog(mi, ModelError, LogStatusError, "%s: value reference %u is not a %s variable", function, vr, type);
-    }
-    return ModelError;
-}
-
-/** @brief Store parameter vr (any type, as double) if parameters may still change. */
-static ModelStatus setParameter(ModelInstance *mi, const char *function, unsigned int vr, double value) {
+ModelStatus ModelSetParameter(ModelInstance *mi, const char *function, unsigned int vr, double value) {
     ModelData *m = &mi->state.model;
     int index;
     const char causality = locate(vr, &index);
@@ -149,8 +136,8 @@ ModelStatus ModelGetReal(const ModelInstance *mi, const char *function, unsigned
         *value = mi->state.time;
         return ModelOk;
     }
-    if (variableType(vr) != 'R') {
-        return badReference(mi, function, vr, "Real/Float64");
+    if (ModelVariableType(vr) != 'R') {
+        return ModelBadReference(mi, function, vr, "Real/Float64");
     }
     causality = locate(vr, &index);
     if (causality == 'i') {
@@ -170,14 +157,14 @@ ModelStatus ModelSetReal(ModelInstance *mi, const char *function, unsigned int v
         return ModelFail(mi, function, "time is the independent variable: it cannot be set");
     }
     int index;
-    if (variableType(vr) != 'R') {
-        return badReference(mi, function, vr, "Real/Float64");
+    if (ModelVariableType(vr) != 'R') {
+        return ModelBadReference(mi, function, vr, "Real/Float64");
     }
     if (locate(vr, &index) == 'i') {
         mi->state.model.inputs[index] = value;
         return ModelOk;
     }
-    return setParameter(mi, function, vr, value);
+    return ModelSetParameter(mi, function, vr, value);
 }
 
 /** @brief The coefficient block of an FMI 3 array parameter vr, or NULL. */
@@ -194,7 +181,7 @@ size_t ModelFloat64Count(unsigned int vr) {
     if (vr == VR_TIME) {
         return 1;
     }
-    return !isCoefficient(vr) && variableType(vr) != 0 ? 1 : 0;
+    return !isCoefficient(vr) && ModelVariableType(vr) != 0 ? 1 : 0;
 }
 
 ModelStatus ModelGetFloat64s(const ModelInstance *mi, const char *function, unsigned int vr, double *values) {
@@ -226,36 +213,6 @@ ModelStatus ModelSetFloat64s(ModelInstance *mi, const char *function, unsigned i
         return ModelError;
     }
     return ModelSetReal(mi, function, vr, *values);
-}
-
-ModelStatus ModelGetBoolean(const ModelInstance *mi, const char *function, unsigned int vr, int *value) {
-    if (variableType(vr) != 'B') {
-        return badReference(mi, function, vr, "Boolean");
-    }
-    *value = mi->state.model.settings[settingIndex(vr)] != 0.0;
-    return ModelOk;
-}
-
-ModelStatus ModelSetBoolean(ModelInstance *mi, const char *function, unsigned int vr, int value) {
-    if (variableType(vr) != 'B') {
-        return badReference(mi, function, vr, "Boolean");
-    }
-    return setParameter(mi, function, vr, value ? 1.0 : 0.0);
-}
-
-ModelStatus ModelGetInteger(const ModelInstance *mi, const char *function, unsigned int vr, int *value) {
-    if (variableType(vr) != 'I') {
-        return badReference(mi, function, vr, "Integer/Int32");
-    }
-    *value = (int)mi->state.model.settings[settingIndex(vr)];
-    return ModelOk;
-}
-
-ModelStatus ModelSetInteger(ModelInstance *mi, const char *function, unsigned int vr, int value) {
-    if (variableType(vr) != 'I') {
-        return badReference(mi, function, vr, "Integer/Int32");
-    }
-    return setParameter(mi, function, vr, (double)value);
 }
 
 /* ---- instance: logging and state machine ---------------------------------------------------- */

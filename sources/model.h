@@ -97,6 +97,8 @@ IMU_HIDDEN void ModelLog(const ModelInstance *mi, ModelStatus status, ModelLogCa
     ;
 /** @brief 1 if mi is not NULL and function may be called in its phase; else logs and returns 0. */
 IMU_HIDDEN int ModelAllowed(const ModelInstance *mi, const char *function, int phases);
+/** @brief Log "function: unknown value reference vr" or "... is not a `type` variable" and return ModelError. */
+IMU_HIDDEN ModelStatus ModelBadReference(const ModelInstance *mi, const char *function, unsigned int vr, const char *type);
 /** @brief Log an error "function: message" and return ModelError. */
 IMU_HIDDEN ModelStatus ModelFail(const ModelInstance *mi, const char *function, const char *message);
 /** @brief 1 if pointer is not NULL; else logs the error "function: what is NULL" and returns 0. */
@@ -157,6 +159,12 @@ IMU_HIDDEN ModelStatus ModelCheckSerialized(const ModelInstance *mi, const char 
 
 /* ---- hooks every model implements (model.c, sensor/SensorModel.c) -------------------------------- */
 
+/** @brief Kind of the model's variable vr: 'R' Real (Float64), 'B' Boolean, 'I' Integer (Int32), 0 unknown. */
+IMU_HIDDEN char ModelVariableType(unsigned int vr);
+/** @brief The value of parameter vr (Boolean and Integer parameters are stored as whole numbers). */
+IMU_HIDDEN double ModelParameterValue(const ModelData *m, unsigned int vr);
+/** @brief Store parameter vr (any type, as double) if parameters may still change; else log and return Error. */
+IMU_HIDDEN ModelStatus ModelSetParameter(ModelInstance *mi, const char *function, unsigned int vr, double value);
 /** @brief Every variable of m at its start value (the state right after instantiation). */
 IMU_HIDDEN void ModelDataStart(ModelData *m);
 /**

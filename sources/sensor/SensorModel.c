@@ -47,8 +47,7 @@ void ModelDataStart(ModelData *m) {
     m->inputs[SensorInTrueTemp] = 25.0;
 }
 
-/** @brief Kind of variable vr: 'R' Real, 'B' Boolean, 'I' Integer, 0 unknown. */
-static char variableType(unsigned int vr) {
+char ModelVariableType(unsigned int vr) {
     if (vr >= VR_COUNT) {
         return 0;
     }
@@ -58,18 +57,11 @@ static char variableType(unsigned int vr) {
     return VR_IS_INTEGER(vr) ? 'I' : 'R';
 }
 
-/** @brief Log "function: problem (value reference vr)" and return ModelError. */
-static ModelStatus badReference(const ModelInstance *mi, const char *function, unsigned int vr, const char *type) {
-    if (variableType(vr) == 0) {
-        ModelLog(mi, ModelError, LogStatusError, "%s: unknown value reference %u", function, vr);
-    } else {
-        ModelLog(mi, ModelError, LogStatusError, "%s: value reference %u is not a %s variable", function, vr, type);
-    }
-    return ModelError;
+double ModelParameterValue(const ModelData *m, unsigned int vr) {
+    return m->settings[variableSlots[vr].index];
 }
 
-/** @brief Store parameter vr (any type, as double) if parameters may still change. */
-static ModelStatus setParameter(ModelInstance *mi, const char *function, unsigned int vr, double value) {
+ModelStatus ModelSetParameter(ModelInstance *mi, const char *function, unsigned int vr, double value) {
     ModelData *m = &mi->state.model;
     if (variableSlots[vr].causality != 's') {
         return ModelFail(mi, function, "outputs cannot be set");
@@ -89,8 +81,8 @@ ModelStatus ModelGetReal(const ModelInstance *mi, const char *function, unsigned
         *value = mi->state.time;
         return ModelOk;
     }
-    if (variableType(vr) != 'R') {
-        return badReference(mi, function, vr, "Real/Float64");
+    if (ModelVariableType(vr) != 'R') {
+        return ModelBadReference(mi, function, vr, "Real/Float64");
     }
     switch (variableSlots[vr].causality) {
     case 'i':
@@ -109,18 +101,18 @@ ModelStatus ModelSetReal(ModelInstance *mi, const char *function, unsigned int v
     if (vr == VR_TIME) {
         return ModelFail(mi, function, "time is the independent variable: it cannot be set");
     }
-    if (variableType(vr) != 'R') {
-        return badReference(mi, function, vr, "Real/Float64");
+    if (ModelVariableType(vr) != 'R') {
+        return ModelBadReference(mi, function, vr, "Real/Float64");
     }
     if (variableSlots[vr].causality == 'i') {
         mi->state.model.inputs[variableSlots[vr].index] = value;
         return ModelOk;
     }
-    return setParameter(mi, function, vr, value);
+    return ModelSetParameter(mi, function, vr, value);
 }
 
 size_t ModelFloat64Count(unsigned int vr) {
-    return vr == VR_TIME || variableType(vr) != 0 ? 1 : 0;
+    return vr == VR_TIME || ModelVariableType(vr) != 0 ? 1 : 0;
 }
 
 ModelStatus ModelGetFloat64s(const ModelInstance *mi, const char *function, unsigned int vr, double *values) {
@@ -129,36 +121,6 @@ ModelStatus ModelGetFloat64s(const ModelInstance *mi, const char *function, unsi
 
 ModelStatus ModelSetFloat64s(ModelInstance *mi, const char *function, unsigned int vr, const double *values) {
     return ModelSetReal(mi, function, vr, *values);
-}
-
-ModelStatus ModelGetBoolean(const ModelInstance *mi, const char *function, unsigned int vr, int *value) {
-    if (variableType(vr) != 'B') {
-        return badReference(mi, function, vr, "Boolean");
-    }
-    *value = mi->state.model.settings[variableSlots[vr].index] != 0.0;
-    return ModelOk;
-}
-
-ModelStatus ModelSetBoolean(ModelInstance *mi, const char *function, unsigned int vr, int value) {
-    if (variableType(vr) != 'B') {
-        return badReference(mi, function, vr, "Boolean");
-    }
-    return setParameter(mi, function, vr, value ? 1.0 : 0.0);
-}
-
-ModelStatus ModelGetInteger(const ModelInstance *mi, const char *function, unsigned int vr, int *value) {
-    if (variableType(vr) != 'I') {
-        return badReference(mi, function, vr, "Integer/Int32");
-    }
-    *value = (int)mi->state.model.settings[variableSlots[vr].index];
-    return ModelOk;
-}
-
-ModelStatus ModelSetInteger(ModelInstance *mi, const char *function, unsigned int vr, int value) {
-    if (variableType(vr) != 'I') {
-        return badReference(mi, function, vr, "Integer/Int32");
-    }
-    return setParameter(mi, function, vr, (double)value);
 }
 
 /* ---- initialisation ------------------------------------------------------------------------- */
