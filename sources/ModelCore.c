@@ -169,6 +169,25 @@ static int validPhase(int phase) {
         || phase == PhaseTerminated || phase == PhaseError;
 }
 
+/** @brief What every model's restored state must satisfy: a phase of the state machine, initialised 0 or 1 (and 1
+ *         in Step Mode or Terminated), only ModelIssue bits; NULL, or what is wrong. */
+static const char *commonStateProblem(const ModelState *s) {
+    const ModelData *m = &s->model;
+    if (!validPhase(s->phase)) {
+        return "phase is not a state-machine phase";
+    }
+    if (m->initialised != 0 && m->initialised != 1) {
+        return "initialised is not 0 or 1";
+    }
+    if ((s->phase & (PhaseStepMode | PhaseTerminated)) && !m->initialised) {
+        return "the phase is Step Mode or Terminated but the model is not initialised";
+    }
+    if ((m->issues & ~((1 << MODEL_ISSUE_COUNT) - 1)) != 0) {
+        return "issues has bits that are no ModelIssue";
+    }
+    return NULL;
+}
+
 ModelStatus ModelSetState(ModelInstance *mi, const char *function, const ModelState *state) {
     ModelState *restored;
     const char *problem;
@@ -184,7 +203,10 @@ ModelStatus ModelSetState(ModelInstance *mi, const char *function, const ModelSt
         return ModelFail(mi, function, "out of memory");
     }
     memcpy(restored, state, sizeof *restored);
-    problem = validPhase(restored->phase) ? ModelDataRestoredProblem(restored) : "phase is not a state-machine phase";
+    problem = commonStateProblem(restored);
+    if (problem == NULL) {
+        problem = ModelDataRestoredProblem(restored);
+    }
     if (problem == NULL) {
         memcpy(&mi->state, restored, sizeof(ModelState));
         mi->state.header.checksum = 0;

@@ -425,15 +425,6 @@ static const char *rederivePipeline(ModelData *m) {
 const char *ModelDataRestoredProblem(ModelState *s) {
     ModelData *m = &s->model;
     const char *problem;
-    if (m->initialised != 0 && m->initialised != 1) {
-        return "initialised is not 0 or 1";
-    }
-    if ((s->phase & (PhaseStepMode | PhaseTerminated)) && !m->initialised) {
-        return "the phase is Step Mode or Terminated but the pipeline is not initialised";
-    }
-    if ((m->issues & ~((1 << MODEL_ISSUE_COUNT) - 1)) != 0) {
-        return "issues has bits that are no ModelIssue";
-    }
     if ((m->runtime.guard.hasSample != 0 && m->runtime.guard.hasSample != 1) || (m->runtime.guard.present & ~IMU_GUARD_SENSORS) != 0) {
         return "the guard's hasSample or present bits are invalid";
     }

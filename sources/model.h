@@ -168,7 +168,8 @@ IMU_HIDDEN ModelStatus ModelSetParameter(ModelInstance *mi, const char *function
 /** @brief Every variable of m at its start value (the state right after instantiation). */
 IMU_HIDDEN void ModelDataStart(ModelData *m);
 /**
- * @brief Make the restored state s (its phase already checked) safe to run: check every field of s->model
+ * @brief Make the restored state s (its phase, `initialised` and `issues` already checked by ModelCore.c) safe to
+ *        run: check every other field of s->model
  *        that indexes or sizes anything and re-derive the parameters' consequences; NULL, or what is wrong.
  */
 IMU_HIDDEN const char *ModelDataRestoredProblem(ModelState *s);

@@ -276,15 +276,6 @@ ModelStatus ModelDoStep(ModelInstance *mi, const char *function, double t, doubl
 const char *ModelDataRestoredProblem(ModelState *s) {
     ModelData *m = &s->model;
     const char *problem;
-    if (m->initialised != 0 && m->initialised != 1) {
-        return "initialised is not 0 or 1";
-    }
-    if ((s->phase & (PhaseStepMode | PhaseTerminated)) && !m->initialised) {
-        return "the phase is Step Mode or Terminated but the sensor is not initialised";
-    }
-    if ((m->issues & ~((1 << MODEL_ISSUE_COUNT) - 1)) != 0) {
-        return "issues has bits that are no ModelIssue";
-    }
     if (!isfinite(s->time)) {
         return "the time is not finite";
     }
