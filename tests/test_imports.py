@@ -26,11 +26,12 @@ LAYERS = (
     ("training.frames", "training.display", "training.runtime"),  # conventions, the C bridge
     ("training.data",),                                         # recordings and references
     ("training.simulator",),                                    # simulated recordings
-    ("training.models", "training.selfcal"),                    # models, twins, self-calibration
+    ("training.models", "training.selfcal", "training.noise"),  # models, twins, self-calibration, noise
     ("training.artefact", "training.evaluate", "training.mounting", "training.recommend",
      "training.completeness", "training.train", "training.fmu_build", "training.reports", "training.main_job",
      "training.attitude"),  # workflows
-    ("training.diagnosis", "training.bench", "training.fleet"),  # diagnosis, benchmarks, fleets
+    ("training.diagnosis", "training.bench", "training.fleet", "training.sensor"),  # diagnosis, benchmarks, fleets,
+                                                                                 # the virtual sensor
     ("training.cli",),                                          # the command line
 )
 #: The issue-17 bound on modules directly in training/ (its __init__.py not counted).
