@@ -14,6 +14,13 @@ table says how many figures were flagged unsupported.
 
     OMP_NUM_THREADS=1 .venv/bin/python benchmarks/noise_recovery.py            # 3 h and 10 min, seeds 0 1 2
     .venv/bin/python benchmarks/noise_recovery.py --hours 0.25 --minutes 2 --seeds 0 --grades mems_grade
+
+--limit: how well K can be read at all from --hours of data. Per grade and triad, the Cramér–Rao 1σ of N,
+B, K (the Fisher information of the Whittle likelihood at the true figures, training.noise.whittle), the
+K errors of the Allan fit (every axis, supported or not) and of a Whittle maximum-likelihood fit of the
+same series (close to efficient), and the record length at which the bound's 1σ of K is 10 %.
+
+    OMP_NUM_THREADS=1 .venv/bin/python benchmarks/noise_recovery.py --limit
 """
 from __future__ import annotations
 
@@ -29,6 +36,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from training.data.dataset import ImuData  # noqa: E402
 from training.noise.characterise import characterise  # noqa: E402
+from training.noise.whittle import cramer_rao, whittle_fit  # noqa: E402
 from training.simulator.scenario import read_toml, sensor_from_raw  # noqa: E402
 from training.simulator.sensors import TriadErrors, flicker_stream  # noqa: E402
 
@@ -40,6 +48,12 @@ BOUNDS = {"noise_density": 0.10, "bias_instability": 0.25, "random_walk": 0.10}
 FIGURES = ("noise_density", "bias_instability", "random_walk")
 TABLE_HEADER = ("| grade | triad | data | N error [%] min … max | B error [%] min … max | K error [%] min … max "
                 "| unsupported N / B / K | K truth inside its 68 % CI | within bounds (N, K 10 %, B 25 %) |")
+
+LIMIT_HEADER = ("| grade | triad | data | Cramér–Rao 1σ N / B / K [%] | K error [%] Allan fit: min … max (RMS) "
+                "| K error [%] Whittle fit: min … max (RMS) | K within 10 %: Allan / Whittle | Whittle N error [%] "
+                "| Whittle B error [%] | record for a 1σ of 10 % on K [h] |")
+#: The bound's 1σ of K the last column asks for.
+LIMIT_TARGET = 0.10
 
 
 def _triad(n: float, b: float, k: float, lsb: float, full_scale: float) -> TriadErrors:
@@ -106,13 +120,80 @@ def _row(grade: str, triad: str, label: str, cases: list[tuple[dict, dict]]) -> 
             f"{len(cases)} | {ci} | {'yes' if within else 'no'} |")
 
 
+def _span(errors: list[float]) -> str:
+    """'min … max' [%] of relative errors."""
+    return f"{100 * min(errors):+.1f} … {100 * max(errors):+.1f}"
+
+
+def _rms(errors: list[float]) -> float:
+    """RMS [%] of relative errors."""
+    return 100 * float(np.sqrt(np.mean(np.square(errors))))
+
+
+def _within(errors: list[float]) -> int:
+    """How many relative errors of K are within its bound."""
+    return sum(abs(e) <= BOUNDS["random_walk"] for e in errors)
+
+
+def hours_for(target: float, truth: dict[str, float], hours: float) -> tuple[float, float]:
+    """The record length [h] at which the Cramér–Rao 1σ of K is `target` (the 1σ scales about as 1/√T:
+    two such steps from `hours`), and the bound's 1σ there."""
+    sigma = cramer_rao(int(hours * 3600 * RATE_HZ), RATE_HZ, *truth.values())[2]
+    for _ in range(2):
+        hours *= (sigma / target) ** 2
+        sigma = cramer_rao(int(hours * 3600 * RATE_HZ), RATE_HZ, *truth.values())[2]
+    return hours, sigma
+
+
+def limit(args: argparse.Namespace) -> int:
+    """--limit: the Cramér–Rao bound and the Whittle fit's K against the Allan fit's (module docstring)."""
+    all_grades = grades()
+    chosen = args.grades or list(all_grades)
+    seconds = args.hours * 3600.0
+    cases = {(g, t): [] for g in chosen for t in ("gyr", "acc")}
+    start = time.perf_counter()
+    for g in chosen:
+        for seed in args.seeds:
+            data = simulate_static(all_grades[g], seconds, seed, list(all_grades).index(g))
+            block = characterise([data]).block
+            for triad in ("gyr", "acc"):
+                truth = truth_of(all_grades[g][triad])
+                x = getattr(data, triad)
+                for i, axis in enumerate(block["triads"][triad]["axes"]):
+                    allan = [axis[f]["value"] for f in FIGURES]
+                    fit = whittle_fit([x[:, i] - x[:, i].mean()], RATE_HZ, tuple(allan))
+                    whittle = [fit.noise_density, fit.bias_instability, fit.random_walk]
+                    cases[(g, triad)].append(([a / truth[f] - 1.0 for a, f in zip(allan, FIGURES)],
+                                              [w / truth[f] - 1.0 for w, f in zip(whittle, FIGURES)]))
+    print(f"noise recovery limit: {len(args.seeds)} seed(s) × 3 axes per row, {RATE_HZ:g} Hz static, "
+          f"{args.hours:g} h, {time.perf_counter() - start:.0f} s")
+    print()
+    print(LIMIT_HEADER)
+    print("|---|---|---|---|---|---|---|---|---|---|")
+    for (g, triad), rows in cases.items():
+        truth = truth_of(all_grades[g][triad])
+        bound = cramer_rao(int(seconds * RATE_HZ), RATE_HZ, *truth.values())
+        k_allan = [a[2] for a, _ in rows]
+        k_whittle = [w[2] for _, w in rows]
+        need, _ = hours_for(LIMIT_TARGET, truth, args.hours)
+        print(f"| {g} | {triad} | {args.hours:g} h | {' / '.join(f'{100 * b:.1f}' for b in bound)} "
+              f"| {_span(k_allan)} ({_rms(k_allan):.0f}) | {_span(k_whittle)} ({_rms(k_whittle):.0f}) "
+              f"| {_within(k_allan)} / {_within(k_whittle)} of {len(rows)} | {_span([w[0] for _, w in rows])} "
+              f"| {_span([w[1] for _, w in rows])} | {need:.0f} |")
+    return 0
+
+
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--hours", type=float, default=3.0, help="length of each static recording [h] (default 3)")
     p.add_argument("--minutes", type=float, default=10.0, help="the short case: the first MINUTES of it (default 10)")
     p.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2])
     p.add_argument("--grades", nargs="+", default=None, help="default: every grade")
+    p.add_argument("--limit", action="store_true",
+                   help="the Cramér–Rao bound and a Whittle fit's K against the Allan fit's, at --hours")
     args = p.parse_args(argv)
+    if args.limit:
+        return limit(args)
     all_grades = grades()
     chosen = args.grades or list(all_grades)
     durations = [(args.hours * 3600.0, f"{args.hours:g} h"), (args.minutes * 60.0, f"{args.minutes:g} min")]

@@ -77,6 +77,10 @@ _FLEET_USE_HEADER = ("| unit | use rate after 10 min [°/s], full | # s + prior 
 _NOISE_RECOVERY_HEADER = ("| grade | triad | data | N error [%] min … max | B error [%] min … max "
                           "| K error [%] min … max | unsupported N / B / K | K truth inside its 68 % CI "
                           "| within bounds (N, K 10 %, B 25 %) |")
+#: The table of benchmarks/noise_recovery.py --limit (docs/noise.md: the Cramér–Rao bound on K, the Whittle fit).
+_NOISE_LIMIT_HEADER = ("| grade | triad | data | Cramér–Rao 1σ N / B / K [%] | K error [%] Allan fit: min … max (RMS) "
+                       "| K error [%] Whittle fit: min … max (RMS) | K within 10 %: Allan / Whittle | Whittle N error [%] "
+                       "| Whittle B error [%] | record for a 1σ of 10 % on K [h] |")
 
 #: The table of benchmarks/unit_switch.py.
 _UNIT_SWITCH = ("| FMI | units | switches | median per switch, ms | 95th percentile, ms | largest, ms | "
@@ -328,6 +332,10 @@ GENERATORS = (
         (_NOISE_RECOVERY_HEADER,),
         small=("benchmarks/noise_recovery.py", "--hours", "0.25", "--minutes", "2", "--seeds", "0", "--grades",
                "mems_grade")),
+    TableGenerator(
+        "OMP_NUM_THREADS=1 .venv/bin/python benchmarks/noise_recovery.py --limit",
+        (_NOISE_LIMIT_HEADER,),
+        small=("benchmarks/noise_recovery.py", "--limit", "--hours", "0.25", "--seeds", "0", "--grades", "mems_grade")),
     TableGenerator(
         "OMP_NUM_THREADS=1 .venv/bin/python -m training.noise.report ../shared/data/pan_thermal/pan_etu_cold_chamber.csv.gz",
         ("| figure | x | y | z |",),
