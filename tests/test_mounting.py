@@ -228,3 +228,25 @@ def test_the_calibration_summary_opens_with_the_frame(handheld):
         codes = tuple(int(settings[name]) for name in MOUNT_SETTINGS)
         assert head[1].startswith(f"frame: {frame_text(codes)} (") and source in head[1], head[1]
         assert "q_sensor_*" in head[2]
+
+
+def test_a_multi_position_calibration_sets_no_mounting_whatever_its_median():
+    """Held still z up (20 %), z down (15 %), and tilted 45° about y either way and about x (20 % + 20 % + 15 %,
+    each with z up), 10 % tumbling: the median rest direction is sensor +z within a few degrees, but only the z-up
+    pose lies within 30° of it — no axis holds MIN_AXIS_SHARE of the rests, the board rests many ways up, and the
+    data say nothing about its mounting (the two-soak calibration's median landed 10° from +z)."""
+    from training.data.dataset import ImuData
+    from training.mounting import AXIS_TOLERANCE_DEG, MIN_AXIS_SHARE, gravity_axis
+    s = np.sqrt(0.5)
+    poses = [((0, 0, 1), 200), ((0, 0, -1), 150), ((s, 0, s), 200), ((-s, 0, s), 200), ((0, s, s), 150)]
+    blocks = [np.tile(np.array(d, dtype=float), (k, 1)) for d, k in poses]
+    blocks.append(np.random.default_rng(3).normal(size=(100, 3)))
+    up = np.vstack(blocks)
+    up = up / np.linalg.norm(up, axis=1)[:, None]
+    n = len(up)
+    data = ImuData(t=np.arange(n) / 100.0, gyr=np.zeros((n, 3)), acc=9.80665 * up, mag=np.tile([20.0, 0.0, 40.0], (n, 1)),
+                   temp=np.full(n, 25.0), name="many_poses")
+    axis, angle, share = gravity_axis(data)
+    assert axis == "+z" and angle < AXIS_TOLERANCE_DEG and share < MIN_AXIS_SHARE
+    notes: list[str] = []
+    assert recommended_mounting([data], notes) == {} and not any(n.startswith("mounting:") for n in notes)

@@ -41,6 +41,10 @@ MIN_STATIC_SAMPLES = 100
 #: The median quasi-static gravity direction must be within this angle of a sensor axis [deg]
 #: for train to act on it: 30° is a board visibly tilted, not mounted another way.
 AXIS_TOLERANCE_DEG = 30.0
+#: ...and at least this share of the quasi-static samples within that angle of the axis: the board rests
+#: mostly one way up. A multi-position calibration (six faces, 11 % each) has no such axis; its median
+#: direction is an accident of which poses lasted longest (the two-soak scenario's landed 10° from +z).
+MIN_AXIS_SHARE = 0.5
 
 
 def body_references(data: ImuData, codes) -> ImuData:
@@ -85,20 +89,25 @@ def _static_directions(data: ImuData) -> np.ndarray:
     return acc[static] / norm[static, None]
 
 
-def gravity_axis(data: ImuData) -> tuple[str, float] | None:
-    """(signed sensor axis such as '+z', angle [deg] to it) of the median direction of the specific
-    force at rest, or None when fewer than MIN_STATIC_SAMPLES samples are quasi-static. At rest the
-    specific force points up, away from gravity: '+z' means the z axis points up."""
+def gravity_axis(data: ImuData) -> tuple[str, float, float] | None:
+    """(signed sensor axis such as '+z', angle [deg] to it, share of the quasi-static samples within
+    AXIS_TOLERANCE_DEG of it) of the median direction of the specific force at rest, or None when fewer than
+    MIN_STATIC_SAMPLES samples are quasi-static. At rest the specific force points up, away from gravity:
+    '+z' means the z axis points up."""
     if not data.has("acc"):
         return None
     directions = _static_directions(data)
     if len(directions) < MIN_STATIC_SAMPLES:
         return None
     median = np.median(directions, axis=0)
+    if not np.linalg.norm(median) > 0.0:
+        return None  # rests every way up in equal shares: no direction to speak of
     median /= np.linalg.norm(median)
     axis = int(np.argmax(np.abs(median)))
     angle = float(np.rad2deg(np.arccos(min(1.0, abs(median[axis])))))
-    return ("+" if median[axis] > 0 else "-") + "xyz"[axis], angle
+    sign = 1.0 if median[axis] > 0 else -1.0
+    share = float(np.mean(sign * directions[:, axis] >= np.cos(np.deg2rad(AXIS_TOLERANCE_DEG))))
+    return ("+" if sign > 0 else "-") + "xyz"[axis], angle, share
 
 
 def declared_mounting(datasets: list[ImuData], declared=None) -> tuple[tuple[int, int, int], str] | None:
@@ -133,16 +142,19 @@ def recommended_mounting(datasets: list[ImuData], notes: list[str], declared=Non
         notes.append(f"mounting: declared by {source}: {frame_text(codes)}")
         return dict(zip(MOUNT_SETTINGS, map(float, codes)))
     told = {d.name: axis for d in datasets if (axis := gravity_axis(d)) is not None}
-    text = ", ".join(f"sensor {axis} ({angle:.0f}° off it) in {name}" for name, (axis, angle) in told.items())
-    clear = all(angle <= AXIS_TOLERANCE_DEG for _, angle in told.values())
-    axes = {axis for axis, _ in told.values()}
+    text = ", ".join(f"sensor {axis} ({angle:.0f}° off it; {100 * share:.0f} % of the rest samples within "
+                     f"{AXIS_TOLERANCE_DEG:.0f}°) in {name}" for name, (axis, angle, share) in told.items())
+    rests_one_way = {name: angle <= AXIS_TOLERANCE_DEG and share >= MIN_AXIS_SHARE
+                     for name, (_, angle, share) in told.items()}
+    clear = all(rests_one_way.values())
+    axes = {axis for axis, _, _ in told.values()}
     if clear and axes == {"+z"}:
         notes.append(f"mounting: at rest the specific force points along the sensor's +z axis ({text}): the board's z axis "
                      "points up; mount_x, mount_y, mount_z = 1, -2, -3 (body = x, -y, -z, a 180° turn about x) so "
                      "that the attitude is in FRD/NED; declare it (sidecar \"mounting\", train --mounting) if x is "
                      "not forward")
         return dict(zip(MOUNT_SETTINGS, map(float, Z_UP)))
-    if told and not (clear and axes == {"-z"}):
+    if any(one_way and told[name][0] != "-z" for name, one_way in rests_one_way.items()):
         notes.append(f"mounting: at rest the specific force points along {text}, not along sensor -z (z down) "
                      "throughout; body axes = sensor axes kept: declare the mounting (sidecar \"mounting\", "
                      "train --mounting; docs/fmu.md, Frames) if the board is mounted another way")
